@@ -1,0 +1,59 @@
+// Reading and writing triangle meshes: OBJ, OFF, PLY (ascii, binary little and big
+// endian) and STL (ascii and binary).
+//
+// Readers never trust a header: counts are checked against the bytes actually
+// present before anything is allocated, every error names the file and the line
+// (text) or element (binary), and non-finite coordinates or out-of-range indices
+// are rejected. Polygons are fan-triangulated with a warning. STL corners at
+// identical positions are welded into one vertex.
+//
+// Writers are atomic: data goes to a temporary file in the target's directory
+// which is then renamed over the target, so a failure never leaves half a file.
+#pragma once
+
+#include <Eigen/Core>
+#include <filesystem>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "meshpde/mesh/mesh.h"
+
+namespace meshpde {
+
+enum class MeshFormat { Obj, Off, Ply, Stl };
+
+/// What a reader returns: plain arrays plus per-vertex scalar fields by name.
+struct MeshData {
+  Positions V;
+  Triangles F;
+  std::map<std::string, Eigen::VectorXd> vertex_scalars;  ///< each of length #V
+  std::vector<std::string> warnings;                       ///< e.g. "triangulated 78 quads"
+};
+
+struct WriteOptions {
+  bool binary = true;  ///< PLY and STL: binary (default) or ascii. OBJ and OFF are always text.
+};
+
+/// Format from the file extension (case-insensitive). \throw InputError if unknown.
+MeshFormat format_from_path(const std::filesystem::path& path);
+
+/// \throw InputError naming the file and line/element on any malformed input.
+MeshData read_mesh(const std::filesystem::path& path);
+
+/// Parses a mesh held in memory; `name` is used in messages and `format` picks the parser.
+MeshData read_mesh_from_memory(const std::string& bytes, MeshFormat format, const std::string& name);
+
+/// Writes atomically. Scalar fields are kept by PLY (as vertex properties); other
+/// formats drop them with a warning in the returned list.
+/// \throw Error if the file cannot be written (the target is left untouched).
+std::vector<std::string> write_mesh(const std::filesystem::path& path, const MeshData& data,
+                                    const WriteOptions& options = {});
+
+/// Serializes to bytes (the content write_mesh would write).
+std::string write_mesh_to_memory(const MeshData& data, MeshFormat format, const WriteOptions& options = {});
+
+/// Writes `contents` to `path` through a temporary file and a rename.
+void write_file_atomically(const std::filesystem::path& path, const std::string& contents);
+
+}  // namespace meshpde

@@ -1,0 +1,24 @@
+// Mean curvature from the stiffness matrix (seed 000 section 3.4.1 and Appendix,
+// Table 1): H_i = 1/2 c_i |row_i(K x)|, x the vertex positions. Units: length^-1.
+// On a sphere of radius R, H = 1/R, so the radius estimate is rho_i = 1/H_i.
+//
+// Two scalings c_i:
+//   Area    c_i = 3 / A~_i                     (seed 000's choice; equals Meyer et al. 2003)
+//   Valence c_i = 4 cos^2(pi / n_i) / A~_i     (n_i = number of edges at i; the
+//                                               flat-umbrella fit of the Appendix)
+// At vertices with zero incident area H is reported as 0.
+#pragma once
+
+#include <Eigen/Core>
+
+#include "meshpde/mesh/mesh.h"
+#include "meshpde/operators/fem_operators.h"
+
+namespace meshpde {
+
+enum class CurvatureScale { Area, Valence };
+
+/// Unsigned mean curvature per vertex (length #V).
+Eigen::VectorXd mean_curvature(const Mesh& mesh, const FemOperators& ops, CurvatureScale scale);
+
+}  // namespace meshpde

@@ -1,0 +1,85 @@
+// Linear-element FEM operators on a triangle mesh (seed 000 sections 3.2-3.4,
+// DESIGN section 2):
+//
+//   K   stiffness, #V x #V, symmetric positive semi-definite, K 1 = 0.
+//       K = -L where L is the cotangent Laplacian (libigl's cotmatrix convention,
+//       negative semi-definite). Element matrix Ke[a][b] = w_t (e_a . e_b) / (4 A_t),
+//       e_a the edge opposite corner a. Units: dimensionless (length^0) for weight 1.
+//   M   lumped mass, diagonal, M_ii = A~_i / 3 with A~_i the total area of the
+//       triangles at i. Units: length^2.
+//   D   = M^-1 = diag(3 / A~_i). Units: length^-2.
+//   K D K  bi-Laplacian, applied matrix-free, never assembled (units: length^-2).
+//
+// Storage follows the mesh: K_ii per vertex and K_ij per CSR slot of the mesh
+// adjacency (each edge's value appears in both of its rows, so an apply streams
+// through memory without gathering edge values).
+//
+// Degenerate geometry (DESIGN section 2; tested): a triangle with a repeated index
+// or an area <= 1e-14 * (longest edge)^2 contributes nothing to K or M and is
+// counted in `degenerate_faces`. A vertex whose incident area is zero (unreferenced,
+// or touching only degenerate triangles) has M_ii = 0 and D_ii = 0 (not infinity);
+// the solvers hold such vertices fixed. No operator ever produces NaN or Inf from
+// finite input.
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/SparseCore>
+#include <span>
+
+#include "meshpde/mesh/mesh.h"
+
+namespace meshpde {
+
+/// Per-vertex fields: #V rows, one column per component (1 for scalars, 3 for
+/// displacements), row-major so a vertex's components are contiguous.
+using Field = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+
+struct OperatorOptions {
+  /// Optional per-triangle multiplier of the element stiffness (length #F), for
+  /// example face_areas() for seed 000's area-weighted membrane regularization, or
+  /// vertex_to_face_average(stiffness field). Empty: weight 1 everywhere.
+  Eigen::VectorXd face_weights;
+};
+
+struct FemOperators {
+  Eigen::VectorXd Kii;   ///< #V diagonal of K
+  Eigen::VectorXd Kij;   ///< one value per CSR slot of Mesh::neighbors() (2 #E)
+  Eigen::VectorXd mass;  ///< #V lumped mass M_ii = A~_i / 3 (0 for zero-area vertices)
+  int degenerate_faces = 0;
+  int zero_area_vertices = 0;
+
+  /// D_ii = 3 / A~_i, or 0 where the incident area is zero.
+  double D(int i) const { return mass[i] > 0 ? 1.0 / mass[i] : 0.0; }
+  /// Bytes held (K, M).
+  std::size_t bytes() const { return sizeof(double) * (Kii.size() + Kij.size() + mass.size()); }
+};
+
+/// Assembles K and M. \throw InputError if face_weights has the wrong length or a
+/// negative or non-finite entry.
+FemOperators build_operators(const Mesh& mesh, const OperatorOptions& options = {});
+
+/// Area of each triangle (length^2); 0 for degenerate ones.
+Eigen::VectorXd face_areas(const Mesh& mesh);
+
+/// Mean of a per-vertex field over each triangle's three corners (length #F).
+Eigen::VectorXd vertex_to_face_average(const Mesh& mesh, const Eigen::VectorXd& vertex_field);
+
+/// Diagonal of K D K: (K D K)_ii = sum_j K_ij^2 D_jj over j = i and its neighbours.
+double bilaplacian_diagonal(const Mesh& mesh, const FemOperators& ops, int i);
+
+/// Y = K U, Y = M U, Y = K D K U over the whole mesh; U is #V x m.
+Field apply_stiffness(const Mesh& mesh, const FemOperators& ops, const Field& U);
+Field apply_mass(const FemOperators& ops, const Field& U);
+Field apply_bilaplacian(const Mesh& mesh, const FemOperators& ops, const Field& U);
+
+/// Assembled sparse forms, for direct solvers and cross-checks.
+Eigen::SparseMatrix<double> stiffness_matrix(const Mesh& mesh, const FemOperators& ops);
+Eigen::SparseMatrix<double> mass_matrix(const FemOperators& ops);
+
+/// Y(rows) = K U on the listed rows only (other rows of Y untouched). U and Y are
+/// row-major with `m` components, indexed by vertex. This is the kernel the
+/// localized solvers use.
+void apply_stiffness_rows(const Mesh& mesh, const FemOperators& ops, const double* U, double* Y, int m,
+                          std::span<const int> rows);
+
+}  // namespace meshpde

@@ -1,0 +1,150 @@
+// Time stepping and steady solves of
+//
+//     alpha u_tt - g1 lap(u) + g2 bilap(u) = f
+//
+// on the active domain of a mesh (seed 000 section 4, DESIGN section 2):
+//
+//     alpha M u'' + C u' + Kt u = f,   Kt = g1 K + g2 K D K,   C = b1 M + b2 Kt
+//
+// advanced by backward Euler in velocity form, v = u', u^{n+1} = u^n + dt v^{n+1}:
+//
+//     At v^{n+1} = alpha M v^n - dt Kt u^n + dt f,   At = (alpha + b1 dt) M + (b2 + dt) dt Kt
+//
+// solved by Jacobi-PCG on the free vertices only, reading constrained and frozen
+// values outside them. Kt is applied as g1 K u + g2 K (D (K u)); K D K is never
+// assembled. Heat: b1 = 1, g1 = k. Wave: alpha = 1, g1 = c^2.
+//
+// Constraints are added, moved and removed between steps without rebuilding
+// anything. The reaction force at a constrained vertex i is
+//     f_i = (row_i(At) v - b_i) / dt       (time stepping)
+//     f_i = row_i(Kt) u - f_i^ext           (steady solve)
+// i.e. the force the constraint must apply to the surface to hold i in place; the
+// feedback felt by a probe that holds the vertex is its negative. Units: field units
+// times the units of Kt and M (for a displacement in mm with g in N/mm, newtons).
+//
+// The field u has m components per vertex (1: scalar, 3: displacement or vector);
+// all components share every operator application.
+#pragma once
+
+#include <Eigen/Core>
+#include <span>
+#include <vector>
+
+#include "meshpde/mesh/mesh.h"
+#include "meshpde/operators/fem_operators.h"
+#include "meshpde/pde/active_domain.h"
+#include "meshpde/solvers/cg.h"
+
+namespace meshpde {
+
+struct PdeCoefficients {
+  double alpha = 0;  ///< inertia (mass density)
+  double b1 = 1;     ///< mass-proportional (Rayleigh) damping
+  double b2 = 0;     ///< stiffness-proportional (Rayleigh) damping
+  double g1 = 1;     ///< Laplacian (membrane) stiffness
+  double g2 = 0;     ///< bi-Laplacian (plate) stiffness
+};
+
+/// How the active domain adjusts itself after each step (seed 000 section 4.2).
+/// Growth is relative to the current activity, so it does not depend on units;
+/// rest is absolute, in the field's units: set it to the precision you care about.
+struct DomainOptions {
+  bool self_adjusting = false;  ///< grow and shrink automatically after each step
+  /// A border vertex pulls its frozen neighbours in when its rate |u'| exceeds this
+  /// fraction of the largest rate in the domain and at the constraints (or its
+  /// offset from rest exceeds this fraction of the largest offset).
+  double grow_fraction = 1e-3;
+  double rest_value = 1e-6;     ///< |u - u_rest| at or below this counts as at rest
+  double rest_rate = 1e-4;      ///< |u'| at or below this counts as at rest (per second)
+  int rest_steps = 5;           ///< consecutive steps at rest before a vertex leaves
+  int seed_rings = 2;           ///< rings freed around a newly constrained vertex
+  int max_free = 0;             ///< cap on |A| (0: no cap)
+};
+
+struct StepResult {
+  CgResult cg;
+  int free_vertices = 0;  ///< |A| during the solve
+  int grown = 0;          ///< vertices that joined A after the step
+  int shrunk = 0;         ///< vertices that left A after the step
+};
+
+class PdeSession {
+ public:
+  /// The session keeps references to `mesh` and `ops`; both must outlive it.
+  /// Values start at zero (or `initial`), velocities at zero, every vertex frozen.
+  PdeSession(const Mesh& mesh, const FemOperators& ops, int components, PdeCoefficients coefficients = {},
+             DomainOptions domain = {});
+
+  int components() const { return m_; }
+  const PdeCoefficients& coefficients() const { return coef_; }
+  void set_coefficients(const PdeCoefficients& c);
+  const DomainOptions& domain_options() const { return dopt_; }
+  void set_domain_options(const DomainOptions& d) { dopt_ = d; }
+
+  /// Current values u (#V x m) and velocities u' (#V x m).
+  const Field& values() const { return u_; }
+  const Field& velocities() const { return v_; }
+  /// Replaces values (and sets velocities to zero). Also the rest state when `as_rest`.
+  void set_values(const Field& u, bool as_rest = true);
+  /// The state that self-adjusting shrink returns vertices to (default: initial values).
+  void set_rest(const Field& rest);
+
+  // --- domain -----------------------------------------------------------------
+  const ActiveDomain& domain() const { return domain_; }
+  /// Frees the listed vertices (zero-area vertices are skipped: they stay fixed).
+  void activate(std::span<const int> vertices);
+  void activate_all();
+  /// Frees the k-ring neighbourhood of v (not constrained vertices).
+  void activate_rings(int v, int k);
+  /// Freezes every free vertex.
+  void deactivate_all();
+
+  // --- constraints --------------------------------------------------------------
+  /// Prescribes u(v) = value (m entries) from the next step on; frees the seed rings
+  /// around v. Moving a constraint is calling this again with a new value.
+  void constrain(int v, std::span<const double> value);
+  /// Releases v: it becomes free (and keeps its current value and velocity).
+  void release(int v);
+  std::span<const int> constrained_vertices() const { return cons_; }
+  /// Reaction force at each constrained vertex, in constrained_vertices() order,
+  /// from the last step or steady solve (#C x m).
+  const Field& reaction_forces() const { return reaction_; }
+
+  // --- solves ---------------------------------------------------------------------
+  /// One backward Euler step of size dt with optional forcing f (#V x m).
+  StepResult step(double dt, const Field* f = nullptr);
+  /// Steady solve Kt u = f on the free vertices (constrained and frozen held).
+  StepResult solve_steady(const Field* f = nullptr);
+
+  CgOptions cg_options;  ///< tolerance and cap of every solve
+
+ private:
+  enum class Mode { Step, Steady };
+  // y(rows) = Kt w(rows), reading w on rows and two rings beyond; uses scratch t_, k_.
+  void apply_Kt_free(const double* w, double* y);
+  StepResult solve(Mode mode, double dt, const Field* f);
+  void adjust_domain(StepResult& r);
+  double jacobi(int v, double cM, double cK);
+  void free_vertex(int v);
+
+  const Mesh& mesh_;
+  const FemOperators& ops_;
+  int m_;
+  PdeCoefficients coef_;
+  DomainOptions dopt_;
+  ActiveDomain domain_;
+  Field u_, v_, rest_;
+  // Constraints: list, target values (row-aligned), per-vertex slot.
+  std::vector<int> cons_;
+  Field cons_target_;
+  std::vector<int> cons_pos_;
+  Field reaction_;
+  // Scratch, full size, kept zero outside the domain.
+  Field p_full_, k_full_, t_full_;
+  Eigen::VectorXd kdk_diag_;  // lazily computed (NaN = not yet)
+  std::vector<int> rest_count_;
+  std::vector<int> ring_rows_;  // A followed by A+1, rebuilt per solve
+  CgWorkspace ws_;
+};
+
+}  // namespace meshpde

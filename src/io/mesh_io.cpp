@@ -1,0 +1,95 @@
+#include "meshpde/io/mesh_io.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <fstream>
+#include <random>
+#include <sstream>
+
+#include "io_detail.h"
+
+namespace meshpde {
+
+MeshFormat format_from_path(const std::filesystem::path& path) {
+  std::string ext = path.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  if (ext == ".obj") return MeshFormat::Obj;
+  if (ext == ".off") return MeshFormat::Off;
+  if (ext == ".ply") return MeshFormat::Ply;
+  if (ext == ".stl") return MeshFormat::Stl;
+  throw InputError(fmt::format("{}: unknown mesh format '{}' (supported: .obj .off .ply .stl)", path.string(), ext));
+}
+
+MeshData read_mesh_from_memory(const std::string& bytes, MeshFormat format, const std::string& name) {
+  MeshData d;
+  switch (format) {
+    case MeshFormat::Obj: d = detail::read_obj(bytes, name); break;
+    case MeshFormat::Off: d = detail::read_off(bytes, name); break;
+    case MeshFormat::Ply: d = detail::read_ply(bytes, name); break;
+    case MeshFormat::Stl: d = detail::read_stl(bytes, name); break;
+  }
+  if (d.V.rows() == 0) throw InputError(fmt::format("{}: contains no vertices", name));
+  detail::check_indices(name, d.F, static_cast<int>(d.V.rows()));
+  return d;
+}
+
+MeshData read_mesh(const std::filesystem::path& path) {
+  const auto format = format_from_path(path);
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(fmt::format("{}: cannot open for reading", path.string()));
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  if (in.bad()) throw InputError(fmt::format("{}: read error", path.string()));
+  return read_mesh_from_memory(ss.str(), format, path.string());
+}
+
+std::string write_mesh_to_memory(const MeshData& data, MeshFormat format, const WriteOptions& options) {
+  switch (format) {
+    case MeshFormat::Obj: return detail::write_obj(data);
+    case MeshFormat::Off: return detail::write_off(data);
+    case MeshFormat::Ply: return detail::write_ply(data, options.binary);
+    case MeshFormat::Stl: return detail::write_stl(data, options.binary);
+  }
+  return {};
+}
+
+std::vector<std::string> write_mesh(const std::filesystem::path& path, const MeshData& data,
+                                    const WriteOptions& options) {
+  const auto format = format_from_path(path);
+  std::vector<std::string> warnings;
+  if (!data.vertex_scalars.empty() && format != MeshFormat::Ply)
+    warnings.push_back(fmt::format("{}: this format cannot store vertex fields; {} field(s) dropped (use .ply)",
+                                   path.string(), data.vertex_scalars.size()));
+  for (const auto& [key, field] : data.vertex_scalars)
+    if (field.size() != data.V.rows())
+      throw InputError(fmt::format("field '{}' has {} values for {} vertices", key, field.size(), data.V.rows()));
+  write_file_atomically(path, write_mesh_to_memory(data, format, options));
+  return warnings;
+}
+
+void write_file_atomically(const std::filesystem::path& path, const std::string& contents) {
+  namespace fs = std::filesystem;
+  const fs::path dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
+  std::random_device rd;
+  const fs::path tmp = dir / fmt::format(".{}.tmp{:08x}", path.filename().string(), rd());
+  {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    if (!out) throw Error(fmt::format("{}: cannot write (directory missing or not writable?)", path.string()));
+    out.write(contents.data(), static_cast<std::streamsize>(contents.size()));
+    out.flush();
+    if (!out) {
+      std::error_code ec;
+      fs::remove(tmp, ec);
+      throw Error(fmt::format("{}: write failed (disk full?)", path.string()));
+    }
+  }
+  std::error_code ec;
+  fs::rename(tmp, path, ec);
+  if (ec) {
+    fs::remove(tmp, ec);
+    throw Error(fmt::format("{}: cannot replace the file: {}", path.string(), ec.message()));
+  }
+}
+
+}  // namespace meshpde

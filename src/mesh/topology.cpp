@@ -1,0 +1,224 @@
+#include "meshpde/mesh/topology.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numeric>
+
+namespace meshpde {
+
+namespace {
+
+struct UnionFind {
+  std::vector<int> parent;
+  explicit UnionFind(int n) : parent(n) { std::iota(parent.begin(), parent.end(), 0); }
+  int find(int x) {
+    while (parent[x] != x) x = parent[x] = parent[parent[x]];
+    return x;
+  }
+  void unite(int a, int b) { parent[find(a)] = find(b); }
+};
+
+double longest_edge_sq(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
+  return std::max({(a - b).squaredNorm(), (b - c).squaredNorm(), (c - a).squaredNorm()});
+}
+
+}  // namespace
+
+double triangle_area(const Mesh& mesh, int f) {
+  const auto& V = mesh.positions();
+  const auto& F = mesh.triangles();
+  const Eigen::Vector3d a = V.row(F(f, 0)), b = V.row(F(f, 1)), c = V.row(F(f, 2));
+  return 0.5 * (b - a).cross(c - a).norm();
+}
+
+bool is_degenerate(const Mesh& mesh, int f) {
+  const auto& F = mesh.triangles();
+  if (F(f, 0) == F(f, 1) || F(f, 1) == F(f, 2) || F(f, 2) == F(f, 0)) return true;
+  const auto& V = mesh.positions();
+  const Eigen::Vector3d a = V.row(F(f, 0)), b = V.row(F(f, 1)), c = V.row(F(f, 2));
+  return triangle_area(mesh, f) <= kDegenerateAreaRelTol * longest_edge_sq(a, b, c);
+}
+
+std::vector<int> vertex_components(const Mesh& mesh, int* count) {
+  const int nv = mesh.num_vertices();
+  UnionFind uf(nv);
+  const auto& E = mesh.edges();
+  for (int e = 0; e < mesh.num_edges(); ++e) uf.unite(E(e, 0), E(e, 1));
+  std::vector<int> label(nv, -1);
+  int n = 0;
+  for (int v = 0; v < nv; ++v) {
+    const int r = uf.find(v);
+    if (label[r] < 0) label[r] = n++;
+    label[v] = label[r];
+  }
+  if (count) *count = n;
+  return label;
+}
+
+MeshReport analyze(const Mesh& mesh, const ShapeWarningThresholds& thresholds) {
+  MeshReport r;
+  const auto& V = mesh.positions();
+  const auto& F = mesh.triangles();
+  const int nv = mesh.num_vertices(), nf = mesh.num_faces(), ne = mesh.num_edges();
+  r.vertices = nv;
+  r.faces = nf;
+  r.edges = ne;
+
+  // Edge -> incident faces, with the direction each face traverses the edge.
+  std::vector<int> face_count(ne, 0), forward(ne, 0), backward(ne, 0);
+  std::vector<char> referenced(nv, 0);
+  double min_area = std::numeric_limits<double>::infinity(), max_area = 0;
+  double min_angle = std::numeric_limits<double>::infinity(), max_angle = 0;
+  for (int f = 0; f < nf; ++f) {
+    for (int c = 0; c < 3; ++c) referenced[F(f, c)] = 1;
+    const bool degenerate = is_degenerate(mesh, f);
+    if (degenerate) {
+      ++r.degenerate_faces;
+    } else {
+      const double A = triangle_area(mesh, f);
+      r.area += A;
+      min_area = std::min(min_area, A);
+      max_area = std::max(max_area, A);
+      for (int c = 0; c < 3; ++c) {
+        const Eigen::Vector3d p = V.row(F(f, c)), q = V.row(F(f, (c + 1) % 3)), s = V.row(F(f, (c + 2) % 3));
+        const Eigen::Vector3d u = q - p, w = s - p;
+        const double ang = std::atan2(u.cross(w).norm(), u.dot(w)) * 180.0 / M_PI;
+        min_angle = std::min(min_angle, ang);
+        max_angle = std::max(max_angle, ang);
+      }
+      const Eigen::Vector3d a = V.row(F(f, 0)), b = V.row(F(f, 1)), c = V.row(F(f, 2));
+      r.signed_volume += a.dot(b.cross(c)) / 6.0;
+    }
+    for (int c = 0; c < 3; ++c) {
+      const int a = F(f, c), b = F(f, (c + 1) % 3);
+      if (a == b) continue;
+      const int e = mesh.edge_ids()[mesh.find_slot(a, b)];
+      ++face_count[e];
+      (a < b ? forward[e] : backward[e])++;
+    }
+  }
+  if (min_area <= max_area) {
+    r.area_ratio = max_area / min_area;
+    r.min_angle_deg = min_angle;
+    r.max_angle_deg = max_angle;
+  }
+
+  // Boundary edges, loops, non-manifold edges, orientation.
+  UnionFind boundary(nv);
+  std::vector<char> on_boundary(nv, 0);
+  const auto& E = mesh.edges();
+  double edge_len = 0;
+  for (int e = 0; e < ne; ++e) {
+    edge_len += (V.row(E(e, 0)) - V.row(E(e, 1))).norm();
+    if (face_count[e] == 1) {
+      ++r.boundary_edges;
+      boundary.unite(E(e, 0), E(e, 1));
+      on_boundary[E(e, 0)] = on_boundary[E(e, 1)] = 1;
+    } else if (face_count[e] >= 3) {
+      ++r.nonmanifold_edges;
+    } else if (face_count[e] == 2 && (forward[e] == 2 || backward[e] == 2)) {
+      ++r.inconsistent_edges;
+    }
+  }
+  r.mean_edge_length = ne ? edge_len / ne : 0.0;
+  r.orientation_consistent = r.inconsistent_edges == 0;
+  for (int v = 0; v < nv; ++v)
+    if (on_boundary[v] && boundary.find(v) == v) ++r.boundary_loops;
+
+  // Non-manifold vertices: incident triangles that are not connected to each
+  // other through edges at that vertex form more than one fan.
+  // Vertex -> incident faces (CSR); a face that repeats a vertex is listed once.
+  auto first_occurrence = [&](int f, int c) {
+    for (int k = 0; k < c; ++k)
+      if (F(f, k) == F(f, c)) return false;
+    return true;
+  };
+  std::vector<int> vf_offset(nv + 1, 0);
+  for (int f = 0; f < nf; ++f)
+    for (int c = 0; c < 3; ++c)
+      if (first_occurrence(f, c)) ++vf_offset[F(f, c) + 1];
+  for (int v = 0; v < nv; ++v) vf_offset[v + 1] += vf_offset[v];
+  std::vector<int> vf(vf_offset[nv]);
+  {
+    std::vector<int> fill(vf_offset.begin(), vf_offset.end() - 1);
+    for (int f = 0; f < nf; ++f)
+      for (int c = 0; c < 3; ++c)
+        if (first_occurrence(f, c)) vf[fill[F(f, c)]++] = f;
+  }
+  for (int v = 0; v < nv; ++v) {
+    const int b = vf_offset[v], n = vf_offset[v + 1] - b;
+    if (n <= 1) continue;
+    // Faces around v are joined when they share an edge (v, w): key by w.
+    std::vector<std::pair<int, int>> spokes;  // (other vertex, local face index)
+    for (int k = 0; k < n; ++k) {
+      const int f = vf[b + k];
+      for (int c = 0; c < 3; ++c)
+        if (F(f, c) != v) spokes.emplace_back(F(f, c), k);
+    }
+    std::sort(spokes.begin(), spokes.end());
+    UnionFind fan(n);
+    for (std::size_t s = 1; s < spokes.size(); ++s)
+      if (spokes[s].first == spokes[s - 1].first) fan.unite(spokes[s].second, spokes[s - 1].second);
+    int fans = 0;
+    for (int k = 0; k < n; ++k) fans += fan.find(k) == k;
+    if (fans > 1) ++r.nonmanifold_vertices;
+  }
+
+  // Components over referenced vertices; unreferenced vertices; Euler characteristic.
+  int ncomp_all = 0;
+  const auto label = vertex_components(mesh, &ncomp_all);
+  std::vector<char> comp_used(ncomp_all, 0);
+  int referenced_count = 0;
+  for (int v = 0; v < nv; ++v) {
+    if (referenced[v]) {
+      comp_used[label[v]] = 1;
+      ++referenced_count;
+    } else {
+      ++r.unreferenced_vertices;
+    }
+  }
+  r.components = static_cast<int>(std::count(comp_used.begin(), comp_used.end(), 1));
+  r.euler_characteristic = referenced_count - ne + nf;
+
+  // Duplicate positions: exact equality, as produced by unwelded seams.
+  std::vector<int> order(nv);
+  std::iota(order.begin(), order.end(), 0);
+  auto less = [&](int a, int b) {
+    for (int c = 0; c < 3; ++c)
+      if (V(a, c) != V(b, c)) return V(a, c) < V(b, c);
+    return false;
+  };
+  std::sort(order.begin(), order.end(), less);
+  for (int k = 1; k < nv; ++k)
+    if (!less(order[k - 1], order[k])) ++r.duplicate_vertices;
+
+  if (nv > 0) {
+    r.bbox_min = V.colwise().minCoeff().transpose();
+    r.bbox_max = V.colwise().maxCoeff().transpose();
+  }
+
+  if (r.nonmanifold_edges) r.warnings.push_back(fmt::format("{} non-manifold edges", r.nonmanifold_edges));
+  if (r.nonmanifold_vertices)
+    r.warnings.push_back(fmt::format("{} non-manifold vertices", r.nonmanifold_vertices));
+  if (r.degenerate_faces)
+    r.warnings.push_back(fmt::format("{} degenerate triangles (they contribute nothing to the operators)",
+                                     r.degenerate_faces));
+  if (!r.orientation_consistent)
+    r.warnings.push_back(fmt::format("orientation inconsistent across {} edges", r.inconsistent_edges));
+  if (r.duplicate_vertices)
+    r.warnings.push_back(fmt::format("{} vertices duplicate the position of another", r.duplicate_vertices));
+  if (r.unreferenced_vertices)
+    r.warnings.push_back(fmt::format("{} unreferenced vertices (held fixed by the solvers)",
+                                     r.unreferenced_vertices));
+  if (r.area_ratio > 0 && (r.min_angle_deg < thresholds.min_angle_deg || r.area_ratio > thresholds.area_ratio))
+    r.warnings.push_back(fmt::format(
+        "badly shaped: smallest angle {:.3g} deg, area ratio {:.3g}; cotangent operators and "
+        "iterative solvers lose accuracy on such meshes",
+        r.min_angle_deg, r.area_ratio));
+  return r;
+}
+
+}  // namespace meshpde

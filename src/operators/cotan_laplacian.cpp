@@ -1,0 +1,50 @@
+#include "meshpde/operators/cotan_laplacian.h"
+
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+#include "meshpde/mesh/topology.h"
+
+namespace meshpde {
+
+double heron_area(double a, double b, double c) {
+  // Sort so that a >= b >= c (Kahan, "Miscalculating area and angles of a needle-like triangle").
+  if (a < b) std::swap(a, b);
+  if (b < c) std::swap(b, c);
+  if (a < b) std::swap(a, b);
+  const double p = (a + (b + c)) * (c - (a - b)) * (c + (a - b)) * (a + (b - c));
+  return p > 0 ? 0.25 * std::sqrt(p) : 0.0;
+}
+
+Eigen::SparseMatrix<double> cotan_laplacian(const Mesh& mesh) {
+  const auto& V = mesh.positions();
+  const auto& F = mesh.triangles();
+  std::vector<Eigen::Triplet<double>> t;
+  t.reserve(12 * static_cast<std::size_t>(mesh.num_faces()));
+  for (int f = 0; f < mesh.num_faces(); ++f) {
+    if (is_degenerate(mesh, f)) continue;
+    double l2[3];  // squared length of the edge opposite corner k
+    double l[3];
+    for (int k = 0; k < 3; ++k) {
+      l2[k] = (V.row(F(f, (k + 1) % 3)) - V.row(F(f, (k + 2) % 3))).squaredNorm();
+      l[k] = std::sqrt(l2[k]);
+    }
+    const double A = heron_area(l[0], l[1], l[2]);
+    if (!(A > 0)) continue;
+    for (int k = 0; k < 3; ++k) {
+      const int i = F(f, (k + 1) % 3), j = F(f, (k + 2) % 3);
+      // Angle at corner k faces edge (i, j).
+      const double half_cot = 0.5 * (l2[(k + 1) % 3] + l2[(k + 2) % 3] - l2[k]) / (4.0 * A);
+      t.emplace_back(i, j, half_cot);
+      t.emplace_back(j, i, half_cot);
+      t.emplace_back(i, i, -half_cot);
+      t.emplace_back(j, j, -half_cot);
+    }
+  }
+  Eigen::SparseMatrix<double> L(mesh.num_vertices(), mesh.num_vertices());
+  L.setFromTriplets(t.begin(), t.end());
+  return L;
+}
+
+}  // namespace meshpde

@@ -1,0 +1,170 @@
+#include "meshpde/operators/fem_operators.h"
+
+#include <fmt/format.h>
+
+#include <cmath>
+#include <vector>
+
+#include "meshpde/core/errors.h"
+#include "meshpde/mesh/topology.h"
+
+namespace meshpde {
+
+Eigen::VectorXd face_areas(const Mesh& mesh) {
+  Eigen::VectorXd a(mesh.num_faces());
+  for (int f = 0; f < mesh.num_faces(); ++f) a[f] = is_degenerate(mesh, f) ? 0.0 : triangle_area(mesh, f);
+  return a;
+}
+
+Eigen::VectorXd vertex_to_face_average(const Mesh& mesh, const Eigen::VectorXd& field) {
+  if (field.size() != mesh.num_vertices())
+    throw InputError(fmt::format("vertex field has {} values for {} vertices", field.size(), mesh.num_vertices()));
+  const auto& F = mesh.triangles();
+  Eigen::VectorXd w(mesh.num_faces());
+  for (int f = 0; f < mesh.num_faces(); ++f) w[f] = (field[F(f, 0)] + field[F(f, 1)] + field[F(f, 2)]) / 3.0;
+  return w;
+}
+
+FemOperators build_operators(const Mesh& mesh, const OperatorOptions& options) {
+  const int nv = mesh.num_vertices(), nf = mesh.num_faces();
+  const bool weighted = options.face_weights.size() > 0;
+  if (weighted) {
+    if (options.face_weights.size() != nf)
+      throw InputError(fmt::format("face_weights has {} values for {} triangles", options.face_weights.size(), nf));
+    for (int f = 0; f < nf; ++f)
+      if (!(options.face_weights[f] >= 0) || !std::isfinite(options.face_weights[f]))
+        throw InputError(fmt::format("face weight {} of triangle {} is not a finite non-negative number",
+                                     options.face_weights[f], f));
+  }
+  FemOperators ops;
+  ops.Kii = Eigen::VectorXd::Zero(nv);
+  ops.mass = Eigen::VectorXd::Zero(nv);
+  Eigen::VectorXd edge_value = Eigen::VectorXd::Zero(mesh.num_edges());
+  const auto& V = mesh.positions();
+  const auto& F = mesh.triangles();
+  for (int f = 0; f < nf; ++f) {
+    if (is_degenerate(mesh, f)) {
+      ++ops.degenerate_faces;
+      continue;
+    }
+    const int v[3] = {F(f, 0), F(f, 1), F(f, 2)};
+    Eigen::Vector3d p[3];
+    for (int c = 0; c < 3; ++c) p[c] = V.row(v[c]).transpose();
+    // e[a] is the edge opposite corner a.
+    const Eigen::Vector3d e[3] = {p[1] - p[2], p[2] - p[0], p[0] - p[1]};
+    const double A = 0.5 * e[2].cross(-e[1]).norm();
+    const double s = (weighted ? options.face_weights[f] : 1.0) / (4.0 * A);
+    for (int a = 0; a < 3; ++a) {
+      ops.Kii[v[a]] += s * e[a].squaredNorm();
+      ops.mass[v[a]] += A / 3.0;
+      // The edge opposite corner a joins corners b and c and receives Ke[b][c].
+      const int b = (a + 1) % 3, c = (a + 2) % 3;
+      edge_value[mesh.edge_ids()[mesh.find_slot(v[b], v[c])]] += s * e[b].dot(e[c]);
+    }
+  }
+  ops.Kij.resize(static_cast<Eigen::Index>(mesh.neighbors().size()));
+  for (std::size_t s = 0; s < mesh.neighbors().size(); ++s) ops.Kij[static_cast<Eigen::Index>(s)] = edge_value[mesh.edge_ids()[s]];
+  for (int i = 0; i < nv; ++i) ops.zero_area_vertices += ops.mass[i] <= 0;
+  return ops;
+}
+
+double bilaplacian_diagonal(const Mesh& mesh, const FemOperators& ops, int i) {
+  double d = ops.Kii[i] * ops.Kii[i] * ops.D(i);
+  const auto off = mesh.offsets();
+  const auto nbr = mesh.neighbors();
+  for (int s = off[i]; s < off[i + 1]; ++s) d += ops.Kij[s] * ops.Kij[s] * ops.D(nbr[s]);
+  return d;
+}
+
+void apply_stiffness_rows(const Mesh& mesh, const FemOperators& ops, const double* U, double* Y, int m,
+                          std::span<const int> rows) {
+  const int* off = mesh.offsets().data();
+  const int* nbr = mesh.neighbors().data();
+  const double* kij = ops.Kij.data();
+  const double* kii = ops.Kii.data();
+  if (m == 1) {
+    for (const int i : rows) {
+      double y = kii[i] * U[i];
+      for (int s = off[i]; s < off[i + 1]; ++s) y += kij[s] * U[nbr[s]];
+      Y[i] = y;
+    }
+  } else if (m == 3) {
+    for (const int i : rows) {
+      double y0 = kii[i] * U[3 * i], y1 = kii[i] * U[3 * i + 1], y2 = kii[i] * U[3 * i + 2];
+      for (int s = off[i]; s < off[i + 1]; ++s) {
+        const double* u = U + 3 * nbr[s];
+        y0 += kij[s] * u[0];
+        y1 += kij[s] * u[1];
+        y2 += kij[s] * u[2];
+      }
+      Y[3 * i] = y0;
+      Y[3 * i + 1] = y1;
+      Y[3 * i + 2] = y2;
+    }
+  } else {
+    for (const int i : rows) {
+      for (int c = 0; c < m; ++c) Y[m * i + c] = kii[i] * U[m * i + c];
+      for (int s = off[i]; s < off[i + 1]; ++s)
+        for (int c = 0; c < m; ++c) Y[m * i + c] += kij[s] * U[m * nbr[s] + c];
+    }
+  }
+}
+
+namespace {
+
+std::vector<int> all_rows(int n) {
+  std::vector<int> r(n);
+  for (int i = 0; i < n; ++i) r[i] = i;
+  return r;
+}
+
+void check_field(const Mesh& mesh, const Field& U) {
+  if (U.rows() != mesh.num_vertices())
+    throw InputError(fmt::format("field has {} rows for {} vertices", U.rows(), mesh.num_vertices()));
+}
+
+}  // namespace
+
+Field apply_stiffness(const Mesh& mesh, const FemOperators& ops, const Field& U) {
+  check_field(mesh, U);
+  Field Y(U.rows(), U.cols());
+  const auto rows = all_rows(mesh.num_vertices());
+  apply_stiffness_rows(mesh, ops, U.data(), Y.data(), static_cast<int>(U.cols()), rows);
+  return Y;
+}
+
+Field apply_mass(const FemOperators& ops, const Field& U) {
+  Field Y = U;
+  for (Eigen::Index i = 0; i < U.rows(); ++i) Y.row(i) *= ops.mass[i];
+  return Y;
+}
+
+Field apply_bilaplacian(const Mesh& mesh, const FemOperators& ops, const Field& U) {
+  Field T = apply_stiffness(mesh, ops, U);
+  for (Eigen::Index i = 0; i < T.rows(); ++i) T.row(i) *= ops.D(static_cast<int>(i));
+  return apply_stiffness(mesh, ops, T);
+}
+
+Eigen::SparseMatrix<double> stiffness_matrix(const Mesh& mesh, const FemOperators& ops) {
+  std::vector<Eigen::Triplet<double>> t;
+  t.reserve(mesh.num_vertices() + mesh.neighbors().size());
+  const auto off = mesh.offsets();
+  const auto nbr = mesh.neighbors();
+  for (int i = 0; i < mesh.num_vertices(); ++i) {
+    t.emplace_back(i, i, ops.Kii[i]);
+    for (int s = off[i]; s < off[i + 1]; ++s) t.emplace_back(i, nbr[s], ops.Kij[s]);
+  }
+  Eigen::SparseMatrix<double> K(mesh.num_vertices(), mesh.num_vertices());
+  K.setFromTriplets(t.begin(), t.end());
+  return K;
+}
+
+Eigen::SparseMatrix<double> mass_matrix(const FemOperators& ops) {
+  Eigen::SparseMatrix<double> M(ops.mass.size(), ops.mass.size());
+  std::vector<Eigen::Triplet<double>> t;
+  for (Eigen::Index i = 0; i < ops.mass.size(); ++i) t.emplace_back(i, i, ops.mass[i]);
+  M.setFromTriplets(t.begin(), t.end());
+  return M;
+}
+
+}  // namespace meshpde

@@ -1,0 +1,322 @@
+#include "meshpde/pde/pde_session.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "meshpde/core/errors.h"
+
+namespace meshpde {
+
+PdeSession::PdeSession(const Mesh& mesh, const FemOperators& ops, int components, PdeCoefficients coefficients,
+                       DomainOptions domain)
+    : mesh_(mesh), ops_(ops), m_(components), coef_(coefficients), dopt_(domain), domain_(mesh) {
+  if (components < 1) throw InputError(fmt::format("a field needs at least one component, got {}", components));
+  if (ops.Kii.size() != mesh.num_vertices())
+    throw InputError("operators were built for a different mesh (vertex count differs)");
+  set_coefficients(coefficients);
+  const int nv = mesh.num_vertices();
+  u_ = Field::Zero(nv, m_);
+  v_ = Field::Zero(nv, m_);
+  rest_ = Field::Zero(nv, m_);
+  p_full_ = Field::Zero(nv, m_);
+  k_full_ = Field::Zero(nv, m_);
+  t_full_ = Field::Zero(nv, m_);
+  cons_pos_.assign(nv, -1);
+  cons_target_.resize(0, m_);
+  reaction_.resize(0, m_);
+  kdk_diag_ = Eigen::VectorXd::Constant(nv, std::numeric_limits<double>::quiet_NaN());
+  rest_count_.assign(nv, 0);
+}
+
+void PdeSession::set_coefficients(const PdeCoefficients& c) {
+  for (double x : {c.alpha, c.b1, c.b2, c.g1, c.g2})
+    if (!(x >= 0) || !std::isfinite(x))
+      throw InputError(fmt::format("PDE coefficients must be finite and non-negative (alpha {}, b1 {}, b2 {}, g1 {}, g2 {})",
+                                   c.alpha, c.b1, c.b2, c.g1, c.g2));
+  coef_ = c;
+}
+
+void PdeSession::set_values(const Field& u, bool as_rest) {
+  if (u.rows() != u_.rows() || u.cols() != m_)
+    throw InputError(fmt::format("values must be {} x {}, got {} x {}", u_.rows(), m_, u.rows(), u.cols()));
+  if (!u.allFinite()) throw InputError("values contain NaN or infinity");
+  u_ = u;
+  v_.setZero();
+  if (as_rest) rest_ = u;
+}
+
+void PdeSession::set_rest(const Field& rest) {
+  if (rest.rows() != u_.rows() || rest.cols() != m_) throw InputError("rest state has the wrong shape");
+  rest_ = rest;
+}
+
+void PdeSession::free_vertex(int v) {
+  if (ops_.mass[v] <= 0 || domain_.state(v) == VertexState::Constrained) return;  // zero-area: held fixed
+  if (domain_.make_free(v)) rest_count_[v] = 0;
+}
+
+void PdeSession::activate(std::span<const int> vertices) {
+  for (int v : vertices) {
+    if (v < 0 || v >= mesh_.num_vertices()) throw InputError(fmt::format("vertex {} does not exist", v));
+    free_vertex(v);
+  }
+}
+
+void PdeSession::activate_all() {
+  for (int v = 0; v < mesh_.num_vertices(); ++v) free_vertex(v);
+}
+
+void PdeSession::deactivate_all() {
+  const std::vector<int> a(domain_.free_vertices().begin(), domain_.free_vertices().end());
+  for (int v : a) domain_.make_frozen(v);
+}
+
+void PdeSession::activate_rings(int v, int k) {
+  // Breadth-first search over k rings; the visited set is the small vector itself.
+  std::vector<int> frontier{v}, seen{v};
+  for (int r = 0; r < k; ++r) {
+    std::vector<int> next;
+    for (int a : frontier)
+      for (int b : mesh_.neighbors(a))
+        if (std::find(seen.begin(), seen.end(), b) == seen.end()) {
+          seen.push_back(b);
+          next.push_back(b);
+        }
+    frontier.swap(next);
+  }
+  for (int w : seen)
+    if (domain_.state(w) == VertexState::Frozen) free_vertex(w);
+}
+
+void PdeSession::constrain(int v, std::span<const double> value) {
+  if (v < 0 || v >= mesh_.num_vertices()) throw InputError(fmt::format("vertex {} does not exist", v));
+  if (static_cast<int>(value.size()) != m_)
+    throw InputError(fmt::format("constraint at vertex {} has {} components, the field has {}", v, value.size(), m_));
+  for (double x : value)
+    if (!std::isfinite(x)) throw InputError(fmt::format("constraint at vertex {} is not finite", v));
+  if (cons_pos_[v] < 0) {
+    domain_.make_constrained(v);
+    cons_pos_[v] = static_cast<int>(cons_.size());
+    cons_.push_back(v);
+    cons_target_.conservativeResize(cons_.size(), m_);
+    reaction_.conservativeResize(cons_.size(), m_);
+    reaction_.row(cons_pos_[v]).setZero();
+  }
+  for (int c = 0; c < m_; ++c) cons_target_(cons_pos_[v], c) = value[c];
+  activate_rings(v, dopt_.seed_rings);
+}
+
+void PdeSession::release(int v) {
+  if (v < 0 || v >= mesh_.num_vertices() || cons_pos_[v] < 0) return;
+  const int p = cons_pos_[v], last = static_cast<int>(cons_.size()) - 1;
+  cons_[p] = cons_[last];
+  cons_target_.row(p) = cons_target_.row(last);
+  reaction_.row(p) = reaction_.row(last);
+  cons_pos_[cons_[p]] = p;
+  cons_.pop_back();
+  cons_target_.conservativeResize(last, m_);
+  reaction_.conservativeResize(last, m_);
+  cons_pos_[v] = -1;
+  domain_.make_frozen(v);
+  free_vertex(v);
+}
+
+double PdeSession::jacobi(int v, double cM, double cK) {
+  double kdk = 0;
+  if (coef_.g2 != 0) {
+    if (std::isnan(kdk_diag_[v])) kdk_diag_[v] = bilaplacian_diagonal(mesh_, ops_, v);
+    kdk = kdk_diag_[v];
+  }
+  return cM * ops_.mass[v] + cK * (coef_.g1 * ops_.Kii[v] + coef_.g2 * kdk);
+}
+
+void PdeSession::apply_Kt_free(const double* w, double* y) {
+  const auto A = domain_.free_vertices();
+  const int n = static_cast<int>(A.size());
+  double* K = k_full_.data();
+  double* T = t_full_.data();
+  if (coef_.g2 != 0) {
+    // K w on A and its ring, then D, then K again on A (seed 000 Fig. 4).
+    apply_stiffness_rows(mesh_, ops_, w, K, m_, ring_rows_);
+    for (int i : ring_rows_) {
+      const double d = ops_.D(i);
+      for (int c = 0; c < m_; ++c) T[m_ * i + c] = d * K[m_ * i + c];
+    }
+    const int* off = mesh_.offsets().data();
+    const int* nbr = mesh_.neighbors().data();
+    for (int k = 0; k < n; ++k) {
+      const int i = A[k];
+      for (int c = 0; c < m_; ++c) {
+        double kt = ops_.Kii[i] * T[m_ * i + c];
+        for (int s = off[i]; s < off[i + 1]; ++s) kt += ops_.Kij[s] * T[m_ * nbr[s] + c];
+        y[m_ * k + c] = coef_.g1 * K[m_ * i + c] + coef_.g2 * kt;
+      }
+    }
+  } else {
+    apply_stiffness_rows(mesh_, ops_, w, K, m_, A);
+    for (int k = 0; k < n; ++k)
+      for (int c = 0; c < m_; ++c) y[m_ * k + c] = coef_.g1 * K[m_ * A[k] + c];
+  }
+}
+
+StepResult PdeSession::step(double dt, const Field* f) {
+  if (!(dt > 0) || !std::isfinite(dt)) throw InputError(fmt::format("time step must be positive, got {}", dt));
+  return solve(Mode::Step, dt, f);
+}
+
+StepResult PdeSession::solve_steady(const Field* f) { return solve(Mode::Steady, 0.0, f); }
+
+StepResult PdeSession::solve(Mode mode, double dt, const Field* f) {
+  if (f && (f->rows() != u_.rows() || f->cols() != m_))
+    throw InputError(fmt::format("forcing must be {} x {}, got {} x {}", u_.rows(), m_, f->rows(), f->cols()));
+  const auto A = domain_.free_vertices();
+  const int n = static_cast<int>(A.size());
+  ring_rows_.assign(A.begin(), A.end());
+  ring_rows_.insert(ring_rows_.end(), domain_.ring().begin(), domain_.ring().end());
+  const int nc = static_cast<int>(cons_.size());
+  const double cM = mode == Mode::Step ? coef_.alpha + coef_.b1 * dt : 0.0;
+  const double cK = mode == Mode::Step ? (coef_.b2 + dt) * dt : 1.0;
+
+  // Velocities the constraints impose, and the previous velocities at them.
+  Field v_old_c(nc, m_);
+  for (int k = 0; k < nc; ++k) {
+    const int i = cons_[k];
+    v_old_c.row(k) = v_.row(i);
+    v_.row(i) = mode == Mode::Step ? Field((cons_target_.row(k) - u_.row(i)) / dt) : Field::Zero(1, m_);
+  }
+
+  // Right-hand side on A. Step: b = alpha M v^n - dt Kt z + dt f with z = u^n + (b2 + dt) v_C
+  // on the constraints (this folds -At_FC v_C into one Kt application). Steady: we solve for
+  // the correction delta of u_F, so b = f - Kt u with u_C at its target.
+  Field saved(nc, m_);
+  for (int k = 0; k < nc; ++k) {
+    const int i = cons_[k];
+    saved.row(k) = u_.row(i);
+    if (mode == Mode::Step) u_.row(i) += (coef_.b2 + dt) * v_.row(i);
+    else u_.row(i) = cons_target_.row(k);
+  }
+  Block b(n, m_), x(n, m_);
+  apply_Kt_free(u_.data(), b.data());
+  for (int k = 0; k < nc; ++k) u_.row(cons_[k]) = saved.row(k);
+  for (int k = 0; k < n; ++k) {
+    const int i = A[k];
+    if (mode == Mode::Step) {
+      b.row(k) = coef_.alpha * ops_.mass[i] * v_.row(i) - dt * b.row(k);
+      if (f) b.row(k) += dt * f->row(i);
+      x.row(k) = v_.row(i);  // warm start from the previous velocity
+    } else {
+      b.row(k) = -b.row(k);
+      if (f) b.row(k) += f->row(i);
+      x.row(k).setZero();
+    }
+  }
+
+  Eigen::VectorXd inv_diag(n);
+  for (int k = 0; k < n; ++k) {
+    const double d = jacobi(A[k], cM, cK);
+    inv_diag[k] = d > 0 ? 1.0 / d : 1.0;
+  }
+  auto apply = [&](const Block& P, Block& Y) {
+    for (int k = 0; k < n; ++k) p_full_.row(A[k]) = P.row(k);
+    apply_Kt_free(p_full_.data(), Y.data());
+    if (cM != 0)
+      for (int k = 0; k < n; ++k) Y.row(k) = cK * Y.row(k) + cM * ops_.mass[A[k]] * P.row(k);
+    else if (cK != 1)
+      Y *= cK;
+  };
+  StepResult r;
+  r.free_vertices = n;
+  r.cg = pcg(apply, inv_diag, b, x, cg_options, ws_);
+  for (int k = 0; k < n; ++k) p_full_.row(A[k]).setZero();  // scratch stays zero outside A
+
+  if (r.cg.status == CgStatus::Breakdown) {
+    for (int k = 0; k < nc; ++k) v_.row(cons_[k]) = v_old_c.row(k);
+    throw SolverError(r.cg.message);
+  }
+  // Update the state.
+  for (int k = 0; k < n; ++k) {
+    const int i = A[k];
+    if (mode == Mode::Step) {
+      v_.row(i) = x.row(k);
+      u_.row(i) += dt * x.row(k);
+    } else {
+      u_.row(i) += x.row(k);
+    }
+  }
+  for (int k = 0; k < nc; ++k) u_.row(cons_[k]) = cons_target_.row(k);
+
+  // Reaction forces: Kt applied at each constrained vertex to w = u + b2 v (Step) or u
+  // (Steady), computed over its two rings directly from the CSR arrays.
+  const int* off = mesh_.offsets().data();
+  const int* nbr = mesh_.neighbors().data();
+  const double s = mode == Mode::Step ? coef_.b2 : 0.0;
+  auto w = [&](int j, int c) { return u_(j, c) + s * v_(j, c); };
+  auto Kw = [&](int j, int c) {
+    double y = ops_.Kii[j] * w(j, c);
+    for (int t = off[j]; t < off[j + 1]; ++t) y += ops_.Kij[t] * w(nbr[t], c);
+    return y;
+  };
+  for (int k = 0; k < nc; ++k) {
+    const int i = cons_[k];
+    for (int c = 0; c < m_; ++c) {
+      double kt = coef_.g1 * Kw(i, c);
+      if (coef_.g2 != 0) {
+        double kdk = ops_.Kii[i] * ops_.D(i) * Kw(i, c);
+        for (int t = off[i]; t < off[i + 1]; ++t) kdk += ops_.Kij[t] * ops_.D(nbr[t]) * Kw(nbr[t], c);
+        kt += coef_.g2 * kdk;
+      }
+      double force = kt - (f ? (*f)(i, c) : 0.0);
+      if (mode == Mode::Step)
+        force += coef_.alpha * ops_.mass[i] * (v_(i, c) - v_old_c(k, c)) / dt + coef_.b1 * ops_.mass[i] * v_(i, c);
+      reaction_(k, c) = force;
+    }
+  }
+  if (mode == Mode::Step && dopt_.self_adjusting) adjust_domain(r);
+  return r;
+}
+
+void PdeSession::adjust_domain(StepResult& r) {
+  double v_ref = 0, u_ref = 0;
+  auto rate = [&](int i) { return v_.row(i).norm(); };
+  auto offset = [&](int i) { return (u_.row(i) - rest_.row(i)).norm(); };
+  for (int i : domain_.free_vertices()) {
+    v_ref = std::max(v_ref, rate(i));
+    u_ref = std::max(u_ref, offset(i));
+  }
+  for (int i : cons_) {
+    v_ref = std::max(v_ref, rate(i));
+    u_ref = std::max(u_ref, offset(i));
+  }
+  const double grow_rate = std::max(dopt_.grow_fraction * v_ref, dopt_.rest_rate);
+  const double grow_value = std::max(dopt_.grow_fraction * u_ref, dopt_.rest_value);
+  const std::vector<int> snapshot(domain_.free_vertices().begin(), domain_.free_vertices().end());
+  for (int i : snapshot) {
+    if (domain_.state(i) != VertexState::Free) continue;
+    const bool moving = rate(i) > grow_rate || offset(i) > grow_value;
+    if (moving) {
+      rest_count_[i] = 0;
+      if (!domain_.on_border(i)) continue;
+      for (int w : mesh_.neighbors(i)) {
+        if (dopt_.max_free > 0 && domain_.num_free() >= dopt_.max_free) break;
+        if (domain_.state(w) == VertexState::Frozen && ops_.mass[w] > 0) {
+          free_vertex(w);
+          ++r.grown;
+        }
+      }
+    } else if (offset(i) <= dopt_.rest_value && rate(i) <= dopt_.rest_rate) {
+      if (++rest_count_[i] >= dopt_.rest_steps) {
+        u_.row(i) = rest_.row(i);
+        v_.row(i).setZero();
+        domain_.make_frozen(i);
+        ++r.shrunk;
+      }
+    } else {
+      rest_count_[i] = 0;
+    }
+  }
+}
+
+}  // namespace meshpde
