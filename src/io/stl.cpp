@@ -1,5 +1,6 @@
 // STL, ascii and binary. STL stores every triangle's corners separately; corners
 // at exactly the same position are welded into one vertex.
+#include <Eigen/Geometry>
 #include <fmt/format.h>
 
 #include <cstring>

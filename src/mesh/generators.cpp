@@ -1,5 +1,6 @@
 #include "meshpde/mesh/generators.h"
 
+#include <Eigen/Geometry>
 #include <fmt/format.h>
 
 #include <algorithm>

@@ -1,5 +1,6 @@
 #include "meshpde/mesh/topology.h"
 
+#include <Eigen/Geometry>
 #include <fmt/format.h>
 
 #include <algorithm>

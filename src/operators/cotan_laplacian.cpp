@@ -1,5 +1,6 @@
 #include "meshpde/operators/cotan_laplacian.h"
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <vector>
@@ -17,7 +18,7 @@ double heron_area(double a, double b, double c) {
   return p > 0 ? 0.25 * std::sqrt(p) : 0.0;
 }
 
-Eigen::SparseMatrix<double> cotan_laplacian(const Mesh& mesh) {
+Eigen::SparseMatrix<double> cotan_laplacian(const Mesh& mesh, CotanFormula formula) {
   const auto& V = mesh.positions();
   const auto& F = mesh.triangles();
   std::vector<Eigen::Triplet<double>> t;
@@ -34,8 +35,14 @@ Eigen::SparseMatrix<double> cotan_laplacian(const Mesh& mesh) {
     if (!(A > 0)) continue;
     for (int k = 0; k < 3; ++k) {
       const int i = F(f, (k + 1) % 3), j = F(f, (k + 2) % 3);
-      // Angle at corner k faces edge (i, j).
-      const double half_cot = 0.5 * (l2[(k + 1) % 3] + l2[(k + 2) % 3] - l2[k]) / (4.0 * A);
+      // The angle at corner k faces edge (i, j).
+      double half_cot;
+      if (formula == CotanFormula::EdgeLengths) {
+        half_cot = 0.5 * (l2[(k + 1) % 3] + l2[(k + 2) % 3] - l2[k]) / (4.0 * A);
+      } else {
+        const Eigen::Vector3d u = V.row(i) - V.row(F(f, k)), w = V.row(j) - V.row(F(f, k));
+        half_cot = 0.5 / std::tan(std::atan2(u.cross(w).norm(), u.dot(w)));
+      }
       t.emplace_back(i, j, half_cot);
       t.emplace_back(j, i, half_cot);
       t.emplace_back(i, i, -half_cot);

@@ -1,5 +1,6 @@
 #include "meshpde/operators/fem_operators.h"
 
+#include <Eigen/Geometry>
 #include <fmt/format.h>
 
 #include <cmath>

@@ -32,10 +32,11 @@ PdeSession::PdeSession(const Mesh& mesh, const FemOperators& ops, int components
 }
 
 void PdeSession::set_coefficients(const PdeCoefficients& c) {
-  for (double x : {c.alpha, c.b1, c.b2, c.g1, c.g2})
+  for (double x : {c.alpha, c.b1, c.b2, c.g0, c.g1, c.g2})
     if (!(x >= 0) || !std::isfinite(x))
-      throw InputError(fmt::format("PDE coefficients must be finite and non-negative (alpha {}, b1 {}, b2 {}, g1 {}, g2 {})",
-                                   c.alpha, c.b1, c.b2, c.g1, c.g2));
+      throw InputError(fmt::format(
+          "PDE coefficients must be finite and non-negative (alpha {}, b1 {}, b2 {}, g0 {}, g1 {}, g2 {})", c.alpha,
+          c.b1, c.b2, c.g0, c.g1, c.g2));
   coef_ = c;
 }
 
@@ -130,7 +131,7 @@ double PdeSession::jacobi(int v, double cM, double cK) {
     if (std::isnan(kdk_diag_[v])) kdk_diag_[v] = bilaplacian_diagonal(mesh_, ops_, v);
     kdk = kdk_diag_[v];
   }
-  return cM * ops_.mass[v] + cK * (coef_.g1 * ops_.Kii[v] + coef_.g2 * kdk);
+  return cM * ops_.mass[v] + cK * (coef_.g0 * ops_.mass[v] + coef_.g1 * ops_.Kii[v] + coef_.g2 * kdk);
 }
 
 void PdeSession::apply_Kt_free(const double* w, double* y) {
@@ -152,13 +153,16 @@ void PdeSession::apply_Kt_free(const double* w, double* y) {
       for (int c = 0; c < m_; ++c) {
         double kt = ops_.Kii[i] * T[m_ * i + c];
         for (int s = off[i]; s < off[i + 1]; ++s) kt += ops_.Kij[s] * T[m_ * nbr[s] + c];
-        y[m_ * k + c] = coef_.g1 * K[m_ * i + c] + coef_.g2 * kt;
+        y[m_ * k + c] = coef_.g0 * ops_.mass[i] * w[m_ * i + c] + coef_.g1 * K[m_ * i + c] + coef_.g2 * kt;
       }
     }
   } else {
     apply_stiffness_rows(mesh_, ops_, w, K, m_, A);
     for (int k = 0; k < n; ++k)
-      for (int c = 0; c < m_; ++c) y[m_ * k + c] = coef_.g1 * K[m_ * A[k] + c];
+      for (int c = 0; c < m_; ++c) {
+        const int i = A[k];
+        y[m_ * k + c] = coef_.g0 * ops_.mass[i] * w[m_ * i + c] + coef_.g1 * K[m_ * i + c];
+      }
   }
 }
 
@@ -262,7 +266,7 @@ StepResult PdeSession::solve(Mode mode, double dt, const Field* f) {
   for (int k = 0; k < nc; ++k) {
     const int i = cons_[k];
     for (int c = 0; c < m_; ++c) {
-      double kt = coef_.g1 * Kw(i, c);
+      double kt = coef_.g0 * ops_.mass[i] * w(i, c) + coef_.g1 * Kw(i, c);
       if (coef_.g2 != 0) {
         double kdk = ops_.Kii[i] * ops_.D(i) * Kw(i, c);
         for (int t = off[i]; t < off[i + 1]; ++t) kdk += ops_.Kij[t] * ops_.D(nbr[t]) * Kw(nbr[t], c);

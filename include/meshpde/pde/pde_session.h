@@ -4,14 +4,20 @@
 //
 // on the active domain of a mesh (seed 000 section 4, DESIGN section 2):
 //
-//     alpha M u'' + C u' + Kt u = f,   Kt = g1 K + g2 K D K,   C = b1 M + b2 Kt
+//     alpha M u'' + C u' + Kt u = f,   Kt = g0 M + g1 K + g2 K D K,   C = b1 M + b2 Kt
+//
+// g0 (an elastic foundation, 0 by default) is our addition to seed 000's PDE: with
+// only K and K D K nothing holds a displacement in place (K 1 = 0), so a poke
+// spreads without bound and a released surface settles at a rigid offset. g0 M u
+// ties every vertex to its rest state, like tissue under a vessel wall, and makes a
+// deformation decay over a length of about (g2 / g0)^(1/4) (or (g1 / g0)^(1/2)).
 //
 // advanced by backward Euler in velocity form, v = u', u^{n+1} = u^n + dt v^{n+1}:
 //
 //     At v^{n+1} = alpha M v^n - dt Kt u^n + dt f,   At = (alpha + b1 dt) M + (b2 + dt) dt Kt
 //
 // solved by Jacobi-PCG on the free vertices only, reading constrained and frozen
-// values outside them. Kt is applied as g1 K u + g2 K (D (K u)); K D K is never
+// values outside them. Kt is applied as g0 M u + g1 K u + g2 K (D (K u)); K D K is never
 // assembled. Heat: b1 = 1, g1 = k. Wave: alpha = 1, g1 = c^2.
 //
 // Constraints are added, moved and removed between steps without rebuilding
@@ -41,6 +47,7 @@ struct PdeCoefficients {
   double alpha = 0;  ///< inertia (mass density)
   double b1 = 1;     ///< mass-proportional (Rayleigh) damping
   double b2 = 0;     ///< stiffness-proportional (Rayleigh) damping
+  double g0 = 0;     ///< elastic foundation (zero-order stiffness), see above
   double g1 = 1;     ///< Laplacian (membrane) stiffness
   double g2 = 0;     ///< bi-Laplacian (plate) stiffness
 };

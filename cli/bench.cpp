@@ -1,0 +1,221 @@
+// meshpde bench: the standard performance figures, each with the baseline it is
+// measured against in the same run (machines are shared and noisy: compare ratios).
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <chrono>
+#include <memory>
+#include <numeric>
+
+#include "commands.h"
+#include "meshpde/mesh/generators.h"
+#include "meshpde/mesh/topology.h"
+#include "meshpde/operators/fem_operators.h"
+#include "meshpde/pde/pde_session.h"
+
+namespace meshpde::cli {
+
+namespace {
+
+using clock_type = std::chrono::steady_clock;
+double seconds_since(clock_type::time_point t) {
+  return std::chrono::duration<double>(clock_type::now() - t).count();
+}
+
+void progress(const std::string& what) { fmt::print(stderr, "[bench] {}\n", what); }
+
+/// STREAM-like triad a = b + s c; bytes counted as STREAM does (3 arrays).
+double triad_gbps(std::size_t n, int reps) {
+  std::vector<double> a(n, 0.0), b(n, 1.0), c(n, 2.0);
+  double best = 1e30;
+  for (int r = 0; r < reps; ++r) {
+    const auto t = clock_type::now();
+    const double s = 0.5 + r;
+    for (std::size_t i = 0; i < n; ++i) a[i] = b[i] + s * c[i];
+    best = std::min(best, seconds_since(t));
+  }
+  volatile double sink = a[n / 2];
+  (void)sink;
+  return 3.0 * 8.0 * static_cast<double>(n) / best / 1e9;
+}
+
+struct Percentiles {
+  double p50 = 0, p99 = 0, max = 0, mean = 0;
+};
+Percentiles percentiles(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  Percentiles p;
+  if (v.empty()) return p;
+  p.p50 = v[v.size() / 2];
+  p.p99 = v[std::min(v.size() - 1, static_cast<std::size_t>(0.99 * static_cast<double>(v.size())))];
+  p.max = v.back();
+  p.mean = std::accumulate(v.begin(), v.end(), 0.0) / static_cast<double>(v.size());
+  return p;
+}
+
+/// Icosphere scaled so its mean edge length is 1: meshes of every size then have the
+/// same local resolution, and a poke touches the same neighbourhood on each.
+Mesh unit_edge_icosphere(int level) {
+  GeneratedMesh g = icosphere(level, 1.0);
+  Mesh m(g.V, g.F);
+  const double e = analyze(m).mean_edge_length;
+  g.V /= e;
+  return Mesh(g.V, g.F);
+}
+
+struct PokeFigures {
+  Percentiles us;
+  double mean_free = 0;
+  int max_free = 0;
+  double mean_iterations = 0;
+  int misses = 0;
+  int steps = 0;
+};
+
+/// One vertex constrained and moved a little every step along the inward normal
+/// (in, then out again), dt = 1 ms, bi-Laplacian, self-adjusting domain.
+PokeFigures poke(const Mesh& mesh, const FemOperators& ops, int steps, bool full_domain) {
+  const PdeCoefficients coef{.alpha = 1.0, .b1 = 1.0, .b2 = 0.01, .g0 = 1.0, .g1 = 0.0, .g2 = 100.0};
+  PdeSession s(mesh, ops, 3, coef,
+               DomainOptions{.self_adjusting = !full_domain, .rest_value = 1e-4, .rest_rate = 1e-3});
+  s.cg_options = CgOptions{.tolerance = 1e-6, .max_iterations = 200};
+  if (full_domain) s.activate_all();
+  int handle = 0;
+  mesh.positions().col(2).maxCoeff(&handle);
+  const Eigen::Vector3d n = mesh.positions().row(handle).normalized();
+  PokeFigures out;
+  std::vector<double> us;
+  us.reserve(steps);
+  const double depth = 0.5;  // half an edge length
+  for (int k = 0; k < steps; ++k) {
+    const double d = depth * std::sin(M_PI * (k + 1) / steps);
+    const Eigen::Vector3d target = -d * n;
+    const auto t = clock_type::now();
+    s.constrain(handle, std::span<const double>(target.data(), 3));
+    const StepResult r = s.step(1e-3);
+    const double dt_us = seconds_since(t) * 1e6;
+    us.push_back(dt_us);
+    out.mean_free += r.free_vertices;
+    out.max_free = std::max(out.max_free, r.free_vertices);
+    out.mean_iterations += r.cg.iterations;
+    out.misses += dt_us > 1000.0;
+  }
+  out.steps = steps;
+  out.mean_free /= steps;
+  out.mean_iterations /= steps;
+  out.us = percentiles(us);
+  return out;
+}
+
+}  // namespace
+
+void add_bench_command(CLI::App& app) {
+  auto* cmd = app.add_subcommand("bench", "Run the standard benchmarks and print figures with their baselines");
+  auto quick = std::make_shared<bool>(false);
+  auto json = std::make_shared<bool>(false);
+  cmd->add_flag("--quick", *quick, "Fewer repetitions and steps (same meshes)");
+  cmd->add_flag("--json", *json, "Print a JSON object");
+  cmd->callback([=] {
+    nlohmann::json j;
+    const int reps = *quick ? 3 : 10;
+    const int steps = *quick ? 300 : 1000;
+    j["quick"] = *quick;
+
+    progress("STREAM-like triad");
+    const double triad = triad_gbps(std::size_t{1} << (*quick ? 23 : 25), reps);
+    j["triad_GBps"] = triad;
+
+    progress("icosphere level 8 (655k vertices): build");
+    auto t0 = clock_type::now();
+    const Mesh big = unit_edge_icosphere(8);
+    const FemOperators big_ops = build_operators(big);
+    j["build_655k_s"] = seconds_since(t0);
+    const int nv = big.num_vertices();
+    const auto S = static_cast<double>(big.neighbors().size());
+    {
+      progress("K D K apply on 655k");
+      std::vector<int> rows(nv);
+      std::iota(rows.begin(), rows.end(), 0);
+      std::vector<double> u(nv), t(nv), y(nv);
+      for (int i = 0; i < nv; ++i) u[i] = std::sin(0.001 * i);
+      double best = 1e30;
+      for (int r = 0; r < reps; ++r) {
+        const auto tt = clock_type::now();
+        apply_stiffness_rows(big, big_ops, u.data(), t.data(), 1, rows);
+        for (int i = 0; i < nv; ++i) t[i] *= big_ops.D(i);
+        apply_stiffness_rows(big, big_ops, t.data(), y.data(), 1, rows);
+        best = std::min(best, seconds_since(tt));
+      }
+      // Bytes an ideal K D K apply must move: the operator twice (offsets, neighbours,
+      // K_ij, K_ii), u read, t written and read back, the mass read, y written.
+      const double op_bytes = 4.0 * (nv + 1) + 4.0 * S + 8.0 * S + 8.0 * nv;
+      const double bytes = 2 * op_bytes + 8.0 * nv * 5;
+      const double gbps = bytes / best / 1e9;
+      j["kdk_apply_ms_655k"] = best * 1e3;
+      j["kdk_apply_GBps_655k"] = gbps;
+      j["kdk_apply_bandwidth_fraction_655k"] = gbps / triad;
+      j["kdk_apply_bytes_counted"] = bytes;
+    }
+    {
+      const double bytes = 24.0 * nv + static_cast<double>(big_ops.bytes()) + 4.0 * (nv + 1) + 4.0 * S;
+      j["operator_bytes_per_vertex"] = bytes / nv;
+      j["operator_bytes_breakdown"] = "positions 24 + K_ii 8 + M 8 per vertex; CSR offsets 4 per vertex; "
+                                      "neighbour index 4 + K_ij 8 per adjacency slot";
+      j["mesh_topology_bytes_per_vertex"] = static_cast<double>(big.connectivity_bytes()) / nv;
+    }
+
+    progress("poke on 10k (level 5)");
+    const Mesh small = unit_edge_icosphere(5);
+    const FemOperators small_ops = build_operators(small);
+    const PokeFigures p10 = poke(small, small_ops, steps, false);
+    progress("poke on 10k with the whole mesh active (baseline)");
+    const PokeFigures p10full = poke(small, small_ops, std::min(steps, 200), true);
+    progress("poke on 655k (level 8)");
+    const PokeFigures p655 = poke(big, big_ops, steps, false);
+    auto put = [&](const std::string& tag, const PokeFigures& p) {
+      j["poke_p50_us_" + tag] = p.us.p50;
+      j["poke_p99_us_" + tag] = p.us.p99;
+      j["poke_max_us_" + tag] = p.us.max;
+      j["poke_mean_free_vertices_" + tag] = p.mean_free;
+      j["poke_max_free_vertices_" + tag] = p.max_free;
+      j["poke_mean_cg_iterations_" + tag] = p.mean_iterations;
+      j["poke_deadline_misses_" + tag] = p.misses;
+    };
+    put("10k", p10);
+    put("655k", p655);
+    j["poke_p50_us_10k_full_domain"] = p10full.us.p50;
+    j["poke_p99_ratio_655k_over_10k"] = p655.us.p99 / p10.us.p99;
+    j["poke_p50_speedup_local_over_full_10k"] = p10full.us.p50 / p10.us.p50;
+    j["poke_steps"] = steps;
+    j["poke_setup"] = "icospheres scaled to mean edge length 1; alpha 1, b1 1, b2 0.01, g0 1, g1 0, g2 100; dt 1 ms; "
+                      "handle moved along the inward normal to depth 0.5 and back; CG rel. tol 1e-6";
+
+    const auto bunny = data_dir() / "bunny-36k.obj";
+    if (std::filesystem::exists(bunny)) {
+      progress("setup on bunny-36k");
+      double load = 1e30, total = 1e30;
+      for (int r = 0; r < reps; ++r) {
+        auto ta = clock_type::now();
+        MeshData d = read_mesh(bunny);
+        const double tl = seconds_since(ta);
+        Mesh m(std::move(d.V), std::move(d.F));
+        const FemOperators o = build_operators(m);
+        total = std::min(total, seconds_since(ta));
+        load = std::min(load, tl);
+      }
+      j["setup_load_ms_bunny36k"] = load * 1e3;
+      j["setup_total_ms_bunny36k"] = total * 1e3;
+      j["setup_ratio_bunny36k"] = total / load;
+    } else {
+      fmt::print(stderr, "warning: {} not found; setup_ratio_bunny36k skipped\n", bunny.string());
+      j["setup_ratio_bunny36k"] = nullptr;
+    }
+    if (*json) {
+      print_json(j);
+    } else {
+      for (auto it = j.begin(); it != j.end(); ++it) fmt::print("{:42} {}\n", it.key(), it.value().dump());
+    }
+  });
+}
+
+}  // namespace meshpde::cli

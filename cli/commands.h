@@ -1,0 +1,32 @@
+// Subcommands of the meshpde tool. Each registers itself on the CLI11 app; the
+// front end holds no numerics of its own, it calls the library.
+#pragma once
+
+#include <CLI/CLI.hpp>
+#include <filesystem>
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "meshpde/io/mesh_io.h"
+#include "meshpde/mesh/mesh.h"
+
+namespace meshpde::cli {
+
+void add_mesh_commands(CLI::App& app);   // info, generate, curvature
+void add_solve_commands(CLI::App& app);  // correct, demo
+void add_bench_command(CLI::App& app);   // bench
+
+/// Reads a mesh, prints reader warnings to stderr, builds connectivity.
+Mesh load_mesh(const std::filesystem::path& path, MeshData* data = nullptr);
+
+/// Writes a mesh with optional vertex fields, printing writer warnings to stderr.
+void save_mesh(const std::filesystem::path& path, const Positions& V, const Triangles& F,
+               const std::map<std::string, Eigen::VectorXd>& fields = {});
+
+/// Prints JSON to stdout (2-space indent).
+void print_json(const nlohmann::json& j);
+
+/// Directory holding ../shared/data (env MESHPDE_DATA_DIR overrides).
+std::filesystem::path data_dir();
+
+}  // namespace meshpde::cli

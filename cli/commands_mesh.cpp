@@ -1,0 +1,168 @@
+// meshpde info | generate | curvature
+#include <fmt/format.h>
+
+#include <memory>
+
+#include "commands.h"
+#include "meshpde/core/errors.h"
+#include "meshpde/mesh/generators.h"
+#include "meshpde/mesh/topology.h"
+#include "meshpde/operators/curvature.h"
+#include "meshpde/operators/fem_operators.h"
+
+namespace meshpde::cli {
+
+namespace {
+
+nlohmann::json report_json(const MeshReport& r) {
+  return {{"vertices", r.vertices},
+          {"faces", r.faces},
+          {"edges", r.edges},
+          {"boundary_edges", r.boundary_edges},
+          {"boundary_loops", r.boundary_loops},
+          {"nonmanifold_edges", r.nonmanifold_edges},
+          {"nonmanifold_vertices", r.nonmanifold_vertices},
+          {"components", r.components},
+          {"degenerate_faces", r.degenerate_faces},
+          {"duplicate_vertices", r.duplicate_vertices},
+          {"unreferenced_vertices", r.unreferenced_vertices},
+          {"orientation_consistent", r.orientation_consistent},
+          {"inconsistent_edges", r.inconsistent_edges},
+          {"euler_characteristic", r.euler_characteristic},
+          {"area", r.area},
+          {"signed_volume", r.signed_volume},
+          {"min_angle_deg", r.min_angle_deg},
+          {"max_angle_deg", r.max_angle_deg},
+          {"area_ratio", r.area_ratio},
+          {"mean_edge_length", r.mean_edge_length},
+          {"bbox_min", {r.bbox_min.x(), r.bbox_min.y(), r.bbox_min.z()}},
+          {"bbox_max", {r.bbox_max.x(), r.bbox_max.y(), r.bbox_max.z()}},
+          {"warnings", r.warnings}};
+}
+
+void print_report(const std::string& name, const MeshReport& r) {
+  fmt::print("{}\n", name);
+  fmt::print("  vertices {}  faces {}  edges {}\n", r.vertices, r.faces, r.edges);
+  fmt::print("  components {}  boundary loops {}  Euler characteristic {}\n", r.components, r.boundary_loops,
+             r.euler_characteristic);
+  fmt::print("  non-manifold edges {}  non-manifold vertices {}\n", r.nonmanifold_edges, r.nonmanifold_vertices);
+  fmt::print("  degenerate faces {}  duplicate vertices {}  unreferenced vertices {}\n", r.degenerate_faces,
+             r.duplicate_vertices, r.unreferenced_vertices);
+  fmt::print("  orientation {}  signed volume {:.6g}{}\n",
+             r.orientation_consistent ? "consistent" : fmt::format("inconsistent ({} edges)", r.inconsistent_edges),
+             r.signed_volume,
+             r.boundary_loops == 0 && r.orientation_consistent ? (r.signed_volume < 0 ? " (normals point inward)" : " (normals point outward)") : "");
+  fmt::print("  area {:.6g}  mean edge length {:.6g}\n", r.area, r.mean_edge_length);
+  fmt::print("  angles {:.4g} .. {:.4g} deg  area ratio {:.4g}\n", r.min_angle_deg, r.max_angle_deg, r.area_ratio);
+  fmt::print("  bounding box ({:.6g}, {:.6g}, {:.6g}) .. ({:.6g}, {:.6g}, {:.6g})\n", r.bbox_min.x(), r.bbox_min.y(),
+             r.bbox_min.z(), r.bbox_max.x(), r.bbox_max.y(), r.bbox_max.z());
+  for (const auto& w : r.warnings) fmt::print("  warning: {}\n", w);
+}
+
+struct GenerateArgs {
+  std::string kind, out;
+  int n = 15, level = 3, frequency = 4, rings = 20, segments = 24, nx = 20, ny = 20, k = 3;
+  double radius = 1.0, length = 10.0, size = 1.0, cell = 0.6;
+  bool dent = false;
+  std::string base = "icosahedron";
+};
+
+}  // namespace
+
+void add_mesh_commands(CLI::App& app) {
+  {
+    auto* cmd = app.add_subcommand("info", "Report counts, topology, defects and shape quality of a mesh");
+    auto path = std::make_shared<std::string>();
+    auto json = std::make_shared<bool>(false);
+    cmd->add_option("MESH", *path, "Mesh file (.obj .off .ply .stl)")->required();
+    cmd->add_flag("--json", *json, "Print a JSON object");
+    cmd->callback([=] {
+      const Mesh mesh = load_mesh(*path);
+      const MeshReport r = analyze(mesh);
+      if (*json) print_json(report_json(r));
+      else print_report(*path, r);
+    });
+  }
+  {
+    auto* cmd = app.add_subcommand("generate", "Generate a test mesh");
+    auto a = std::make_shared<GenerateArgs>();
+    cmd->add_option("KIND", a->kind,
+                    "latlong | icosphere | geodesic | tube | bifurcation | plane | fins")
+        ->required()
+        ->check(CLI::IsMember({"latlong", "icosphere", "geodesic", "tube", "bifurcation", "plane", "fins"}));
+    cmd->add_option("-o,--output", a->out, "Output mesh file")->required();
+    cmd->add_option("--n", a->n, "latlong: rings of latitude n (n-1 rings plus 2 poles, 2n meridians); fins: quads per side")
+        ->capture_default_str();
+    cmd->add_option("--level", a->level, "icosphere: subdivision level (5: 10,242 vertices, 8: 655,362)")
+        ->capture_default_str();
+    cmd->add_option("--base", a->base, "geodesic: icosahedron | tetrahedron")
+        ->check(CLI::IsMember({"icosahedron", "tetrahedron"}))
+        ->capture_default_str();
+    cmd->add_option("--frequency", a->frequency, "geodesic: each base edge split into this many")->capture_default_str();
+    cmd->add_option("--radius", a->radius, "sphere or tube radius")->capture_default_str();
+    cmd->add_option("--length", a->length, "tube length")->capture_default_str();
+    cmd->add_option("--rings", a->rings, "tube: rings along the axis")->capture_default_str();
+    cmd->add_option("--segments", a->segments, "tube: vertices per ring")->capture_default_str();
+    cmd->add_option("--nx", a->nx, "plane: quads along x")->capture_default_str();
+    cmd->add_option("--ny", a->ny, "plane: quads along y")->capture_default_str();
+    cmd->add_option("--size", a->size, "plane: side length")->capture_default_str();
+    cmd->add_option("--k", a->k, "fins: number of sheets sharing the axis edge")->capture_default_str();
+    cmd->add_option("--cell", a->cell, "bifurcation: grid spacing in mm (about the edge length)")->capture_default_str();
+    cmd->add_flag("--dent", a->dent, "bifurcation: push a dent into the trunk wall");
+    cmd->callback([=] {
+      GeneratedMesh g;
+      if (a->kind == "latlong") g = latlong_sphere(a->n, a->radius);
+      else if (a->kind == "icosphere") g = icosphere(a->level, a->radius);
+      else if (a->kind == "geodesic")
+        g = geodesic_sphere(a->base == "tetrahedron" ? BaseSolid::Tetrahedron : BaseSolid::Icosahedron,
+                            a->frequency, a->radius);
+      else if (a->kind == "tube") g = tube(a->radius, a->length, a->rings, a->segments);
+      else if (a->kind == "plane") g = plane_grid(a->nx, a->ny, a->size, a->size);
+      else if (a->kind == "fins") g = fins(a->k, a->n);
+      else g = y_bifurcation(BifurcationParams{.cell = a->cell, .dent = a->dent});
+      save_mesh(a->out, g.V, g.F);
+      fmt::print("wrote {}: {} vertices, {} triangles\n", a->out, g.V.rows(), g.F.rows());
+    });
+  }
+  {
+    auto* cmd = app.add_subcommand("curvature", "Per-vertex mean curvature H = 1/2 c |row(K x)| (seed 000, Table 1)");
+    auto path = std::make_shared<std::string>();
+    auto scale = std::make_shared<std::string>("area");
+    auto out = std::make_shared<std::string>();
+    auto json = std::make_shared<bool>(false);
+    cmd->add_option("MESH", *path, "Mesh file")->required();
+    cmd->add_option("--scale", *scale, "area: c = 3/A (Meyer et al.); valence: c = 4 cos^2(pi/n)/A")
+        ->check(CLI::IsMember({"area", "valence"}))
+        ->capture_default_str();
+    cmd->add_option("-o,--output", *out, "Write the mesh with a 'mean_curvature' vertex property (.ply)");
+    cmd->add_flag("--json", *json, "Print JSON: mean_curvature array and summary statistics");
+    cmd->callback([=] {
+      if (!out->empty() && format_from_path(*out) != MeshFormat::Ply)
+        throw InputError(fmt::format("{}: vertex properties need a .ply output", *out));
+      const Mesh mesh = load_mesh(*path);
+      const FemOperators ops = build_operators(mesh);
+      const Eigen::VectorXd H =
+          mean_curvature(mesh, ops, *scale == "valence" ? CurvatureScale::Valence : CurvatureScale::Area);
+      const double mean = H.mean();
+      const double sd = std::sqrt((H.array() - mean).square().mean());
+      Eigen::VectorXd rho = H.cwiseInverse();
+      if (*json) {
+        print_json({{"scale", *scale},
+                    {"mean_curvature", std::vector<double>(H.data(), H.data() + H.size())},
+                    {"mean", mean},
+                    {"std", sd},
+                    {"min", H.minCoeff()},
+                    {"max", H.maxCoeff()},
+                    {"mean_radius", rho.mean()},
+                    {"radius_range", rho.maxCoeff() - rho.minCoeff()}});
+      } else {
+        fmt::print("mean curvature ({} scaling) over {} vertices: mean {:.6g}, std {:.3g}, range [{:.6g}, {:.6g}]\n",
+                   *scale, H.size(), mean, sd, H.minCoeff(), H.maxCoeff());
+        fmt::print("radius 1/H: mean {:.6g}, max - min {:.3g}\n", rho.mean(), rho.maxCoeff() - rho.minCoeff());
+      }
+      if (!out->empty()) save_mesh(*out, mesh.positions(), mesh.triangles(), {{"mean_curvature", H}});
+    });
+  }
+}
+
+}  // namespace meshpde::cli

@@ -1,0 +1,208 @@
+#include <gtest/gtest.h>
+
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+
+#include "meshpde/core/errors.h"
+#include "meshpde/io/mesh_io.h"
+#include "meshpde/mesh/generators.h"
+#include "test_data.h"
+
+using namespace meshpde;
+namespace fs = std::filesystem;
+
+namespace {
+
+MeshData sample() {
+  const GeneratedMesh g = icosphere(1, 2.5);
+  MeshData d;
+  d.V = g.V;
+  d.F = g.F;
+  return d;
+}
+
+void expect_same(const MeshData& a, const MeshData& b, double tol) {
+  ASSERT_EQ(a.V.rows(), b.V.rows());
+  ASSERT_EQ(a.F.rows(), b.F.rows());
+  EXPECT_LE((a.V - b.V).cwiseAbs().maxCoeff(), tol);
+  EXPECT_EQ(a.F, b.F);
+}
+
+/// Expects an InputError whose message contains every fragment.
+void expect_error(const std::string& bytes, MeshFormat fmt, std::initializer_list<const char*> fragments) {
+  try {
+    read_mesh_from_memory(bytes, fmt, "bad.mesh");
+    ADD_FAILURE() << "accepted malformed input: " << bytes.substr(0, 80);
+  } catch (const InputError& e) {
+    const std::string msg = e.what();
+    EXPECT_NE(msg.find("bad.mesh"), std::string::npos) << msg;
+    for (const char* f : fragments) EXPECT_NE(msg.find(f), std::string::npos) << "'" << f << "' not in: " << msg;
+  }
+}
+
+fs::path scratch(const std::string& name) {
+  const fs::path dir = fs::temp_directory_path() / "meshpde-io-test";
+  fs::create_directories(dir);
+  return dir / name;
+}
+
+}  // namespace
+
+TEST(Io, RoundTripEveryFormat) {
+  const MeshData d = sample();
+  for (const auto fmt : {MeshFormat::Obj, MeshFormat::Off, MeshFormat::Ply}) {
+    for (const bool binary : {false, true}) {
+      const std::string bytes = write_mesh_to_memory(d, fmt, WriteOptions{.binary = binary});
+      expect_same(d, read_mesh_from_memory(bytes, fmt, "rt"), 0.0);  // shortest round-trip text / raw doubles
+    }
+  }
+  for (const bool binary : {false, true}) {
+    // STL stores float corners; the welded mesh has the same vertex count and faces
+    // up to vertex renumbering, so compare positions per face corner.
+    const MeshData s = read_mesh_from_memory(write_mesh_to_memory(d, MeshFormat::Stl, {.binary = binary}),
+                                             MeshFormat::Stl, "rt.stl");
+    ASSERT_EQ(s.V.rows(), d.V.rows());
+    ASSERT_EQ(s.F.rows(), d.F.rows());
+    for (Eigen::Index f = 0; f < d.F.rows(); ++f)
+      for (int c = 0; c < 3; ++c)
+        EXPECT_LE((s.V.row(s.F(f, c)) - d.V.row(d.F(f, c))).norm(), 1e-6);
+  }
+}
+
+TEST(Io, PlyKeepsVertexScalars) {
+  MeshData d = sample();
+  d.vertex_scalars["temperature"] = Eigen::VectorXd::LinSpaced(d.V.rows(), -1, 7);
+  for (const bool binary : {false, true}) {
+    const MeshData r = read_mesh_from_memory(write_mesh_to_memory(d, MeshFormat::Ply, {.binary = binary}),
+                                             MeshFormat::Ply, "s.ply");
+    ASSERT_TRUE(r.vertex_scalars.count("temperature"));
+    EXPECT_EQ(r.vertex_scalars.at("temperature"), d.vertex_scalars.at("temperature"));
+  }
+}
+
+TEST(Io, PlyBigEndianAndFloatAndQuads) {
+  // Hand-built big-endian PLY: float positions, a uchar/uint face list with one quad.
+  std::string h =
+      "ply\nformat binary_big_endian 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
+      "property float z\nproperty uchar quality\nelement face 1\nproperty list uchar uint vertex_indices\n"
+      "end_header\n";
+  auto be32 = [&](uint32_t v) {
+    for (int k = 3; k >= 0; --k) h.push_back(static_cast<char>((v >> (8 * k)) & 0xff));
+  };
+  const float pts[4][3] = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}};
+  for (int i = 0; i < 4; ++i) {
+    for (float x : pts[i]) {
+      uint32_t b;
+      std::memcpy(&b, &x, 4);
+      be32(b);
+    }
+    h.push_back(static_cast<char>(10 * i));
+  }
+  h.push_back(4);
+  for (uint32_t k = 0; k < 4; ++k) be32(k);
+  const MeshData d = read_mesh_from_memory(h, MeshFormat::Ply, "be.ply");
+  ASSERT_EQ(d.V.rows(), 4);
+  EXPECT_EQ(d.V(2, 0), 1.0);
+  EXPECT_EQ(d.V(2, 1), 1.0);
+  EXPECT_EQ(d.F.rows(), 2);
+  EXPECT_EQ(d.vertex_scalars.at("quality")(3), 30.0);
+  ASSERT_EQ(d.warnings.size(), 1u);
+  EXPECT_NE(d.warnings[0].find("triangulated 1 polygons"), std::string::npos);
+}
+
+TEST(Io, ObjNegativeIndicesSlashesAndPolygons) {
+  const std::string obj =
+      "# comment\nmtllib x.mtl\no thing\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvn 0 0 1\nvt 0 0\n"
+      "s off\nf 1/1/1 2/1/1 3/1/1 4/1/1\nf -4 -2 -1\n";
+  const MeshData d = read_mesh_from_memory(obj, MeshFormat::Obj, "q.obj");
+  EXPECT_EQ(d.V.rows(), 4);
+  EXPECT_EQ(d.F.rows(), 3);
+  EXPECT_EQ(d.F(2, 0), 0);
+  EXPECT_EQ(d.F(2, 2), 3);
+  EXPECT_EQ(d.warnings.size(), 1u);
+}
+
+TEST(Io, StlWeldsIdenticalCorners) {
+  const std::string stl =
+      "solid t\nfacet normal 0 0 1\n outer loop\n vertex 0 0 0\n vertex 1 0 0\n vertex 0 1 0\n endloop\nendfacet\n"
+      "facet normal 0 0 1\n outer loop\n vertex 1 0 0\n vertex 1 1 0\n vertex 0 1 0\n endloop\nendfacet\nendsolid t\n";
+  const MeshData d = read_mesh_from_memory(stl, MeshFormat::Stl, "w.stl");
+  EXPECT_EQ(d.V.rows(), 4);
+  EXPECT_EQ(d.F.rows(), 2);
+}
+
+TEST(Io, MalformedInputGivesClearErrors) {
+  // Empty files.
+  expect_error("", MeshFormat::Off, {"empty"});
+  expect_error("", MeshFormat::Obj, {"no vertices"});
+  expect_error("", MeshFormat::Ply, {"not a PLY"});
+  expect_error("", MeshFormat::Stl, {"empty"});
+  // OFF: truncated, negative and absurd counts, index out of range, NaN, Inf, junk.
+  expect_error("OFF\n3 1 0\n0 0 0\n1 0 0\n", MeshFormat::Off, {"vertex 2", "file ends"});
+  expect_error("OFF\n-3 1 0\n", MeshFormat::Off, {"line 2", "negative"});
+  expect_error("OFF\n2000000000 2000000000 0\n0 0 0\n", MeshFormat::Off, {"line 2", "claims"});
+  expect_error("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n", MeshFormat::Off, {"line 6", "outside"});
+  expect_error("OFF\n3 1 0\n0 0 0\nnan 0 0\n0 1 0\n3 0 1 2\n", MeshFormat::Off, {"line 4", "not finite"});
+  expect_error("OFF\n3 1 0\n0 0 0\n1 inf 0\n0 1 0\n3 0 1 2\n", MeshFormat::Off, {"line 4", "not finite"});
+  expect_error("OFF\n3 1 0\n0 0 0\n1 0 zz\n0 1 0\n3 0 1 2\n", MeshFormat::Off, {"line 4", "'zz'"});
+  expect_error(std::string("\x7f\x45\x4c\x46\x02\x01\x01\0\0\0", 10), MeshFormat::Off, {"expected 'OFF'"});
+  // OBJ.
+  expect_error("v 0 0 0\nv 1 0 0\nf 1 2 3\n", MeshFormat::Obj, {"line 3", "face index 3"});
+  expect_error("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 0\n", MeshFormat::Obj, {"line 4"});
+  expect_error("v 0 0 0\nv 1 0\n", MeshFormat::Obj, {"line 2", "line ends"});
+  expect_error("v 0 0 0\nxyz 1 2\n", MeshFormat::Obj, {"line 2", "unknown OBJ statement"});
+  expect_error("v 0 0 1e999\n", MeshFormat::Obj, {"line 1"});
+  // PLY: truncated binary, absurd counts, tristrips, bad index.
+  const std::string head =
+      "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty double x\nproperty double y\n"
+      "property double z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n";
+  expect_error(head + std::string(30, '\0'), MeshFormat::Ply, {"line 3", "claims 3 entries"});
+  expect_error(head + std::string(72, '\0') + "\x03" + std::string(5, '\0'), MeshFormat::Ply, {"face 0", "file ends"});
+  expect_error("ply\nformat ascii 1.0\nelement vertex 4000000000\nproperty float x\nend_header\n0\n",
+               MeshFormat::Ply, {"line 3", "claims"});
+  expect_error(
+      "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+      "element tristrips 1\nproperty list int int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n",
+      MeshFormat::Ply, {"line 7", "tristrips"});
+  expect_error(
+      "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+      "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 9\n",
+      MeshFormat::Ply, {"face 0", "outside"});
+  expect_error("ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\n", MeshFormat::Ply, {"end_header"});
+  // STL: binary header claiming more triangles than present; ascii without endsolid.
+  std::string bin(84, '\0');
+  const uint32_t n = 1000000;
+  std::memcpy(bin.data() + 80, &n, 4);
+  expect_error(bin + std::string(100, '\0'), MeshFormat::Stl, {"claims 1000000 triangles"});
+  expect_error("solid x\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\n", MeshFormat::Stl, {"endsolid"});
+}
+
+TEST(Io, UnknownExtensionAndMissingFile) {
+  EXPECT_THROW(format_from_path("mesh.xyz"), InputError);
+  EXPECT_THROW(read_mesh(scratch("does-not-exist.obj")), InputError);
+}
+
+TEST(Io, AtomicWriteNeverLeavesHalfAFile) {
+  const fs::path target = scratch("atomic.off");
+  write_mesh(target, sample());
+  const auto before = fs::file_size(target);
+  // A directory in the way of the rename: the write fails and the old file stays.
+  const fs::path blocked = scratch("blocked.off");
+  fs::create_directories(blocked / "child");
+  EXPECT_THROW(write_mesh(blocked, sample()), Error);
+  EXPECT_TRUE(fs::is_directory(blocked));
+  for (const auto& e : fs::directory_iterator(blocked.parent_path()))
+    EXPECT_EQ(e.path().filename().string().find(".blocked.off.tmp"), std::string::npos) << "temporary left behind";
+  EXPECT_THROW(write_mesh(scratch("no-such-dir") / "x" / "y.off", sample()), Error);
+  EXPECT_EQ(fs::file_size(target), before);
+}
+
+TEST(Io, ReadsEveryRealFormat) {
+  for (const char* name : {"bunny-3k.off", "bunny-36k.obj", "igea-134k.ply", "aorta-open-6k.stl",
+                           "coronary-phantom-7k.stl", "nonmanifold-vierbein.obj"}) {
+    Mesh m;
+    if (!test::load_data(name, m)) return;
+    EXPECT_GT(m.num_faces(), 0) << name;
+  }
+}

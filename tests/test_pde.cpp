@@ -1,0 +1,172 @@
+// Constraints, conservation, the self-adjusting domain and localization.
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <random>
+
+#include "meshpde/apps/local_drag.h"
+#include "meshpde/mesh/generators.h"
+#include "meshpde/mesh/topology.h"
+#include "meshpde/operators/fem_operators.h"
+#include "meshpde/pde/pde_session.h"
+
+using namespace meshpde;
+
+namespace {
+
+Mesh make(const GeneratedMesh& g) { return Mesh(g.V, g.F); }
+
+Mesh unit_edge_icosphere(int level) {
+  GeneratedMesh g = icosphere(level);
+  g.V /= analyze(make(g)).mean_edge_length;
+  return make(g);
+}
+
+}  // namespace
+
+TEST(Pde, HeatConservesTheMassWeightedTotal) {
+  const Mesh m = make(icosphere(3));
+  const FemOperators ops = build_operators(m);
+  PdeSession s(m, ops, 1, PdeCoefficients{.alpha = 0, .b1 = 1, .b2 = 0, .g1 = 1, .g2 = 0.1});
+  s.cg_options.tolerance = 1e-13;
+  std::mt19937 rng(1);
+  std::uniform_real_distribution<double> u01(0, 1);
+  Field u(m.num_vertices(), 1);
+  for (int i = 0; i < m.num_vertices(); ++i) u(i, 0) = u01(rng);
+  s.set_values(u);
+  s.activate_all();
+  const double total = ops.mass.dot(u.col(0));
+  for (int k = 0; k < 20; ++k) {
+    ASSERT_TRUE(s.step(0.01).cg.converged());
+  }
+  EXPECT_NEAR(ops.mass.dot(s.values().col(0)), total, 1e-10 * total);
+  // And it smooths: the spread shrinks.
+  EXPECT_LT(s.values().maxCoeff() - s.values().minCoeff(), 0.5 * (u.maxCoeff() - u.minCoeff()));
+}
+
+TEST(Pde, ConstraintsAreAddedMovedAndReleasedBetweenSteps) {
+  const Mesh m = make(icosphere(3));
+  const FemOperators ops = build_operators(m);
+  PdeSession s(m, ops, 3, PdeCoefficients{.alpha = 0.1, .b1 = 1, .b2 = 0, .g1 = 1, .g2 = 0.1});
+  s.activate_all();
+  const double a[3] = {0.1, 0, 0}, b[3] = {0, 0.2, -0.1};
+  s.constrain(10, a);
+  ASSERT_TRUE(s.step(0.01).cg.converged());
+  EXPECT_EQ(s.values()(10, 0), 0.1);
+  EXPECT_GT(s.values().row(m.neighbors(10)[0]).norm(), 0.0);  // neighbours follow
+  s.constrain(10, b);                                          // moved
+  s.constrain(50, a);                                          // added
+  ASSERT_TRUE(s.step(0.01).cg.converged());
+  EXPECT_EQ(s.values()(10, 1), 0.2);
+  EXPECT_EQ(s.values()(50, 0), 0.1);
+  EXPECT_EQ(s.constrained_vertices().size(), 2u);
+  // Reactions oppose nothing at rest and something here.
+  EXPECT_GT(s.reaction_forces().norm(), 0.0);
+  s.release(10);
+  s.release(50);
+  EXPECT_TRUE(s.constrained_vertices().empty());
+  EXPECT_EQ(s.domain().state(10), VertexState::Free);
+  for (int k = 0; k < 200; ++k) s.step(0.05);
+  // Without a foundation term (g0 = 0) nothing holds the surface in place (K 1 = 0):
+  // it settles at a rigid offset, every vertex displaced alike.
+  for (int c = 0; c < 3; ++c) EXPECT_LT(s.values().col(c).maxCoeff() - s.values().col(c).minCoeff(), 1e-3);
+  EXPECT_GT(s.values().cwiseAbs().maxCoeff(), 1e-3);
+
+  // With a foundation it returns to rest.
+  PdeSession anchored(m, ops, 3, PdeCoefficients{.alpha = 0.1, .b1 = 1, .b2 = 0, .g0 = 1, .g1 = 1, .g2 = 0.1});
+  anchored.activate_all();
+  anchored.constrain(10, a);
+  anchored.step(0.01);
+  anchored.release(10);
+  for (int k = 0; k < 200; ++k) anchored.step(0.05);
+  EXPECT_LT(anchored.values().cwiseAbs().maxCoeff(), 1e-3);
+}
+
+TEST(Pde, ZeroAreaVerticesAreHeldFixed) {
+  Positions V(4, 3);
+  V << 0, 0, 0, 1, 0, 0, 0, 1, 0, 5, 5, 5;  // vertex 3 unreferenced
+  Triangles F(1, 3);
+  F << 0, 1, 2;
+  const Mesh m(V, F);
+  const FemOperators ops = build_operators(m);
+  PdeSession s(m, ops, 1);
+  s.activate_all();
+  EXPECT_EQ(s.domain().num_free(), 3);
+  EXPECT_EQ(s.domain().state(3), VertexState::Frozen);
+}
+
+TEST(Pde, SelfAdjustingDomainGrowsUnderAPokeAndShrinksAfterRelease) {
+  const Mesh m = unit_edge_icosphere(5);
+  const FemOperators ops = build_operators(m);
+  PdeSession s(m, ops, 3, PdeCoefficients{.alpha = 1, .b1 = 1, .b2 = 0.01, .g0 = 1, .g1 = 0, .g2 = 100},
+               DomainOptions{.self_adjusting = true, .rest_value = 1e-4, .rest_rate = 1e-3});
+  s.cg_options.tolerance = 1e-8;
+  const int handle = 0;
+  const Eigen::Vector3d n = m.positions().row(handle).normalized();
+  int peak = 0;
+  for (int k = 1; k <= 100; ++k) {
+    const Eigen::Vector3d target = -0.005 * k * n;
+    s.constrain(handle, std::span<const double>(target.data(), 3));
+    ASSERT_TRUE(s.step(1e-3).cg.converged());
+    peak = std::max(peak, s.domain().num_free());
+  }
+  EXPECT_GT(peak, 30);  // grew beyond the seed rings (about 16 vertices)
+  EXPECT_LT(peak, m.num_vertices() / 4);
+  s.release(handle);
+  int steps = 0;
+  // Relaxation takes seconds of model time (rate about b1 / 2alpha); larger steps get there.
+  while (s.domain().num_free() > 0 && steps < 5000) {
+    s.step(2e-2);
+    ++steps;
+  }
+  EXPECT_EQ(s.domain().num_free(), 0) << "domain did not shrink back after " << steps << " steps";
+  EXPECT_LE(s.values().cwiseAbs().maxCoeff(), 1e-4);
+}
+
+// A localized poke on >= 500k vertices touches a bounded set and agrees with the
+// same steps solved with the whole mesh active.
+TEST(Pde, LocalizedPokeOnAHalfMillionVertexMeshMatchesAFullSolve) {
+  const Mesh m = unit_edge_icosphere(8);  // 655,362 vertices
+  ASSERT_GE(m.num_vertices(), 500000);
+  const FemOperators ops = build_operators(m);
+  const PdeCoefficients c{.alpha = 1, .b1 = 1, .b2 = 0.01, .g0 = 1, .g1 = 0, .g2 = 100};
+  const DomainOptions local{.self_adjusting = true, .rest_value = 1e-7, .rest_rate = 1e-6};
+  PdeSession a(m, ops, 3, c, local), b(m, ops, 3, c);
+  a.cg_options.tolerance = b.cg_options.tolerance = 1e-10;
+  b.activate_all();
+  const int handle = 0;
+  const Eigen::Vector3d n = m.positions().row(handle).normalized();
+  const int steps = 5;
+  int touched = 0;
+  for (int k = 1; k <= steps; ++k) {
+    const Eigen::Vector3d target = -0.1 * k * n;
+    a.constrain(handle, std::span<const double>(target.data(), 3));
+    b.constrain(handle, std::span<const double>(target.data(), 3));
+    ASSERT_TRUE(a.step(1e-3).cg.converged());
+    ASSERT_TRUE(b.step(1e-3).cg.converged());
+    touched = std::max(touched, a.domain().num_free() + static_cast<int>(a.domain().ring().size()));
+  }
+  EXPECT_LE(touched, 2000) << "the localized solve touched too many vertices";
+  const double scale = 0.1 * steps;
+  const double err = (a.values() - b.values()).cwiseAbs().maxCoeff();
+  EXPECT_LE(err, 1e-3 * scale) << "local vs full";
+  EXPECT_LE((a.reaction_forces() - b.reaction_forces()).norm(), 1e-3 * b.reaction_forces().norm());
+}
+
+TEST(LocalDrag, MovesTheHandleAndStaysInsideTheRegion) {
+  const Mesh m = make(y_bifurcation(BifurcationParams{.cell = 1.0, .dent = true}));
+  const FemOperators ops = build_operators(m);
+  const DragResult r = drag_vertex(m, ops, DragParams{.vertex = 5, .displacement = {0.5, 0, 0}, .radius = 5.0});
+  ASSERT_TRUE(r.cg.converged()) << r.cg.message;
+  EXPECT_NEAR((r.V.row(5) - m.positions().row(5)).norm(), 0.5, 1e-12);
+  std::vector<char> in(m.num_vertices(), 0);
+  for (int v : r.region) in[v] = 1;
+  in[5] = 1;
+  for (int v = 0; v < m.num_vertices(); ++v)
+    if (!in[v]) {
+      ASSERT_EQ(r.displacement.row(v).norm(), 0.0);
+    }
+  EXPECT_GT(r.moved_vertices, 20);
+  // Smooth decay: displacement is largest at the handle.
+  EXPECT_LE(r.displacement.rowwise().norm().maxCoeff(), 0.5 * (1 + 1e-9) + 0.05);
+}

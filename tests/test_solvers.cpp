@@ -1,0 +1,207 @@
+// CG, analytic heat decay, steady interpolation and reaction forces.
+#include <gtest/gtest.h>
+
+#include <Eigen/SparseCore>
+#include <random>
+
+#include "meshpde/core/errors.h"
+#include "meshpde/mesh/generators.h"
+#include "meshpde/mesh/topology.h"
+#include "meshpde/operators/fem_operators.h"
+#include "meshpde/pde/pde_session.h"
+#include "meshpde/solvers/cg.h"
+
+using namespace meshpde;
+
+namespace {
+Mesh make(const GeneratedMesh& g) { return Mesh(g.V, g.F); }
+}  // namespace
+
+TEST(Cg, SolvesSpdWithSeveralRightHandSides) {
+  const int n = 50;
+  Eigen::MatrixXd A = Eigen::MatrixXd::Random(n, n);
+  A = A * A.transpose() + n * Eigen::MatrixXd::Identity(n, n);
+  const Block b = Block::Random(n, 3);
+  Block x = Block::Zero(n, 3);
+  CgWorkspace w;
+  const Eigen::VectorXd inv = A.diagonal().cwiseInverse();
+  const CgResult r = pcg([&](const Block& p, Block& y) { y = A * p; }, inv, b, x, CgOptions{.tolerance = 1e-12}, w);
+  EXPECT_TRUE(r.converged());
+  EXPECT_LE((A * x - b).norm() / b.norm(), 1e-11);
+}
+
+TEST(Cg, ReportsBreakdownAndIterationCapInWords) {
+  const int n = 10;
+  Eigen::MatrixXd A = Eigen::MatrixXd::Identity(n, n);
+  A(3, 3) = -1;  // indefinite
+  const Block b = Block::Ones(n, 1);
+  Block x = Block::Zero(n, 1);
+  CgWorkspace w;
+  const CgResult r =
+      pcg([&](const Block& p, Block& y) { y = A * p; }, Eigen::VectorXd::Ones(n), b, x, CgOptions{}, w);
+  EXPECT_EQ(r.status, CgStatus::Breakdown);
+  EXPECT_NE(r.message.find("not positive definite"), std::string::npos);
+
+  Eigen::MatrixXd B = Eigen::MatrixXd::Random(n, n);
+  B = B * B.transpose() + 1e-3 * Eigen::MatrixXd::Identity(n, n);
+  x.setZero();
+  const CgResult c =
+      pcg([&](const Block& p, Block& y) { y = B * p; }, Eigen::VectorXd::Ones(n), b, x, CgOptions{.max_iterations = 2}, w);
+  EXPECT_EQ(c.status, CgStatus::MaxIterations);
+  EXPECT_NE(c.message.find("no convergence in 2 iterations"), std::string::npos);
+}
+
+// Heat equation u_t = lap u on the unit sphere: Y_l decays as exp(-l(l+1) t).
+TEST(Heat, SphericalHarmonicsDecayAtTheAnalyticRate) {
+  const Mesh m = make(icosphere(5));  // 10,242 vertices
+  ASSERT_GE(m.num_vertices(), 10000);
+  const FemOperators ops = build_operators(m);
+  const auto& V = m.positions();
+  for (int l = 1; l <= 3; ++l) {
+    SCOPED_TRACE(l);
+    Field u0(m.num_vertices(), 1);
+    for (int i = 0; i < m.num_vertices(); ++i) {
+      const double z = V(i, 2);
+      u0(i, 0) = l == 1 ? z : (l == 2 ? 1.5 * z * z - 0.5 : 2.5 * z * z * z - 1.5 * z);  // Legendre P_l(z)
+    }
+    PdeSession s(m, ops, 1, PdeCoefficients{.alpha = 0, .b1 = 1, .b2 = 0, .g1 = 1, .g2 = 0});
+    s.cg_options.tolerance = 1e-12;
+    s.set_values(u0);
+    s.activate_all();
+    const double dt = 2.5e-4, t = 0.05;
+    const int steps = static_cast<int>(std::lround(t / dt));
+    for (int k = 0; k < steps; ++k) {
+      ASSERT_TRUE(s.step(dt).cg.converged());
+    }
+    // Projection onto u0 in the mass inner product.
+    const double ratio = (u0.cwiseProduct(ops.mass.asDiagonal() * s.values())).sum() /
+                         (u0.cwiseProduct(ops.mass.asDiagonal() * u0)).sum();
+    const double rate = -std::log(ratio) / t;
+    EXPECT_NEAR(rate / (l * (l + 1)), 1.0, 0.01);
+  }
+}
+
+TEST(Steady, BilaplacianReproducesLinearFieldsExactly) {
+  GeneratedMesh g = plane_grid(16, 16);
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> jitter(-0.015, 0.015);
+  for (Eigen::Index i = 0; i < g.V.rows(); ++i)
+    if (g.V(i, 0) > 0 && g.V(i, 0) < 1 && g.V(i, 1) > 0 && g.V(i, 1) < 1) {
+      g.V(i, 0) += jitter(rng);
+      g.V(i, 1) += jitter(rng);
+    }
+  const Mesh m = make(g);
+  const FemOperators ops = build_operators(m);
+  PdeSession s(m, ops, 1, PdeCoefficients{.alpha = 0, .b1 = 0, .b2 = 0, .g1 = 0, .g2 = 1},
+               DomainOptions{.seed_rings = 0});
+  s.cg_options.tolerance = 1e-13;
+  auto linear = [&](int i) { return 0.3 + 2 * g.V(i, 0) - 5 * g.V(i, 1); };
+  // Constrain two rings at the boundary (the bi-Laplacian's boundary data), free the rest.
+  const double h = 1.0 / 16;
+  int fixed = 0;
+  for (int i = 0; i < m.num_vertices(); ++i) {
+    const double d = std::min({g.V(i, 0), 1 - g.V(i, 0), g.V(i, 1), 1 - g.V(i, 1)});
+    if (d < 1.5 * h) {
+      const double v = linear(i);
+      s.constrain(i, std::span<const double>(&v, 1));
+      ++fixed;
+    } else {
+      s.activate(std::vector<int>{i});
+    }
+  }
+  ASSERT_GT(s.domain().num_free(), 100);
+  const StepResult r = s.solve_steady();
+  ASSERT_TRUE(r.cg.converged()) << r.cg.message;
+  for (int i = 0; i < m.num_vertices(); ++i) {
+    EXPECT_NEAR(s.values()(i, 0), linear(i), 1e-9);
+  }
+}
+
+TEST(Steady, HarmonicInterpolationObeysTheMaximumPrinciple) {
+  const Mesh m = make(plane_grid(20, 20));  // right triangles: Delaunay, cotangent weights >= 0
+  const FemOperators ops = build_operators(m);
+  PdeSession s(m, ops, 1, PdeCoefficients{.alpha = 0, .b1 = 0, .b2 = 0, .g1 = 1, .g2 = 0},
+               DomainOptions{.seed_rings = 0});
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> val(-2, 3);
+  double lo = 1e9, hi = -1e9;
+  const auto& V = m.positions();
+  for (int i = 0; i < m.num_vertices(); ++i) {
+    const bool boundary = V(i, 0) == 0 || V(i, 0) == 1 || V(i, 1) == 0 || V(i, 1) == 1;
+    if (boundary) {
+      const double v = val(rng);
+      lo = std::min(lo, v);
+      hi = std::max(hi, v);
+      s.constrain(i, std::span<const double>(&v, 1));
+    } else {
+      s.activate(std::vector<int>{i});
+    }
+  }
+  ASSERT_TRUE(s.solve_steady().cg.converged());
+  for (int i = 0; i < m.num_vertices(); ++i) {
+    EXPECT_GE(s.values()(i, 0), lo - 1e-9);
+    EXPECT_LE(s.values()(i, 0), hi + 1e-9);
+  }
+}
+
+TEST(Steady, ReactionForcesEqualAssembledRows) {
+  const Mesh m = make(icosphere(3));
+  const FemOperators ops = build_operators(m);
+  const PdeCoefficients c{.alpha = 0, .b1 = 0, .b2 = 0, .g0 = 0.2, .g1 = 0.7, .g2 = 0.4};
+  PdeSession s(m, ops, 3, c, DomainOptions{.seed_rings = 0});
+  s.cg_options.tolerance = 1e-12;
+  s.activate_all();
+  const double a[3] = {0.1, -0.2, 0.05}, b[3] = {0, 0, 0.3}, z[3] = {0, 0, 0};
+  s.constrain(0, a);
+  s.constrain(100, b);
+  s.constrain(400, z);
+  ASSERT_TRUE(s.solve_steady().cg.converged());
+  // Independent: Kt = g1 (-L) + g2 L M^-1 L assembled from the cotangent formula.
+  const Eigen::SparseMatrix<double> K = stiffness_matrix(m, ops);
+  Eigen::SparseMatrix<double> D(m.num_vertices(), m.num_vertices());
+  for (int i = 0; i < m.num_vertices(); ++i) D.insert(i, i) = ops.D(i);
+  const Eigen::SparseMatrix<double> Kt = c.g0 * mass_matrix(ops) + c.g1 * K + c.g2 * (K * D * K);
+  const Eigen::MatrixXd KtU = Kt * Eigen::MatrixXd(s.values());
+  const auto cons = s.constrained_vertices();
+  for (std::size_t k = 0; k < cons.size(); ++k)
+    for (int d = 0; d < 3; ++d)
+      EXPECT_NEAR(s.reaction_forces()(k, d), KtU(cons[k], d), 1e-10 * KtU.cwiseAbs().maxCoeff());
+  // Free rows are in equilibrium.
+  for (int i = 0; i < m.num_vertices(); ++i)
+    if (s.domain().state(i) == VertexState::Free) {
+      EXPECT_LE(KtU.row(i).norm(), 1e-8 * KtU.cwiseAbs().maxCoeff());
+    }
+}
+
+TEST(Step, ReactionForceEqualsAssembledBackwardEulerRow) {
+  const Mesh m = make(icosphere(3));
+  const FemOperators ops = build_operators(m);
+  const PdeCoefficients c{.alpha = 1.0, .b1 = 0.5, .b2 = 0.01, .g0 = 0.1, .g1 = 0.3, .g2 = 0.2};
+  PdeSession s(m, ops, 1, c);
+  s.cg_options.tolerance = 1e-13;
+  s.activate_all();
+  const double dt = 0.01;
+  Field f = Field::Zero(m.num_vertices(), 1);
+  f(7, 0) = 0.25;
+  for (int k = 0; k < 3; ++k) {
+    const double v = 0.01 * (k + 1);
+    s.constrain(5, std::span<const double>(&v, 1));
+    const Field u_old = s.values(), v_old = s.velocities();
+    ASSERT_TRUE(s.step(dt, &f).cg.converged());
+    // Assemble At and b and evaluate (row_5(At) v - b_5) / dt independently.
+    const Eigen::SparseMatrix<double> K = stiffness_matrix(m, ops);
+    Eigen::SparseMatrix<double> D(m.num_vertices(), m.num_vertices());
+    for (int i = 0; i < m.num_vertices(); ++i) D.insert(i, i) = ops.D(i);
+    const Eigen::SparseMatrix<double> M = mass_matrix(ops);
+    const Eigen::SparseMatrix<double> Kt = c.g0 * M + c.g1 * K + c.g2 * (K * D * K);
+    const Eigen::SparseMatrix<double> At = (c.alpha + c.b1 * dt) * M + (c.b2 + dt) * dt * Kt;
+    const Eigen::VectorXd vv = s.velocities().col(0);
+    const Eigen::VectorXd bb = c.alpha * (M * Eigen::VectorXd(v_old.col(0))) - dt * (Kt * Eigen::VectorXd(u_old.col(0))) +
+                               dt * Eigen::VectorXd(f.col(0));
+    Eigen::VectorXd res = At * vv - bb;
+    EXPECT_NEAR(s.reaction_forces()(0, 0), res[5] / dt, 1e-9 * std::abs(res[5] / dt) + 1e-12);
+    // Every free row satisfies the backward Euler equation.
+    res[5] = 0;
+    EXPECT_LE(res.cwiseAbs().maxCoeff(), 1e-10 * bb.cwiseAbs().maxCoeff());
+  }
+}
