@@ -51,7 +51,9 @@ void print_report(const std::string& name, const MeshReport& r) {
   fmt::print("  orientation {}  signed volume {:.6g}{}\n",
              r.orientation_consistent ? "consistent" : fmt::format("inconsistent ({} edges)", r.inconsistent_edges),
              r.signed_volume,
-             r.boundary_loops == 0 && r.orientation_consistent ? (r.signed_volume < 0 ? " (normals point inward)" : " (normals point outward)") : "");
+             r.boundary_loops == 0 && r.orientation_consistent
+                 ? (r.signed_volume < 0 ? " (normals point inward)" : " (normals point outward)")
+                 : "");
   fmt::print("  area {:.6g}  mean edge length {:.6g}\n", r.area, r.mean_edge_length);
   fmt::print("  angles {:.4g} .. {:.4g} deg  area ratio {:.4g}\n", r.min_angle_deg, r.max_angle_deg, r.area_ratio);
   fmt::print("  bounding box ({:.6g}, {:.6g}, {:.6g}) .. ({:.6g}, {:.6g}, {:.6g})\n", r.bbox_min.x(), r.bbox_min.y(),
@@ -79,26 +81,29 @@ void add_mesh_commands(CLI::App& app) {
     cmd->callback([=] {
       const Mesh mesh = load_mesh(*path);
       const MeshReport r = analyze(mesh);
-      if (*json) print_json(report_json(r));
-      else print_report(*path, r);
+      if (*json)
+        print_json(report_json(r));
+      else
+        print_report(*path, r);
     });
   }
   {
     auto* cmd = app.add_subcommand("generate", "Generate a test mesh");
     auto a = std::make_shared<GenerateArgs>();
-    cmd->add_option("KIND", a->kind,
-                    "latlong | icosphere | geodesic | tube | bifurcation | plane | fins")
+    cmd->add_option("KIND", a->kind, "latlong | icosphere | geodesic | tube | bifurcation | plane | fins")
         ->required()
         ->check(CLI::IsMember({"latlong", "icosphere", "geodesic", "tube", "bifurcation", "plane", "fins"}));
     cmd->add_option("-o,--output", a->out, "Output mesh file")->required();
-    cmd->add_option("--n", a->n, "latlong: rings of latitude n (n-1 rings plus 2 poles, 2n meridians); fins: quads per side")
+    cmd->add_option("--n", a->n,
+                    "latlong: rings of latitude n (n-1 rings plus 2 poles, 2n meridians); fins: quads per side")
         ->capture_default_str();
     cmd->add_option("--level", a->level, "icosphere: subdivision level (5: 10,242 vertices, 8: 655,362)")
         ->capture_default_str();
     cmd->add_option("--base", a->base, "geodesic: icosahedron | tetrahedron")
         ->check(CLI::IsMember({"icosahedron", "tetrahedron"}))
         ->capture_default_str();
-    cmd->add_option("--frequency", a->frequency, "geodesic: each base edge split into this many")->capture_default_str();
+    cmd->add_option("--frequency", a->frequency, "geodesic: each base edge split into this many")
+        ->capture_default_str();
     cmd->add_option("--radius", a->radius, "sphere or tube radius")->capture_default_str();
     cmd->add_option("--length", a->length, "tube length")->capture_default_str();
     cmd->add_option("--rings", a->rings, "tube: rings along the axis")->capture_default_str();
@@ -107,19 +112,26 @@ void add_mesh_commands(CLI::App& app) {
     cmd->add_option("--ny", a->ny, "plane: quads along y")->capture_default_str();
     cmd->add_option("--size", a->size, "plane: side length")->capture_default_str();
     cmd->add_option("--k", a->k, "fins: number of sheets sharing the axis edge")->capture_default_str();
-    cmd->add_option("--cell", a->cell, "bifurcation: grid spacing in mm (about the edge length)")->capture_default_str();
+    cmd->add_option("--cell", a->cell, "bifurcation: grid spacing in mm (about the edge length)")
+        ->capture_default_str();
     cmd->add_flag("--dent", a->dent, "bifurcation: push a dent into the trunk wall");
     cmd->callback([=] {
       GeneratedMesh g;
-      if (a->kind == "latlong") g = latlong_sphere(a->n, a->radius);
-      else if (a->kind == "icosphere") g = icosphere(a->level, a->radius);
+      if (a->kind == "latlong")
+        g = latlong_sphere(a->n, a->radius);
+      else if (a->kind == "icosphere")
+        g = icosphere(a->level, a->radius);
       else if (a->kind == "geodesic")
-        g = geodesic_sphere(a->base == "tetrahedron" ? BaseSolid::Tetrahedron : BaseSolid::Icosahedron,
-                            a->frequency, a->radius);
-      else if (a->kind == "tube") g = tube(a->radius, a->length, a->rings, a->segments);
-      else if (a->kind == "plane") g = plane_grid(a->nx, a->ny, a->size, a->size);
-      else if (a->kind == "fins") g = fins(a->k, a->n);
-      else g = y_bifurcation(BifurcationParams{.cell = a->cell, .dent = a->dent});
+        g = geodesic_sphere(a->base == "tetrahedron" ? BaseSolid::Tetrahedron : BaseSolid::Icosahedron, a->frequency,
+                            a->radius);
+      else if (a->kind == "tube")
+        g = tube(a->radius, a->length, a->rings, a->segments);
+      else if (a->kind == "plane")
+        g = plane_grid(a->nx, a->ny, a->size, a->size);
+      else if (a->kind == "fins")
+        g = fins(a->k, a->n);
+      else
+        g = y_bifurcation(BifurcationParams{.cell = a->cell, .dent = a->dent});
       save_mesh(a->out, g.V, g.F);
       fmt::print("wrote {}: {} vertices, {} triangles\n", a->out, g.V.rows(), g.F.rows());
     });

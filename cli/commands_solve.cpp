@@ -68,8 +68,8 @@ nlohmann::json drag_json(const DragReport& r) {
 }
 
 void print_drag(const DragReport& r, const std::string& out) {
-  fmt::print("moved {} vertices (region of {} free vertices), largest displacement {:.4g}\n",
-             r.result.moved_vertices, r.result.region.size(), r.result.max_displacement);
+  fmt::print("moved {} vertices (region of {} free vertices), largest displacement {:.4g}\n", r.result.moved_vertices,
+             r.result.region.size(), r.result.max_displacement);
   fmt::print("time {:.1f} ms (operators {:.1f} ms, solve {:.1f} ms, {} CG iterations, relative residual {:.2g})\n",
              r.setup_ms + r.solve_ms, r.setup_ms, r.solve_ms, r.result.cg.iterations, r.result.cg.relative_residual);
   fmt::print("wrote {}\n", out);
@@ -101,22 +101,27 @@ void add_solve_commands(CLI::App& app) {
     cmd->add_option("--g1", a->g1, "Membrane (Laplacian) stiffness")->capture_default_str();
     cmd->add_option("--g2", a->g2, "Plate (bi-Laplacian) stiffness")->capture_default_str();
     cmd->add_option("--tolerance", a->tol, "CG relative residual tolerance")->capture_default_str();
-    cmd->add_option("-o,--output", a->out, "Corrected mesh (.ply keeps a 'displacement' magnitude field)")
-        ->required();
+    cmd->add_option("-o,--output", a->out, "Corrected mesh (.ply keeps a 'displacement' magnitude field)")->required();
     cmd->add_flag("--json", a->json, "Print a JSON report");
     cmd->callback([=] {
       if (a->radius <= 0 && a->rings <= 0) throw InputError("give --radius MM or --rings K");
       const Mesh mesh = load_mesh(a->mesh);
-      DragParams p{.vertex = a->vertex, .displacement = parse_vector(a->move, "--move"), .radius = a->radius,
-                   .rings = a->rings, .g1 = a->g1, .g2 = a->g2};
+      DragParams p{.vertex = a->vertex,
+                   .displacement = parse_vector(a->move, "--move"),
+                   .radius = a->radius,
+                   .rings = a->rings,
+                   .g1 = a->g1,
+                   .g2 = a->g2};
       p.cg.tolerance = a->tol;
       const DragReport r = run_drag(mesh, p);
       if (!r.result.cg.converged()) fmt::print(stderr, "warning: {}\n", r.result.cg.message);
       save_mesh(a->out, r.result.V, mesh.triangles(),
                 format_from_path(a->out) == MeshFormat::Ply ? displacement_fields(r.result)
                                                             : std::map<std::string, Eigen::VectorXd>{});
-      if (a->json) print_json(drag_json(r));
-      else print_drag(r, a->out);
+      if (a->json)
+        print_json(drag_json(r));
+      else
+        print_drag(r, a->out);
       if (!r.result.cg.converged()) throw SolverError("the solve did not converge; the output is approximate");
     });
   }

@@ -31,7 +31,9 @@ void save_mesh(const std::filesystem::path& path, const Positions& V, const Tria
   for (const auto& w : write_mesh(path, d)) fmt::print(stderr, "warning: {}\n", w);
 }
 
-void print_json(const nlohmann::json& j) { std::cout << j.dump(2) << std::endl; }
+void print_json(const nlohmann::json& j) {
+  std::cout << j.dump(2) << std::endl;
+}
 
 std::filesystem::path data_dir() {
   if (const char* env = std::getenv("MESHPDE_DATA_DIR")) return env;

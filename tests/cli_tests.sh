@@ -1,0 +1,89 @@
+#!/usr/bin/env bash
+# End-to-end tests of the meshpde tool: every assertion can fail.
+#   cli_tests.sh MESHPDE_BINARY DATA_DIR
+set -uo pipefail
+M="$1"
+DATA="$2"
+T="$(mktemp -d)"
+trap 'rm -rf "$T"' EXIT
+pass=0
+fail=0
+ok() { pass=$((pass + 1)); }
+bad() { echo "FAIL: $*"; fail=$((fail + 1)); }
+check() { local what="$1"; shift; if "$@"; then ok; else bad "$what"; fi; }
+json() { python3 -c "import json,sys; d=json.load(open('$1')); print($2)"; }
+
+# generate + info --json
+"$M" generate latlong --n 15 --radius 100 -o "$T/ll.off" >/dev/null || bad "generate latlong"
+"$M" info "$T/ll.off" --json >"$T/ll.json" || bad "info --json"
+check "latlong n=15 has 422 vertices" [ "$(json "$T/ll.json" "d['vertices']")" = 422 ]
+for key in vertices faces edges boundary_loops nonmanifold_edges nonmanifold_vertices components degenerate_faces \
+           duplicate_vertices unreferenced_vertices area min_angle_deg area_ratio; do
+  check "info key $key" [ "$(json "$T/ll.json" "'$key' in d")" = True ]
+done
+for kind in "icosphere --level 2" "geodesic --base tetrahedron --frequency 4" "tube" "bifurcation --dent --cell 1" \
+            "plane --nx 5 --ny 5" "fins --k 3 --n 3"; do
+  # shellcheck disable=SC2086
+  "$M" generate $kind -o "$T/g.ply" >/dev/null && "$M" info "$T/g.ply" --json >"$T/g.json" || bad "generate $kind"
+done
+check "fins are non-manifold" [ "$(json "$T/g.json" "d['nonmanifold_edges']")" = 3 ]
+
+# curvature: Table 1, lat-long n=3, valence scaling, mean radius 112.1
+"$M" generate latlong --n 3 --radius 100 -o "$T/l3.obj" >/dev/null
+"$M" curvature "$T/l3.obj" --scale valence --json >"$T/c.json" || bad "curvature"
+check "curvature mean radius 112.1" [ "$(json "$T/c.json" "round(d['mean_radius'], 1)")" = 112.1 ]
+check "curvature array length" [ "$(json "$T/c.json" "len(d['mean_curvature'])")" = 14 ]
+"$M" curvature "$T/l3.obj" -o "$T/c.ply" >/dev/null || bad "curvature -o"
+check "curvature field written" grep -q "property double mean_curvature" "$T/c.ply"
+
+# real data
+if [ -f "$DATA/bunny-36k.obj" ]; then
+  "$M" info "$DATA/bunny-36k.obj" --json >"$T/b.json"
+  check "bunny unreferenced" [ "$(json "$T/b.json" "d['unreferenced_vertices']")" = 1113 ]
+  check "bunny holes" [ "$(json "$T/b.json" "d['boundary_loops']")" = 5 ]
+elif [ "${CI:-}" = true ]; then
+  bad "missing $DATA/bunny-36k.obj under CI"
+else
+  echo "skipped real-data checks: $DATA missing"
+fi
+
+# bad input: clear message naming the file and line, non-zero exit, nothing written
+printf 'OFF\n3 1 0\n0 0 0\n1 0 nan\n0 1 0\n3 0 1 2\n' >"$T/nan.off"
+"$M" info "$T/nan.off" 2>"$T/err" >/dev/null
+check "NaN input exits 1" [ $? -eq 1 ]
+check "message names file and line" grep -q "nan.off: line 4" "$T/err"
+"$M" info "$T/missing.obj" 2>"$T/err" >/dev/null
+check "missing file exits 1" [ $? -eq 1 ]
+check "missing file named" grep -q "missing.obj" "$T/err"
+head -c 1000 /dev/urandom >"$T/junk.ply"
+"$M" info "$T/junk.ply" 2>"$T/err" >/dev/null
+check "junk PLY exits 1" [ $? -eq 1 ]
+printf 'OFF\n2000000000 1 0\n' >"$T/huge.off"
+"$M" info "$T/huge.off" 2>"$T/err" >/dev/null
+check "absurd count exits 1" [ $? -eq 1 ]
+check "absurd count explained" grep -q "claims" "$T/err"
+
+# correct: JSON report, handle moved, outside untouched, bad arguments refused
+"$M" generate icosphere --level 3 --radius 10 -o "$T/s.ply" >/dev/null
+"$M" correct "$T/s.ply" --vertex 0 --move 0,0,1 --radius 4 -o "$T/s2.ply" --json >"$T/k.json" || bad "correct"
+for key in moved_vertices max_displacement region_vertices time_ms; do
+  check "correct key $key" [ "$(json "$T/k.json" "'$key' in d")" = True ]
+done
+check "correct max displacement" [ "$(json "$T/k.json" "round(d['max_displacement'], 9)")" = 1.0 ]
+cp "$T/s2.ply" "$T/keep.ply"
+"$M" correct "$T/s.ply" --vertex 0 --move 0,zero,1 --radius 4 -o "$T/s2.ply" 2>"$T/err" >/dev/null
+check "bad --move exits 1" [ $? -eq 1 ]
+check "bad --move explained" grep -q "not a number" "$T/err"
+check "failed run leaves the output untouched" cmp -s "$T/s2.ply" "$T/keep.ply"
+"$M" correct "$T/s.ply" --vertex 99999 --move 0,0,1 --radius 4 -o "$T/x.ply" 2>"$T/err" >/dev/null
+check "bad vertex exits 1" [ $? -eq 1 ]
+check "no output for bad vertex" [ ! -e "$T/x.ply" ]
+
+# the main job
+"$M" demo -o "$T/demo" --json >"$T/d.json" || bad "demo"
+check "demo moved vertices" [ "$(json "$T/d.json" "d['moved_vertices'] > 100")" = True ]
+check "demo converged" [ "$(json "$T/d.json" "d['converged']")" = True ]
+check "demo output" [ -s "$T/demo/bifurcation-corrected.ply" ]
+
+echo "cli: $pass passed, $fail failed"
+[ "$fail" -eq 0 ]

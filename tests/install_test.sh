@@ -1,0 +1,14 @@
+#!/usr/bin/env bash
+# Installs meshpde from BUILD_DIR into a scratch prefix, then configures and builds
+# a consumer project with find_package(meshpde CONFIG REQUIRED) and runs it.
+set -euo pipefail
+build="$1"
+consumer="$2"
+T="$(mktemp -d)"
+trap 'rm -rf "$T"' EXIT
+cmake --install "$build" --prefix "$T/prefix" >/dev/null
+test -f "$T/prefix/lib/cmake/meshpde/meshpdeConfigVersion.cmake"
+cmake -S "$consumer" -B "$T/build" -G Ninja -DCMAKE_PREFIX_PATH="$T/prefix" >/dev/null
+cmake --build "$T/build" >/dev/null
+"$T/build/consumer" | tee "$T/out"
+grep -q "K 1 = 0" "$T/out"

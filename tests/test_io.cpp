@@ -60,13 +60,12 @@ TEST(Io, RoundTripEveryFormat) {
   for (const bool binary : {false, true}) {
     // STL stores float corners; the welded mesh has the same vertex count and faces
     // up to vertex renumbering, so compare positions per face corner.
-    const MeshData s = read_mesh_from_memory(write_mesh_to_memory(d, MeshFormat::Stl, {.binary = binary}),
-                                             MeshFormat::Stl, "rt.stl");
+    const MeshData s =
+        read_mesh_from_memory(write_mesh_to_memory(d, MeshFormat::Stl, {.binary = binary}), MeshFormat::Stl, "rt.stl");
     ASSERT_EQ(s.V.rows(), d.V.rows());
     ASSERT_EQ(s.F.rows(), d.F.rows());
     for (Eigen::Index f = 0; f < d.F.rows(); ++f)
-      for (int c = 0; c < 3; ++c)
-        EXPECT_LE((s.V.row(s.F(f, c)) - d.V.row(d.F(f, c))).norm(), 1e-6);
+      for (int c = 0; c < 3; ++c) EXPECT_LE((s.V.row(s.F(f, c)) - d.V.row(d.F(f, c))).norm(), 1e-6);
   }
 }
 
@@ -74,8 +73,8 @@ TEST(Io, PlyKeepsVertexScalars) {
   MeshData d = sample();
   d.vertex_scalars["temperature"] = Eigen::VectorXd::LinSpaced(d.V.rows(), -1, 7);
   for (const bool binary : {false, true}) {
-    const MeshData r = read_mesh_from_memory(write_mesh_to_memory(d, MeshFormat::Ply, {.binary = binary}),
-                                             MeshFormat::Ply, "s.ply");
+    const MeshData r =
+        read_mesh_from_memory(write_mesh_to_memory(d, MeshFormat::Ply, {.binary = binary}), MeshFormat::Ply, "s.ply");
     ASSERT_TRUE(r.vertex_scalars.count("temperature"));
     EXPECT_EQ(r.vertex_scalars.at("temperature"), d.vertex_scalars.at("temperature"));
   }
@@ -159,8 +158,8 @@ TEST(Io, MalformedInputGivesClearErrors) {
       "property double z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n";
   expect_error(head + std::string(30, '\0'), MeshFormat::Ply, {"line 3", "claims 3 entries"});
   expect_error(head + std::string(72, '\0') + "\x03" + std::string(5, '\0'), MeshFormat::Ply, {"face 0", "file ends"});
-  expect_error("ply\nformat ascii 1.0\nelement vertex 4000000000\nproperty float x\nend_header\n0\n",
-               MeshFormat::Ply, {"line 3", "claims"});
+  expect_error("ply\nformat ascii 1.0\nelement vertex 4000000000\nproperty float x\nend_header\n0\n", MeshFormat::Ply,
+               {"line 3", "claims"});
   expect_error(
       "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
       "element tristrips 1\nproperty list int int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n",

@@ -8,7 +8,9 @@
 using namespace meshpde;
 
 namespace {
-Mesh make(const GeneratedMesh& g) { return Mesh(g.V, g.F); }
+Mesh make(const GeneratedMesh& g) {
+  return Mesh(g.V, g.F);
+}
 }  // namespace
 
 TEST(Mesh, CsrAdjacencyIsSortedSymmetricAndIndexesEdges) {
@@ -162,17 +164,17 @@ TEST_P(RealMeshInfo, MatchesManifest) {
 }
 
 // Figures from ../shared/data/MANIFEST.md.
-INSTANTIATE_TEST_SUITE_P(
-    Manifest, RealMeshInfo,
-    ::testing::Values(RealMeshExpectation{"bunny-3k.off", 3485, 0, 0, 0, 0, 2, 1},
-                      RealMeshExpectation{"bunny-36k.obj", 35947, 5, 0, 0, 1113, -3, 1},
-                      RealMeshExpectation{"fertility-4k.off", 4494, 0, 0, 0, 0, -6, 1},
-                      RealMeshExpectation{"camelhead-11k.off", 11381, 1, 0, 0, 0, 1, 1},
-                      RealMeshExpectation{"cow-3k.off", 2762, 0, 0, 1, 0, 2, 1},
-                      RealMeshExpectation{"igea-134k.ply", 134345, 0, 0, 0, 0, 2, 1},
-                      RealMeshExpectation{"aorta-open-6k.stl", 6068, 3, 0, 0, 0, -1, 1},
-                      RealMeshExpectation{"coronary-phantom-7k.stl", 6531, 7, 0, 0, 0, -5, 1},
-                      RealMeshExpectation{"nonmanifold-vierbein.obj", 75, 1, 20, 0, 0, kNotStated, kNotStated}));
+INSTANTIATE_TEST_SUITE_P(Manifest, RealMeshInfo,
+                         ::testing::Values(RealMeshExpectation{"bunny-3k.off", 3485, 0, 0, 0, 0, 2, 1},
+                                           RealMeshExpectation{"bunny-36k.obj", 35947, 5, 0, 0, 1113, -3, 1},
+                                           RealMeshExpectation{"fertility-4k.off", 4494, 0, 0, 0, 0, -6, 1},
+                                           RealMeshExpectation{"camelhead-11k.off", 11381, 1, 0, 0, 0, 1, 1},
+                                           RealMeshExpectation{"cow-3k.off", 2762, 0, 0, 1, 0, 2, 1},
+                                           RealMeshExpectation{"igea-134k.ply", 134345, 0, 0, 0, 0, 2, 1},
+                                           RealMeshExpectation{"aorta-open-6k.stl", 6068, 3, 0, 0, 0, -1, 1},
+                                           RealMeshExpectation{"coronary-phantom-7k.stl", 6531, 7, 0, 0, 0, -5, 1},
+                                           RealMeshExpectation{"nonmanifold-vierbein.obj", 75, 1, 20, 0, 0, kNotStated,
+                                                               kNotStated}));
 
 TEST(Topology, NonManifoldRealMeshes) {
   Mesh m;

@@ -14,7 +14,9 @@ using namespace meshpde;
 
 namespace {
 
-Mesh make(const GeneratedMesh& g) { return Mesh(g.V, g.F); }
+Mesh make(const GeneratedMesh& g) {
+  return Mesh(g.V, g.F);
+}
 
 Mesh unit_edge_icosphere(int level) {
   GeneratedMesh g = icosphere(level);
@@ -54,8 +56,8 @@ TEST(Pde, ConstraintsAreAddedMovedAndReleasedBetweenSteps) {
   ASSERT_TRUE(s.step(0.01).cg.converged());
   EXPECT_EQ(s.values()(10, 0), 0.1);
   EXPECT_GT(s.values().row(m.neighbors(10)[0]).norm(), 0.0);  // neighbours follow
-  s.constrain(10, b);                                          // moved
-  s.constrain(50, a);                                          // added
+  s.constrain(10, b);                                         // moved
+  s.constrain(50, a);                                         // added
   ASSERT_TRUE(s.step(0.01).cg.converged());
   EXPECT_EQ(s.values()(10, 1), 0.2);
   EXPECT_EQ(s.values()(50, 0), 0.1);

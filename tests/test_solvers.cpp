@@ -14,7 +14,9 @@
 using namespace meshpde;
 
 namespace {
-Mesh make(const GeneratedMesh& g) { return Mesh(g.V, g.F); }
+Mesh make(const GeneratedMesh& g) {
+  return Mesh(g.V, g.F);
+}
 }  // namespace
 
 TEST(Cg, SolvesSpdWithSeveralRightHandSides) {
@@ -37,16 +39,15 @@ TEST(Cg, ReportsBreakdownAndIterationCapInWords) {
   const Block b = Block::Ones(n, 1);
   Block x = Block::Zero(n, 1);
   CgWorkspace w;
-  const CgResult r =
-      pcg([&](const Block& p, Block& y) { y = A * p; }, Eigen::VectorXd::Ones(n), b, x, CgOptions{}, w);
+  const CgResult r = pcg([&](const Block& p, Block& y) { y = A * p; }, Eigen::VectorXd::Ones(n), b, x, CgOptions{}, w);
   EXPECT_EQ(r.status, CgStatus::Breakdown);
   EXPECT_NE(r.message.find("not positive definite"), std::string::npos);
 
   Eigen::MatrixXd B = Eigen::MatrixXd::Random(n, n);
   B = B * B.transpose() + 1e-3 * Eigen::MatrixXd::Identity(n, n);
   x.setZero();
-  const CgResult c =
-      pcg([&](const Block& p, Block& y) { y = B * p; }, Eigen::VectorXd::Ones(n), b, x, CgOptions{.max_iterations = 2}, w);
+  const CgResult c = pcg([&](const Block& p, Block& y) { y = B * p; }, Eigen::VectorXd::Ones(n), b, x,
+                         CgOptions{.max_iterations = 2}, w);
   EXPECT_EQ(c.status, CgStatus::MaxIterations);
   EXPECT_NE(c.message.find("no convergence in 2 iterations"), std::string::npos);
 }
@@ -196,8 +197,8 @@ TEST(Step, ReactionForceEqualsAssembledBackwardEulerRow) {
     const Eigen::SparseMatrix<double> Kt = c.g0 * M + c.g1 * K + c.g2 * (K * D * K);
     const Eigen::SparseMatrix<double> At = (c.alpha + c.b1 * dt) * M + (c.b2 + dt) * dt * Kt;
     const Eigen::VectorXd vv = s.velocities().col(0);
-    const Eigen::VectorXd bb = c.alpha * (M * Eigen::VectorXd(v_old.col(0))) - dt * (Kt * Eigen::VectorXd(u_old.col(0))) +
-                               dt * Eigen::VectorXd(f.col(0));
+    const Eigen::VectorXd bb = c.alpha * (M * Eigen::VectorXd(v_old.col(0))) -
+                               dt * (Kt * Eigen::VectorXd(u_old.col(0))) + dt * Eigen::VectorXd(f.col(0));
     Eigen::VectorXd res = At * vv - bb;
     EXPECT_NEAR(s.reaction_forces()(0, 0), res[5] / dt, 1e-9 * std::abs(res[5] / dt) + 1e-12);
     // Every free row satisfies the backward Euler equation.

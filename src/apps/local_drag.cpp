@@ -50,8 +50,8 @@ std::vector<int> ring_ball(const Mesh& mesh, int source, int rings) {
 
 DragResult drag_vertex(const Mesh& mesh, const FemOperators& ops, const DragParams& p) {
   if (p.vertex < 0 || p.vertex >= mesh.num_vertices())
-    throw InputError(fmt::format("handle vertex {} does not exist (the mesh has {} vertices)", p.vertex,
-                                 mesh.num_vertices()));
+    throw InputError(
+        fmt::format("handle vertex {} does not exist (the mesh has {} vertices)", p.vertex, mesh.num_vertices()));
   if (!p.displacement.allFinite()) throw InputError("displacement is not finite");
   if (p.radius <= 0 && p.rings <= 0) throw InputError("give a region of influence: a radius > 0 or rings > 0");
   if (ops.mass[p.vertex] <= 0) throw InputError(fmt::format("handle vertex {} has no incident area", p.vertex));

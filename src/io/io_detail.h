@@ -70,8 +70,7 @@ class TextCursor {
     if (t.empty()) error(fmt::format("expected {} but the line ends", what));
     double v = 0;
     const auto [p, ec] = std::from_chars(t.data(), t.data() + t.size(), v);
-    if (ec != std::errc() || p != t.data() + t.size())
-      error(fmt::format("expected {} but found '{}'", what, clip(t)));
+    if (ec != std::errc() || p != t.data() + t.size()) error(fmt::format("expected {} but found '{}'", what, clip(t)));
     if (!std::isfinite(v)) error(fmt::format("{} is not finite ('{}')", what, clip(t)));
     return v;
   }
@@ -80,8 +79,7 @@ class TextCursor {
     if (t.empty()) error(fmt::format("expected {} but the line ends", what));
     long long v = 0;
     const auto [p, ec] = std::from_chars(t.data(), t.data() + t.size(), v);
-    if (ec != std::errc() || p != t.data() + t.size())
-      error(fmt::format("expected {} but found '{}'", what, clip(t)));
+    if (ec != std::errc() || p != t.data() + t.size()) error(fmt::format("expected {} but found '{}'", what, clip(t)));
     return v;
   }
 

@@ -24,10 +24,18 @@ MeshFormat format_from_path(const std::filesystem::path& path) {
 MeshData read_mesh_from_memory(const std::string& bytes, MeshFormat format, const std::string& name) {
   MeshData d;
   switch (format) {
-    case MeshFormat::Obj: d = detail::read_obj(bytes, name); break;
-    case MeshFormat::Off: d = detail::read_off(bytes, name); break;
-    case MeshFormat::Ply: d = detail::read_ply(bytes, name); break;
-    case MeshFormat::Stl: d = detail::read_stl(bytes, name); break;
+    case MeshFormat::Obj:
+      d = detail::read_obj(bytes, name);
+      break;
+    case MeshFormat::Off:
+      d = detail::read_off(bytes, name);
+      break;
+    case MeshFormat::Ply:
+      d = detail::read_ply(bytes, name);
+      break;
+    case MeshFormat::Stl:
+      d = detail::read_stl(bytes, name);
+      break;
   }
   if (d.V.rows() == 0) throw InputError(fmt::format("{}: contains no vertices", name));
   detail::check_indices(name, d.F, static_cast<int>(d.V.rows()));
@@ -46,10 +54,14 @@ MeshData read_mesh(const std::filesystem::path& path) {
 
 std::string write_mesh_to_memory(const MeshData& data, MeshFormat format, const WriteOptions& options) {
   switch (format) {
-    case MeshFormat::Obj: return detail::write_obj(data);
-    case MeshFormat::Off: return detail::write_off(data);
-    case MeshFormat::Ply: return detail::write_ply(data, options.binary);
-    case MeshFormat::Stl: return detail::write_stl(data, options.binary);
+    case MeshFormat::Obj:
+      return detail::write_obj(data);
+    case MeshFormat::Off:
+      return detail::write_off(data);
+    case MeshFormat::Ply:
+      return detail::write_ply(data, options.binary);
+    case MeshFormat::Stl:
+      return detail::write_stl(data, options.binary);
   }
   return {};
 }

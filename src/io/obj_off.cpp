@@ -53,8 +53,8 @@ MeshData read_obj(std::string_view text, const std::string& name) {
       if (poly.size() < 3) in.error(fmt::format("a face needs at least 3 corners, found {}", poly.size()));
       if (poly.size() > 3) ++polygons;
       add_polygon(tris, poly);
-    } else if (key == "vt" || key == "vn" || key == "vp" || key == "o" || key == "g" || key == "s" ||
-               key == "usemtl" || key == "mtllib") {
+    } else if (key == "vt" || key == "vn" || key == "vp" || key == "o" || key == "g" || key == "s" || key == "usemtl" ||
+               key == "mtllib") {
       // Texture coordinates, normals, groups and materials do not affect the PDEs.
     } else if (key == "l" || key == "p") {
       ++skipped_lines;
@@ -90,8 +90,8 @@ MeshData read_off(std::string_view text, const std::string& name) {
   // the file cannot possibly hold is rejected before anything is allocated.
   const long long remaining = static_cast<long long>(text.size() - in.position());
   if (nv > remaining / 6 + 1 || nf > remaining / 8 + 1)
-    in.error(fmt::format("header claims {} vertices and {} faces, more than the {} bytes that follow can hold",
-                         nv, nf, remaining));
+    in.error(fmt::format("header claims {} vertices and {} faces, more than the {} bytes that follow can hold", nv, nf,
+                         remaining));
   std::vector<double> xyz;
   xyz.reserve(static_cast<std::size_t>(3 * nv));
   for (long long v = 0; v < nv; ++v) {

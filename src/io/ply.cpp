@@ -15,24 +15,41 @@ enum class Type { I8, U8, I16, U16, I32, U32, F32, F64 };
 
 int type_size(Type t) {
   switch (t) {
-    case Type::I8: case Type::U8: return 1;
-    case Type::I16: case Type::U16: return 2;
-    case Type::I32: case Type::U32: case Type::F32: return 4;
-    case Type::F64: return 8;
+    case Type::I8:
+    case Type::U8:
+      return 1;
+    case Type::I16:
+    case Type::U16:
+      return 2;
+    case Type::I32:
+    case Type::U32:
+    case Type::F32:
+      return 4;
+    case Type::F64:
+      return 8;
   }
   return 0;
 }
 
 bool parse_type(std::string_view s, Type& t) {
-  if (s == "char" || s == "int8") t = Type::I8;
-  else if (s == "uchar" || s == "uint8") t = Type::U8;
-  else if (s == "short" || s == "int16") t = Type::I16;
-  else if (s == "ushort" || s == "uint16") t = Type::U16;
-  else if (s == "int" || s == "int32") t = Type::I32;
-  else if (s == "uint" || s == "uint32") t = Type::U32;
-  else if (s == "float" || s == "float32") t = Type::F32;
-  else if (s == "double" || s == "float64") t = Type::F64;
-  else return false;
+  if (s == "char" || s == "int8")
+    t = Type::I8;
+  else if (s == "uchar" || s == "uint8")
+    t = Type::U8;
+  else if (s == "short" || s == "int16")
+    t = Type::I16;
+  else if (s == "ushort" || s == "uint16")
+    t = Type::U16;
+  else if (s == "int" || s == "int32")
+    t = Type::I32;
+  else if (s == "uint" || s == "uint32")
+    t = Type::U32;
+  else if (s == "float" || s == "float32")
+    t = Type::F32;
+  else if (s == "double" || s == "float64")
+    t = Type::F64;
+  else
+    return false;
   return true;
 }
 
@@ -65,14 +82,43 @@ class BinaryReader {
     pos_ += n;
     if (big_ != (std::endian::native == std::endian::big)) std::reverse(raw, raw + n);
     switch (t) {
-      case Type::I8: { int8_t v; std::memcpy(&v, raw, 1); return v; }
-      case Type::U8: return raw[0];
-      case Type::I16: { int16_t v; std::memcpy(&v, raw, 2); return v; }
-      case Type::U16: { uint16_t v; std::memcpy(&v, raw, 2); return v; }
-      case Type::I32: { int32_t v; std::memcpy(&v, raw, 4); return v; }
-      case Type::U32: { uint32_t v; std::memcpy(&v, raw, 4); return v; }
-      case Type::F32: { float v; std::memcpy(&v, raw, 4); return v; }
-      case Type::F64: { double v; std::memcpy(&v, raw, 8); return v; }
+      case Type::I8: {
+        int8_t v;
+        std::memcpy(&v, raw, 1);
+        return v;
+      }
+      case Type::U8:
+        return raw[0];
+      case Type::I16: {
+        int16_t v;
+        std::memcpy(&v, raw, 2);
+        return v;
+      }
+      case Type::U16: {
+        uint16_t v;
+        std::memcpy(&v, raw, 2);
+        return v;
+      }
+      case Type::I32: {
+        int32_t v;
+        std::memcpy(&v, raw, 4);
+        return v;
+      }
+      case Type::U32: {
+        uint32_t v;
+        std::memcpy(&v, raw, 4);
+        return v;
+      }
+      case Type::F32: {
+        float v;
+        std::memcpy(&v, raw, 4);
+        return v;
+      }
+      case Type::F64: {
+        double v;
+        std::memcpy(&v, raw, 8);
+        return v;
+      }
     }
     return 0;
   }
@@ -98,10 +144,14 @@ MeshData read_ply(std::string_view bytes, const std::string& name) {
     const auto key = in.token();
     if (key == "format") {
       const auto f = in.token();
-      if (f == "ascii") enc = Encoding::Ascii;
-      else if (f == "binary_little_endian") enc = Encoding::Little;
-      else if (f == "binary_big_endian") enc = Encoding::Big;
-      else in.error(fmt::format("unknown PLY format '{}'", TextCursor::clip(f)));
+      if (f == "ascii")
+        enc = Encoding::Ascii;
+      else if (f == "binary_little_endian")
+        enc = Encoding::Little;
+      else if (f == "binary_big_endian")
+        enc = Encoding::Big;
+      else
+        in.error(fmt::format("unknown PLY format '{}'", TextCursor::clip(f)));
       have_format = true;
     } else if (key == "comment" || key == "obj_info" || key.empty()) {
     } else if (key == "element") {
@@ -161,8 +211,7 @@ MeshData read_ply(std::string_view bytes, const std::string& name) {
   BinaryReader bin(bytes, data_start, enc == Encoding::Big, name);
   auto value = [&](Type t, const std::string& where) -> double {
     if (enc != Encoding::Ascii) return bin.read(t, where);
-    if (!text.has_token() && !text.next_content_line('\0'))
-      fail(name, where, "file ends in the middle of the data");
+    if (!text.has_token() && !text.next_content_line('\0')) fail(name, where, "file ends in the middle of the data");
     if (t == Type::F32 || t == Type::F64) return text.real("a number");
     return static_cast<double>(text.integer("an integer"));
   };
@@ -177,9 +226,12 @@ MeshData read_ply(std::string_view bytes, const std::string& name) {
       xyz.reserve(static_cast<std::size_t>(3 * e.count));
       for (int k = 0; k < static_cast<int>(e.props.size()); ++k) {
         const auto& p = e.props[k];
-        if (p.name == "x") ix = k;
-        else if (p.name == "y") iy = k;
-        else if (p.name == "z") iz = k;
+        if (p.name == "x")
+          ix = k;
+        else if (p.name == "y")
+          iy = k;
+        else if (p.name == "z")
+          iz = k;
         else if (!p.is_list) {
           auto& field = d.vertex_scalars[p.name];
           field.resize(e.count);
@@ -191,8 +243,7 @@ MeshData read_ply(std::string_view bytes, const std::string& name) {
     }
     if (is_face) {
       for (int k = 0; k < static_cast<int>(e.props.size()); ++k)
-        if (e.props[k].is_list && (e.props[k].name == "vertex_indices" || e.props[k].name == "vertex_index"))
-          ilist = k;
+        if (e.props[k].is_list && (e.props[k].name == "vertex_indices" || e.props[k].name == "vertex_index")) ilist = k;
       if (ilist < 0) fail(name, fmt::format("line {}", e.header_line), "face element lacks vertex_indices");
       if (!have_vertices) fail(name, fmt::format("line {}", e.header_line), "faces come before vertices");
       tris.reserve(static_cast<std::size_t>(3 * e.count));

@@ -1,8 +1,8 @@
 // STL, ascii and binary. STL stores every triangle's corners separately; corners
 // at exactly the same position are welded into one vertex.
-#include <Eigen/Geometry>
 #include <fmt/format.h>
 
+#include <Eigen/Geometry>
 #include <cstring>
 #include <unordered_map>
 

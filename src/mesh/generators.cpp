@@ -1,8 +1,8 @@
 #include "meshpde/mesh/generators.h"
 
-#include <Eigen/Geometry>
 #include <fmt/format.h>
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <map>
@@ -38,8 +38,7 @@ GeneratedMesh latlong_sphere(int n, double radius) {
     const double th = M_PI * k / n;
     for (int j = 0; j < m; ++j) {
       const double ph = 2 * M_PI * j / m;
-      p.emplace_back(radius * std::sin(th) * std::cos(ph), radius * std::sin(th) * std::sin(ph),
-                     radius * std::cos(th));
+      p.emplace_back(radius * std::sin(th) * std::cos(ph), radius * std::sin(th) * std::sin(ph), radius * std::cos(th));
     }
   }
   p.emplace_back(0, 0, -radius);
@@ -62,11 +61,11 @@ GeneratedMesh geodesic_sphere(BaseSolid base, int frequency, double radius) {
   std::vector<Eigen::Vector3i> faces;
   if (base == BaseSolid::Icosahedron) {
     const double g = (1 + std::sqrt(5.0)) / 2;
-    c = {{-1, g, 0}, {1, g, 0}, {-1, -g, 0}, {1, -g, 0}, {0, -1, g}, {0, 1, g},
-         {0, -1, -g}, {0, 1, -g}, {g, 0, -1}, {g, 0, 1}, {-g, 0, -1}, {-g, 0, 1}};
-    faces = {{0, 11, 5}, {0, 5, 1},  {0, 1, 7},   {0, 7, 10}, {0, 10, 11}, {1, 5, 9}, {5, 11, 4},
+    c = {{-1, g, 0},  {1, g, 0},  {-1, -g, 0}, {1, -g, 0}, {0, -1, g},  {0, 1, g},
+         {0, -1, -g}, {0, 1, -g}, {g, 0, -1},  {g, 0, 1},  {-g, 0, -1}, {-g, 0, 1}};
+    faces = {{0, 11, 5},  {0, 5, 1},  {0, 1, 7},  {0, 7, 10}, {0, 10, 11}, {1, 5, 9}, {5, 11, 4},
              {11, 10, 2}, {10, 7, 6}, {7, 1, 8},  {3, 9, 4},  {3, 4, 2},   {3, 2, 6}, {3, 6, 8},
-             {3, 8, 9},  {4, 9, 5},  {2, 4, 11}, {6, 2, 10}, {8, 6, 7},   {9, 8, 1}};
+             {3, 8, 9},   {4, 9, 5},  {2, 4, 11}, {6, 2, 10}, {8, 6, 7},   {9, 8, 1}};
   } else {
     c = {{1, 1, 1}, {1, -1, -1}, {-1, 1, -1}, {-1, -1, 1}};
     faces = {{0, 1, 2}, {0, 3, 1}, {0, 2, 3}, {1, 3, 2}};
@@ -93,12 +92,18 @@ GeneratedMesh geodesic_sphere(BaseSolid base, int frequency, double radius) {
     auto id = [&](int i, int j) -> int& { return idx[i * (n + 1) + j]; };
     for (int i = 0; i <= n; ++i)
       for (int j = 0; i + j <= n; ++j) {
-        if (i == 0 && j == 0) id(i, j) = a;
-        else if (i == n) id(i, j) = b;
-        else if (j == n) id(i, j) = cc;
-        else if (j == 0) id(i, j) = edge_point(a, b, i);
-        else if (i == 0) id(i, j) = edge_point(a, cc, j);
-        else if (i + j == n) id(i, j) = edge_point(b, cc, j);
+        if (i == 0 && j == 0)
+          id(i, j) = a;
+        else if (i == n)
+          id(i, j) = b;
+        else if (j == n)
+          id(i, j) = cc;
+        else if (j == 0)
+          id(i, j) = edge_point(a, b, i);
+        else if (i == 0)
+          id(i, j) = edge_point(a, cc, j);
+        else if (i + j == n)
+          id(i, j) = edge_point(b, cc, j);
         else {
           id(i, j) = static_cast<int>(p.size());
           p.push_back(c[a] + (c[b] - c[a]) * (double(i) / n) + (c[cc] - c[a]) * (double(j) / n));

@@ -15,8 +15,8 @@ void check_finite(const Positions& V) {
   for (Eigen::Index i = 0; i < V.rows(); ++i)
     for (int c = 0; c < 3; ++c)
       if (!std::isfinite(V(i, c)))
-        throw InputError(fmt::format("vertex {} has a non-finite coordinate ({}, {}, {})", i,
-                                     V(i, 0), V(i, 1), V(i, 2)));
+        throw InputError(
+            fmt::format("vertex {} has a non-finite coordinate ({}, {}, {})", i, V(i, 0), V(i, 1), V(i, 2)));
 }
 
 }  // namespace
@@ -93,8 +93,8 @@ int Mesh::find_slot(int i, int j) const {
 }
 
 std::size_t Mesh::connectivity_bytes() const {
-  return sizeof(int) * (adj_offset_.size() + adj_vertex_.size() + adj_edge_.size() +
-                        static_cast<std::size_t>(E_.size()));
+  return sizeof(int) *
+         (adj_offset_.size() + adj_vertex_.size() + adj_edge_.size() + static_cast<std::size_t>(E_.size()));
 }
 
 }  // namespace meshpde

@@ -1,8 +1,8 @@
 #include "meshpde/mesh/topology.h"
 
-#include <Eigen/Geometry>
 #include <fmt/format.h>
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -202,23 +202,21 @@ MeshReport analyze(const Mesh& mesh, const ShapeWarningThresholds& thresholds) {
   }
 
   if (r.nonmanifold_edges) r.warnings.push_back(fmt::format("{} non-manifold edges", r.nonmanifold_edges));
-  if (r.nonmanifold_vertices)
-    r.warnings.push_back(fmt::format("{} non-manifold vertices", r.nonmanifold_vertices));
+  if (r.nonmanifold_vertices) r.warnings.push_back(fmt::format("{} non-manifold vertices", r.nonmanifold_vertices));
   if (r.degenerate_faces)
-    r.warnings.push_back(fmt::format("{} degenerate triangles (they contribute nothing to the operators)",
-                                     r.degenerate_faces));
+    r.warnings.push_back(
+        fmt::format("{} degenerate triangles (they contribute nothing to the operators)", r.degenerate_faces));
   if (!r.orientation_consistent)
     r.warnings.push_back(fmt::format("orientation inconsistent across {} edges", r.inconsistent_edges));
   if (r.duplicate_vertices)
     r.warnings.push_back(fmt::format("{} vertices duplicate the position of another", r.duplicate_vertices));
   if (r.unreferenced_vertices)
-    r.warnings.push_back(fmt::format("{} unreferenced vertices (held fixed by the solvers)",
-                                     r.unreferenced_vertices));
+    r.warnings.push_back(fmt::format("{} unreferenced vertices (held fixed by the solvers)", r.unreferenced_vertices));
   if (r.area_ratio > 0 && (r.min_angle_deg < thresholds.min_angle_deg || r.area_ratio > thresholds.area_ratio))
-    r.warnings.push_back(fmt::format(
-        "badly shaped: smallest angle {:.3g} deg, area ratio {:.3g}; cotangent operators and "
-        "iterative solvers lose accuracy on such meshes",
-        r.min_angle_deg, r.area_ratio));
+    r.warnings.push_back(
+        fmt::format("badly shaped: smallest angle {:.3g} deg, area ratio {:.3g}; cotangent operators and "
+                    "iterative solvers lose accuracy on such meshes",
+                    r.min_angle_deg, r.area_ratio));
   return r;
 }
 

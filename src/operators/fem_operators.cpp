@@ -1,8 +1,8 @@
 #include "meshpde/operators/fem_operators.h"
 
-#include <Eigen/Geometry>
 #include <fmt/format.h>
 
+#include <Eigen/Geometry>
 #include <cmath>
 #include <vector>
 
@@ -64,7 +64,8 @@ FemOperators build_operators(const Mesh& mesh, const OperatorOptions& options) {
     }
   }
   ops.Kij.resize(static_cast<Eigen::Index>(mesh.neighbors().size()));
-  for (std::size_t s = 0; s < mesh.neighbors().size(); ++s) ops.Kij[static_cast<Eigen::Index>(s)] = edge_value[mesh.edge_ids()[s]];
+  for (std::size_t s = 0; s < mesh.neighbors().size(); ++s)
+    ops.Kij[static_cast<Eigen::Index>(s)] = edge_value[mesh.edge_ids()[s]];
   for (int i = 0; i < nv; ++i) ops.zero_area_vertices += ops.mass[i] <= 0;
   return ops;
 }
@@ -108,6 +109,25 @@ void apply_stiffness_rows(const Mesh& mesh, const FemOperators& ops, const doubl
       for (int s = off[i]; s < off[i + 1]; ++s)
         for (int c = 0; c < m; ++c) Y[m * i + c] += kij[s] * U[m * nbr[s] + c];
     }
+  }
+}
+
+void apply_bilaplacian_scalar(const Mesh& mesh, const FemOperators& ops, const double* u, double* T, double* Y) {
+  const int n = mesh.num_vertices();
+  const int* off = mesh.offsets().data();
+  const int* nbr = mesh.neighbors().data();
+  const double* kij = ops.Kij.data();
+  const double* kii = ops.Kii.data();
+  const double* mass = ops.mass.data();
+  for (int i = 0; i < n; ++i) {
+    double y = kii[i] * u[i];
+    for (int s = off[i]; s < off[i + 1]; ++s) y += kij[s] * u[nbr[s]];
+    T[i] = mass[i] > 0 ? y / mass[i] : 0.0;
+  }
+  for (int i = 0; i < n; ++i) {
+    double y = kii[i] * T[i];
+    for (int s = off[i]; s < off[i + 1]; ++s) y += kij[s] * T[nbr[s]];
+    Y[i] = y;
   }
 }
 

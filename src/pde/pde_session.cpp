@@ -34,9 +34,9 @@ PdeSession::PdeSession(const Mesh& mesh, const FemOperators& ops, int components
 void PdeSession::set_coefficients(const PdeCoefficients& c) {
   for (double x : {c.alpha, c.b1, c.b2, c.g0, c.g1, c.g2})
     if (!(x >= 0) || !std::isfinite(x))
-      throw InputError(fmt::format(
-          "PDE coefficients must be finite and non-negative (alpha {}, b1 {}, b2 {}, g0 {}, g1 {}, g2 {})", c.alpha,
-          c.b1, c.b2, c.g0, c.g1, c.g2));
+      throw InputError(
+          fmt::format("PDE coefficients must be finite and non-negative (alpha {}, b1 {}, b2 {}, g0 {}, g1 {}, g2 {})",
+                      c.alpha, c.b1, c.b2, c.g0, c.g1, c.g2));
   coef_ = c;
 }
 
@@ -171,7 +171,9 @@ StepResult PdeSession::step(double dt, const Field* f) {
   return solve(Mode::Step, dt, f);
 }
 
-StepResult PdeSession::solve_steady(const Field* f) { return solve(Mode::Steady, 0.0, f); }
+StepResult PdeSession::solve_steady(const Field* f) {
+  return solve(Mode::Steady, 0.0, f);
+}
 
 StepResult PdeSession::solve(Mode mode, double dt, const Field* f) {
   if (f && (f->rows() != u_.rows() || f->cols() != m_))
@@ -199,8 +201,10 @@ StepResult PdeSession::solve(Mode mode, double dt, const Field* f) {
   for (int k = 0; k < nc; ++k) {
     const int i = cons_[k];
     saved.row(k) = u_.row(i);
-    if (mode == Mode::Step) u_.row(i) += (coef_.b2 + dt) * v_.row(i);
-    else u_.row(i) = cons_target_.row(k);
+    if (mode == Mode::Step)
+      u_.row(i) += (coef_.b2 + dt) * v_.row(i);
+    else
+      u_.row(i) = cons_target_.row(k);
   }
   Block b(n, m_), x(n, m_);
   apply_Kt_free(u_.data(), b.data());

@@ -18,21 +18,21 @@
 namespace meshpde {
 
 struct DragParams {
-  int vertex = 0;                                   ///< handle vertex
+  int vertex = 0;                                          ///< handle vertex
   Eigen::Vector3d displacement = Eigen::Vector3d::Zero();  ///< in mesh units (mm for vessels)
-  double radius = 0;   ///< region of influence: edge-path distance from the handle (mesh units); 0: use rings
-  int rings = 0;       ///< region of influence in rings of neighbours (used when radius == 0)
-  double g1 = 0;       ///< membrane stiffness
-  double g2 = 1;       ///< plate (bi-Laplacian) stiffness
+  double radius = 0;  ///< region of influence: edge-path distance from the handle (mesh units); 0: use rings
+  int rings = 0;      ///< region of influence in rings of neighbours (used when radius == 0)
+  double g1 = 0;      ///< membrane stiffness
+  double g2 = 1;      ///< plate (bi-Laplacian) stiffness
   CgOptions cg{.tolerance = 1e-10, .max_iterations = 50000};
 };
 
 struct DragResult {
-  Positions V;                  ///< deformed positions
-  Field displacement;           ///< #V x 3
-  std::vector<int> region;      ///< free vertices of the solve
-  int moved_vertices = 0;       ///< |d| > 1e-6 |displacement|
-  double max_displacement = 0;  ///< largest |d|
+  Positions V;                                         ///< deformed positions
+  Field displacement;                                  ///< #V x 3
+  std::vector<int> region;                             ///< free vertices of the solve
+  int moved_vertices = 0;                              ///< |d| > 1e-6 |displacement|
+  double max_displacement = 0;                         ///< largest |d|
   Eigen::Vector3d reaction = Eigen::Vector3d::Zero();  ///< force holding the handle
   CgResult cg;
 };

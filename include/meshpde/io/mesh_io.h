@@ -28,7 +28,7 @@ struct MeshData {
   Positions V;
   Triangles F;
   std::map<std::string, Eigen::VectorXd> vertex_scalars;  ///< each of length #V
-  std::vector<std::string> warnings;                       ///< e.g. "triangulated 78 quads"
+  std::vector<std::string> warnings;                      ///< e.g. "triangulated 78 quads"
 };
 
 struct WriteOptions {

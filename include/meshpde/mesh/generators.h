@@ -50,12 +50,12 @@ struct BifurcationParams {
   double trunk_length = 20.0;
   double branch_length = 18.0;
   double angle_deg = 60.0;
-  double blend = 2.0;           ///< smooth-union radius at the carina
-  double cell = 0.8;            ///< grid spacing: mean edge length is about this
-  bool dent = false;            ///< push a dent into the trunk wall
-  double dent_depth = 1.5;      ///< how far the dent reaches in
-  double dent_radius = 3.0;     ///< lateral size of the dent
-  int relax_iterations = 10;    ///< tangential smoothing + reprojection passes
+  double blend = 2.0;         ///< smooth-union radius at the carina
+  double cell = 0.8;          ///< grid spacing: mean edge length is about this
+  bool dent = false;          ///< push a dent into the trunk wall
+  double dent_depth = 1.5;    ///< how far the dent reaches in
+  double dent_radius = 3.0;   ///< lateral size of the dent
+  int relax_iterations = 10;  ///< tangential smoothing + reprojection passes
 };
 GeneratedMesh y_bifurcation(const BifurcationParams& params = {});
 

@@ -27,21 +27,21 @@ struct MeshReport {
   int faces = 0;
   int edges = 0;
   int boundary_edges = 0;
-  int boundary_loops = 0;         ///< connected components of the boundary-edge graph
-  int nonmanifold_edges = 0;      ///< edges with three or more incident triangles
-  int nonmanifold_vertices = 0;   ///< vertices whose incident triangles form more than one fan
-  int components = 0;             ///< edge-connected components of referenced vertices
-  int degenerate_faces = 0;       ///< repeated index or (near-)zero area
-  int duplicate_vertices = 0;     ///< vertices at exactly the position of an earlier vertex
+  int boundary_loops = 0;        ///< connected components of the boundary-edge graph
+  int nonmanifold_edges = 0;     ///< edges with three or more incident triangles
+  int nonmanifold_vertices = 0;  ///< vertices whose incident triangles form more than one fan
+  int components = 0;            ///< edge-connected components of referenced vertices
+  int degenerate_faces = 0;      ///< repeated index or (near-)zero area
+  int duplicate_vertices = 0;    ///< vertices at exactly the position of an earlier vertex
   int unreferenced_vertices = 0;
-  int inconsistent_edges = 0;     ///< two-triangle edges traversed in the same direction twice
+  int inconsistent_edges = 0;  ///< two-triangle edges traversed in the same direction twice
   bool orientation_consistent = true;
-  int euler_characteristic = 0;   ///< V - E + F over referenced vertices
-  double area = 0;                ///< total triangle area
-  double signed_volume = 0;       ///< divergence-theorem volume; < 0 means inward normals on a closed mesh
-  double min_angle_deg = 0;       ///< over non-degenerate triangles
+  int euler_characteristic = 0;  ///< V - E + F over referenced vertices
+  double area = 0;               ///< total triangle area
+  double signed_volume = 0;      ///< divergence-theorem volume; < 0 means inward normals on a closed mesh
+  double min_angle_deg = 0;      ///< over non-degenerate triangles
   double max_angle_deg = 0;
-  double area_ratio = 0;          ///< largest over smallest non-degenerate triangle area
+  double area_ratio = 0;  ///< largest over smallest non-degenerate triangle area
   double mean_edge_length = 0;
   Eigen::Vector3d bbox_min = Eigen::Vector3d::Zero();
   Eigen::Vector3d bbox_max = Eigen::Vector3d::Zero();
@@ -51,8 +51,8 @@ struct MeshReport {
 /// Thresholds for the "badly shaped" warning. Marching-cubes segmentation surfaces
 /// reach 0.02 degrees and area ratios of 1e7; FEM operators lose accuracy well before.
 struct ShapeWarningThresholds {
-  double min_angle_deg = 1.0;   ///< warn below this smallest angle
-  double area_ratio = 1e4;      ///< warn above this largest/smallest area ratio
+  double min_angle_deg = 1.0;  ///< warn below this smallest angle
+  double area_ratio = 1e4;     ///< warn above this largest/smallest area ratio
 };
 
 MeshReport analyze(const Mesh& mesh, const ShapeWarningThresholds& thresholds = {});

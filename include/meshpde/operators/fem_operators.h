@@ -82,4 +82,8 @@ Eigen::SparseMatrix<double> mass_matrix(const FemOperators& ops);
 void apply_stiffness_rows(const Mesh& mesh, const FemOperators& ops, const double* U, double* Y, int m,
                           std::span<const int> rows);
 
+/// Y = K D K u for a scalar field over the whole mesh, with T (length #V) as scratch.
+/// The D scaling is fused into the first sweep, so memory is streamed twice.
+void apply_bilaplacian_scalar(const Mesh& mesh, const FemOperators& ops, const double* u, double* T, double* Y);
+
 }  // namespace meshpde

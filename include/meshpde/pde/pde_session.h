@@ -61,11 +61,11 @@ struct DomainOptions {
   /// fraction of the largest rate in the domain and at the constraints (or its
   /// offset from rest exceeds this fraction of the largest offset).
   double grow_fraction = 1e-3;
-  double rest_value = 1e-6;     ///< |u - u_rest| at or below this counts as at rest
-  double rest_rate = 1e-4;      ///< |u'| at or below this counts as at rest (per second)
-  int rest_steps = 5;           ///< consecutive steps at rest before a vertex leaves
-  int seed_rings = 2;           ///< rings freed around a newly constrained vertex
-  int max_free = 0;             ///< cap on |A| (0: no cap)
+  double rest_value = 1e-6;  ///< |u - u_rest| at or below this counts as at rest
+  double rest_rate = 1e-4;   ///< |u'| at or below this counts as at rest (per second)
+  int rest_steps = 5;        ///< consecutive steps at rest before a vertex leaves
+  int seed_rings = 2;        ///< rings freed around a newly constrained vertex
+  int max_free = 0;          ///< cap on |A| (0: no cap)
 };
 
 struct StepResult {

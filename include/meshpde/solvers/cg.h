@@ -8,12 +8,12 @@
 // a pure stiffness operator) stops with status Breakdown and a message in words.
 #pragma once
 
+#include <fmt/format.h>
+
 #include <Eigen/Core>
 #include <cmath>
 #include <string>
 #include <vector>
-
-#include <fmt/format.h>
 
 namespace meshpde {
 
@@ -115,16 +115,19 @@ CgResult pcg(Apply&& apply, const Eigen::VectorXd& inv_diag, const Block& b, Blo
       if (!active[c]) w.p.col(c).setZero();
   }
   res.status = CgStatus::MaxIterations;
-  res.message = fmt::format("no convergence in {} iterations (relative residual {:.3g} > {:.3g})",
-                            opt.max_iterations, res.relative_residual, opt.tolerance);
+  res.message = fmt::format("no convergence in {} iterations (relative residual {:.3g} > {:.3g})", opt.max_iterations,
+                            res.relative_residual, opt.tolerance);
   return res;
 }
 
 inline const char* to_string(CgStatus s) {
   switch (s) {
-    case CgStatus::Converged: return "converged";
-    case CgStatus::MaxIterations: return "max_iterations";
-    case CgStatus::Breakdown: return "breakdown";
+    case CgStatus::Converged:
+      return "converged";
+    case CgStatus::MaxIterations:
+      return "max_iterations";
+    case CgStatus::Breakdown:
+      return "breakdown";
   }
   return "unknown";
 }
