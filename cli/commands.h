@@ -23,6 +23,10 @@ Mesh load_mesh(const std::filesystem::path& path, MeshData* data = nullptr);
 void save_mesh(const std::filesystem::path& path, const Positions& V, const Triangles& F,
                const std::map<std::string, Eigen::VectorXd>& fields = {});
 
+/// Prints the shape warnings a solver's user must see (badly shaped, degenerate,
+/// non-manifold) to stderr.
+void warn_about_shape(const Mesh& mesh, const std::string& name);
+
 /// Prints JSON to stdout (2-space indent).
 void print_json(const nlohmann::json& j);
 

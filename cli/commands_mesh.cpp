@@ -152,6 +152,7 @@ void add_mesh_commands(CLI::App& app) {
       if (!out->empty() && format_from_path(*out) != MeshFormat::Ply)
         throw InputError(fmt::format("{}: vertex properties need a .ply output", *out));
       const Mesh mesh = load_mesh(*path);
+      warn_about_shape(mesh, *path);
       const FemOperators ops = build_operators(mesh);
       const Eigen::VectorXd H =
           mean_curvature(mesh, ops, *scale == "valence" ? CurvatureScale::Valence : CurvatureScale::Area);

@@ -106,6 +106,7 @@ void add_solve_commands(CLI::App& app) {
     cmd->callback([=] {
       if (a->radius <= 0 && a->rings <= 0) throw InputError("give --radius MM or --rings K");
       const Mesh mesh = load_mesh(a->mesh);
+      warn_about_shape(mesh, a->mesh);
       DragParams p{.vertex = a->vertex,
                    .displacement = parse_vector(a->move, "--move"),
                    .radius = a->radius,

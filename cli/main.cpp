@@ -7,6 +7,7 @@
 
 #include "commands.h"
 #include "meshpde/core/errors.h"
+#include "meshpde/mesh/topology.h"
 
 namespace meshpde::cli {
 
@@ -29,6 +30,10 @@ void save_mesh(const std::filesystem::path& path, const Positions& V, const Tria
   d.F = F;
   d.vertex_scalars = fields;
   for (const auto& w : write_mesh(path, d)) fmt::print(stderr, "warning: {}\n", w);
+}
+
+void warn_about_shape(const Mesh& mesh, const std::string& name) {
+  for (const auto& w : analyze(mesh).warnings) fmt::print(stderr, "warning: {}: {}\n", name, w);
 }
 
 void print_json(const nlohmann::json& j) {

@@ -47,6 +47,12 @@ else
   echo "skipped real-data checks: $DATA missing"
 fi
 
+# a solver on a badly shaped mesh warns
+if [ -f "$DATA/aorta-open-6k.stl" ]; then
+  "$M" curvature "$DATA/aorta-open-6k.stl" 2>"$T/err" >/dev/null || bad "curvature on aorta"
+  check "badly shaped warning" grep -q "badly shaped" "$T/err"
+fi
+
 # bad input: clear message naming the file and line, non-zero exit, nothing written
 printf 'OFF\n3 1 0\n0 0 0\n1 0 nan\n0 1 0\n3 0 1 2\n' >"$T/nan.off"
 "$M" info "$T/nan.off" 2>"$T/err" >/dev/null

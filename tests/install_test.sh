@@ -8,7 +8,12 @@ T="$(mktemp -d)"
 trap 'rm -rf "$T"' EXIT
 cmake --install "$build" --prefix "$T/prefix" >/dev/null
 test -f "$T/prefix/lib/cmake/meshpde/meshpdeConfigVersion.cmake"
-cmake -S "$consumer" -B "$T/build" -G Ninja -DCMAKE_PREFIX_PATH="$T/prefix" >/dev/null
+extra=()
+# A sanitized static library needs its consumer linked with the same runtime.
+if grep -q "MESHPDE_SANITIZE:BOOL=ON" "$build/CMakeCache.txt"; then
+  extra=(-DCMAKE_CXX_FLAGS="-fsanitize=address,undefined" -DCMAKE_EXE_LINKER_FLAGS="-fsanitize=address,undefined")
+fi
+cmake -S "$consumer" -B "$T/build" -G Ninja -DCMAKE_PREFIX_PATH="$T/prefix" "${extra[@]}" >/dev/null
 cmake --build "$T/build" >/dev/null
 "$T/build/consumer" | tee "$T/out"
 grep -q "K 1 = 0" "$T/out"

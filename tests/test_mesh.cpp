@@ -1,5 +1,7 @@
 #include <gtest/gtest.h>
 
+#include <cctype>
+
 #include "meshpde/core/errors.h"
 #include "meshpde/mesh/generators.h"
 #include "meshpde/mesh/topology.h"

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <unordered_set>
 
 #include "meshpde/core/errors.h"
 
@@ -76,13 +77,14 @@ void PdeSession::deactivate_all() {
 }
 
 void PdeSession::activate_rings(int v, int k) {
-  // Breadth-first search over k rings; the visited set is the small vector itself.
+  // Breadth-first search over k rings; cost follows the neighbourhood, not the mesh.
   std::vector<int> frontier{v}, seen{v};
+  std::unordered_set<int> visited{v};
   for (int r = 0; r < k; ++r) {
     std::vector<int> next;
     for (int a : frontier)
       for (int b : mesh_.neighbors(a))
-        if (std::find(seen.begin(), seen.end(), b) == seen.end()) {
+        if (visited.insert(b).second) {
           seen.push_back(b);
           next.push_back(b);
         }
