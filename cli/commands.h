@@ -15,6 +15,10 @@ namespace meshpde::cli {
 void add_mesh_commands(CLI::App& app);   // info, generate, curvature
 void add_solve_commands(CLI::App& app);  // correct, demo
 void add_bench_command(CLI::App& app);   // bench
+void add_render_command(CLI::App& app);  // render
+
+/// Reads the vector field NAME stored as vertex properties NAME_x, NAME_y, NAME_z.
+Eigen::MatrixX3d vector_field(const MeshData& d, const std::string& name, const std::string& file);
 
 /// Reads a mesh, prints reader warnings to stderr, builds connectivity.
 Mesh load_mesh(const std::filesystem::path& path, MeshData* data = nullptr);
