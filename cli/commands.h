@@ -10,12 +10,26 @@
 #include "meshpde/io/mesh_io.h"
 #include "meshpde/mesh/mesh.h"
 
+namespace meshpde {
+struct RenderOptions;
+}
+
 namespace meshpde::cli {
 
 void add_mesh_commands(CLI::App& app);   // info, generate, curvature
 void add_solve_commands(CLI::App& app);  // correct, demo
 void add_bench_command(CLI::App& app);   // bench
 void add_render_command(CLI::App& app);  // render
+void add_app_commands(CLI::App& app);    // heat, wave, fair, interpolate, poke
+
+/// Shared --view/--up/--size/--wireframe/--zoom options of commands that draw pictures.
+void add_view_options(CLI::App* cmd, RenderOptions& r, std::string& view, std::string& up, std::string& size);
+void apply_view_options(RenderOptions& r, const std::string& view, const std::string& up, const std::string& size);
+
+/// A vertex given as an index or as @X,Y,Z (the nearest vertex). \throw InputError
+int parse_vertex(const Mesh& mesh, const std::string& spec, const char* what);
+/// VERTEX:VALUE. \throw InputError
+std::pair<int, double> parse_vertex_value(const Mesh& mesh, const std::string& spec, const char* what);
 
 /// Reads the vector field NAME stored as vertex properties NAME_x, NAME_y, NAME_z.
 Eigen::MatrixX3d vector_field(const MeshData& d, const std::string& name, const std::string& file);

@@ -56,6 +56,7 @@ int main(int argc, char** argv) {
   meshpde::cli::add_solve_commands(app);
   meshpde::cli::add_bench_command(app);
   meshpde::cli::add_render_command(app);
+  meshpde::cli::add_app_commands(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -85,6 +85,52 @@ check "failed run leaves the output untouched" cmp -s "$T/s2.ply" "$T/keep.ply"
 check "bad vertex exits 1" [ $? -eq 1 ]
 check "no output for bad vertex" [ ! -e "$T/x.ply" ]
 
+# heat through the CLI: the Legendre P2(z) on the unit sphere decays as exp(-6 t)
+"$M" generate icosphere --level 4 -o "$T/ico.off" >/dev/null
+python3 - "$T/ico.off" "$T/ico.ply" <<'PY'
+import sys
+rows = [l for l in open(sys.argv[1]) if l.strip() and not l.startswith('#')]
+nv, nf = map(int, rows[1].split()[:2])
+V = [list(map(float, l.split())) for l in rows[2:2 + nv]]
+F = [list(map(int, l.split()))[1:] for l in rows[2 + nv:2 + nv + nf]]
+with open(sys.argv[2], 'w') as f:
+    f.write("ply\nformat ascii 1.0\nelement vertex %d\nproperty double x\nproperty double y\nproperty double z\n"
+            "property double p2\nelement face %d\nproperty list uchar int vertex_indices\nend_header\n" % (nv, nf))
+    for x, y, z in V: f.write("%r %r %r %r\n" % (x, y, z, 1.5 * z * z - 0.5))
+    for a, b, c in F: f.write("3 %d %d %d\n" % (a, b, c))
+PY
+"$M" heat "$T/ico.ply" --initial p2 --dt 2.5e-4 --steps 200 --frames "$T/fr" --every 200 --json >"$T/h.json" ||
+  bad "heat --initial"
+rate_ok=$(python3 - "$T/ico.off" "$T/fr/frame_00200.csv" <<'PY'
+import sys, math
+rows = [l for l in open(sys.argv[1]) if l.strip() and not l.startswith('#')]
+nv, nf = map(int, rows[1].split()[:2])
+V = [list(map(float, l.split())) for l in rows[2:2 + nv]]
+m = [0.0] * nv
+for l in rows[2 + nv:2 + nv + nf]:
+    a, b, c = list(map(int, l.split()))[1:]
+    P, Q, R = V[a], V[b], V[c]
+    u = [Q[k] - P[k] for k in range(3)]; w = [R[k] - P[k] for k in range(3)]
+    cr = [u[1]*w[2]-u[2]*w[1], u[2]*w[0]-u[0]*w[2], u[0]*w[1]-u[1]*w[0]]
+    A = 0.5 * math.sqrt(sum(x * x for x in cr))
+    for v in (a, b, c): m[v] += A / 3
+u0 = [1.5 * p[2] ** 2 - 0.5 for p in V]
+u = [float(x) for x in open(sys.argv[2])]
+ratio = sum(mi * a * b for mi, a, b in zip(m, u, u0)) / sum(mi * a * a for mi, a in zip(m, u0))
+rate = -math.log(ratio) / 0.05
+print(abs(rate / 6 - 1) < 0.01)
+PY
+)
+check "P2 decays at exp(-6t) within 1 % through the CLI" [ "$rate_ok" = True ]
+"$M" wave "$T/ico.off" --impulse 0:1 --damping 2 --dt 5e-3 --steps 100 --json >"$T/w.json" || bad "wave"
+check "damped wave energy decays monotonically" \
+  [ "$(json "$T/w.json" "all(b <= a for a, b in zip(d['energy'], d['energy'][1:]))")" = True ]
+"$M" heat "$T/ico.off" --source 0:1 --steps 5 --png "$T/h.png" >/dev/null 2>&1 || bad "heat --png"
+check "heat picture" [ -s "$T/h.png" ]
+"$M" heat "$T/ico.off" --source 99999:1 2>"$T/err" >/dev/null
+check "bad source vertex exits 1" [ $? -eq 1 ]
+check "bad source named" grep -q "99999" "$T/err"
+
 # the main job
 "$M" demo -o "$T/demo" --json >"$T/d.json" || bad "demo"
 check "demo moved vertices" [ "$(json "$T/d.json" "d['moved_vertices'] > 100")" = True ]

@@ -50,6 +50,13 @@ void PdeSession::set_values(const Field& u, bool as_rest) {
   if (as_rest) rest_ = u;
 }
 
+void PdeSession::set_velocities(const Field& v) {
+  if (v.rows() != v_.rows() || v.cols() != m_)
+    throw InputError(fmt::format("velocities must be {} x {}, got {} x {}", v_.rows(), m_, v.rows(), v.cols()));
+  if (!v.allFinite()) throw InputError("velocities contain NaN or infinity");
+  v_ = v;
+}
+
 void PdeSession::set_rest(const Field& rest) {
   if (rest.rows() != u_.rows() || rest.cols() != m_) throw InputError("rest state has the wrong shape");
   rest_ = rest;

@@ -93,6 +93,8 @@ class PdeSession {
   const Field& velocities() const { return v_; }
   /// Replaces values (and sets velocities to zero). Also the rest state when `as_rest`.
   void set_values(const Field& u, bool as_rest = true);
+  /// Replaces velocities u' (e.g. an initial impulse for the wave equation).
+  void set_velocities(const Field& v);
   /// The state that self-adjusting shrink returns vertices to (default: initial values).
   void set_rest(const Field& rest);
 

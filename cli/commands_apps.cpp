@@ -1,0 +1,178 @@
+// meshpde heat | wave
+#include <fmt/format.h>
+
+#include <chrono>
+#include <fstream>
+#include <memory>
+
+#include "commands.h"
+#include "meshpde/apps/heat_wave.h"
+#include "meshpde/core/errors.h"
+#include "meshpde/operators/fem_operators.h"
+#include "meshpde/viz/render.h"
+#include "progress.h"
+
+namespace meshpde::cli {
+
+int parse_vertex(const Mesh& mesh, const std::string& spec, const char* what) {
+  if (!spec.empty() && spec[0] == '@') {
+    Eigen::Vector3d p;
+    if (std::sscanf(spec.c_str() + 1, "%lf,%lf,%lf", &p.x(), &p.y(), &p.z()) != 3)
+      throw InputError(fmt::format("{} '{}': '@X,Y,Z' needs three numbers", what, spec));
+    int v = 0;
+    (mesh.positions().rowwise() - p.transpose()).rowwise().squaredNorm().minCoeff(&v);
+    return v;
+  }
+  std::size_t used = 0;
+  int v = -1;
+  try {
+    v = std::stoi(spec, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (used != spec.size() || spec.empty())
+    throw InputError(fmt::format("{} '{}' is neither a vertex index nor @X,Y,Z", what, spec));
+  if (v < 0 || v >= mesh.num_vertices())
+    throw InputError(
+        fmt::format("{} vertex {} does not exist (the mesh has {} vertices)", what, v, mesh.num_vertices()));
+  return v;
+}
+
+std::pair<int, double> parse_vertex_value(const Mesh& mesh, const std::string& spec, const char* what) {
+  const auto colon = spec.rfind(':');
+  if (colon == std::string::npos) throw InputError(fmt::format("{} '{}' must be VERTEX:VALUE", what, spec));
+  const int v = parse_vertex(mesh, spec.substr(0, colon), what);
+  char* end = nullptr;
+  const std::string value = spec.substr(colon + 1);
+  const double x = std::strtod(value.c_str(), &end);
+  if (value.empty() || *end != '\0' || !std::isfinite(x))
+    throw InputError(fmt::format("{} '{}': '{}' is not a number", what, spec, value));
+  return {v, x};
+}
+
+namespace {
+
+void write_values_csv(const std::filesystem::path& path, const Eigen::VectorXd& u) {
+  std::string s;
+  s.reserve(static_cast<std::size_t>(24 * u.size()));
+  for (Eigen::Index i = 0; i < u.size(); ++i) fmt::format_to(std::back_inserter(s), "{}\n", u[i]);
+  write_file_atomically(path, s);
+}
+
+void add_propagation_command(CLI::App& app, Propagation eq) {
+  const bool heat = eq == Propagation::Heat;
+  auto* cmd = app.add_subcommand(heat ? "heat" : "wave",
+                                 heat ? "Heat diffusion u_t = k lap(u) from fixed-value sources or fluxes"
+                                      : "Wave propagation u_tt + b u_t = c^2 lap(u) from sources, fluxes or impulses");
+  struct Args {
+    std::string mesh, out, png, frames, initial, view = "30,20", up = "y", size = "960x720";
+    std::vector<std::string> sources, fluxes, impulses;
+    double dt = 1e-3, k = 1, c = 1, b = 0;
+    int steps = 100, every = 10;
+    bool json = false, local = false;
+    RenderOptions r;
+  };
+  auto a = std::make_shared<Args>();
+  cmd->add_option("MESH", a->mesh, "Mesh file")->required();
+  cmd->add_option("--source", a->sources, "Fixed-value source VERTEX:VALUE (VERTEX: index or @X,Y,Z); repeatable");
+  cmd->add_option("--flux", a->fluxes, "Point flux VERTEX:RATE (value x area / s); repeatable");
+  if (!heat) cmd->add_option("--impulse", a->impulses, "Initial velocity VERTEX:VELOCITY; repeatable");
+  cmd->add_option("--initial", a->initial, "Initial values from this vertex property of a .ply input");
+  cmd->add_option("--dt", a->dt, "Time step (s)")->capture_default_str();
+  cmd->add_option("--steps", a->steps, "Number of steps")->capture_default_str();
+  if (heat) cmd->add_option("--diffusivity", a->k, "Diffusivity k (length^2/s)")->capture_default_str();
+  if (!heat) {
+    cmd->add_option("--speed", a->c, "Wave speed c (length/s)")->capture_default_str();
+    cmd->add_option("--damping", a->b, "Mass-proportional damping b (1/s)")->capture_default_str();
+  }
+  cmd->add_flag("--local", a->local, "Solve on a self-adjusting active domain instead of the whole mesh");
+  cmd->add_option("--frames", a->frames, "Directory for frame_NNNNN.csv files (one value per vertex)");
+  cmd->add_option("--every", a->every, "Write a frame every N steps")->capture_default_str();
+  cmd->add_option("-o,--output", a->out, "Final mesh with the field 'u' (.ply)");
+  cmd->add_option("--png", a->png, "Final picture");
+  add_view_options(cmd, a->r, a->view, a->up, a->size);
+  cmd->add_flag("--json", a->json, "Print a JSON report");
+  cmd->callback([=] {
+    if (!a->out.empty() && format_from_path(a->out) != MeshFormat::Ply)
+      throw InputError(fmt::format("{}: the field needs a .ply output", a->out));
+    MeshData d;
+    const Mesh mesh = load_mesh(a->mesh, &d);
+    const FemOperators ops = build_operators(mesh);
+    PropagationParams p{.equation = heat ? Propagation::Heat : Propagation::Wave,
+                        .dt = a->dt,
+                        .steps = a->steps,
+                        .diffusivity = a->k,
+                        .wave_speed = a->c,
+                        .damping = a->b,
+                        .local = a->local};
+    for (const auto& s : a->sources) p.fixed.push_back(parse_vertex_value(mesh, s, "--source"));
+    for (const auto& s : a->fluxes) p.flux.push_back(parse_vertex_value(mesh, s, "--flux"));
+    if (!a->initial.empty()) {
+      const auto it = d.vertex_scalars.find(a->initial);
+      if (it == d.vertex_scalars.end())
+        throw InputError(fmt::format("{}: no vertex property '{}'", a->mesh, a->initial));
+      p.initial = it->second;
+    }
+    if (!a->impulses.empty()) {
+      p.initial_velocity = Eigen::VectorXd::Zero(mesh.num_vertices());
+      for (const auto& s : a->impulses) {
+        const auto [v, x] = parse_vertex_value(mesh, s, "--impulse");
+        p.initial_velocity[v] += x;
+      }
+    }
+    if (p.fixed.empty() && p.flux.empty() && p.initial.size() == 0 && p.initial_velocity.size() == 0)
+      fmt::print(stderr, "warning: no source, flux, impulse or initial values: the field stays zero\n");
+    if (!a->frames.empty()) std::filesystem::create_directories(a->frames);
+    std::vector<double> energy;
+    Progress progress(a->steps, heat ? "heat" : "wave", !a->json);
+    const auto t0 = std::chrono::steady_clock::now();
+    const PropagationResult r =
+        propagate(mesh, ops, p, [&](int k, const Eigen::VectorXd& u, const Eigen::VectorXd& ut) {
+          if (!heat) energy.push_back(wave_energy(mesh, ops, u, ut, a->c));
+          if (!a->frames.empty() && (k % std::max(1, a->every) == 0 || k == a->steps))
+            write_values_csv(std::filesystem::path(a->frames) / fmt::format("frame_{:05d}.csv", k), u);
+          progress.update(k);
+        });
+    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    if (!a->out.empty()) save_mesh(a->out, mesh.positions(), mesh.triangles(), {{"u", r.values}});
+    if (!a->png.empty()) {
+      RenderOptions ro = a->r;
+      apply_view_options(ro, a->view, a->up, a->size);
+      ro.field = r.values;
+      ro.field_name = "u";
+      ro.colormap = heat ? Colormap::Viridis : Colormap::Coolwarm;
+      if (!heat) {
+        const double m = std::max(1e-300, r.values.cwiseAbs().maxCoeff());
+        ro.range = std::make_pair(-m, m);
+      }
+      ro.title = fmt::format("{} t = {:.4g} s", heat ? "heat" : "wave", a->dt * a->steps);
+      write_png(a->png, render(mesh.positions(), mesh.triangles(), ro));
+    }
+    const double total = ops.mass.dot(r.values);
+    if (a->json) {
+      nlohmann::json j{{"steps", a->steps},
+                       {"time", a->dt * a->steps},
+                       {"seconds", seconds},
+                       {"cg_iterations", r.cg_iterations},
+                       {"max_free_vertices", r.max_free_vertices},
+                       {"min", r.values.minCoeff()},
+                       {"max", r.values.maxCoeff()},
+                       {"mass_weighted_total", total}};
+      if (!heat) j["energy"] = energy;
+      print_json(j);
+    } else {
+      fmt::print("{} steps of {} s in {:.3f} s ({} CG iterations); u in [{:.6g}, {:.6g}], integral {:.6g}\n", a->steps,
+                 a->dt, seconds, r.cg_iterations, r.values.minCoeff(), r.values.maxCoeff(), total);
+      if (!energy.empty()) fmt::print("energy: start {:.6g}, end {:.6g}\n", energy.front(), energy.back());
+    }
+  });
+}
+
+}  // namespace
+
+void add_app_commands(CLI::App& app) {
+  add_propagation_command(app, Propagation::Heat);
+  add_propagation_command(app, Propagation::Wave);
+}
+
+}  // namespace meshpde::cli
