@@ -6,7 +6,9 @@
 #include <memory>
 
 #include "commands.h"
+#include "meshpde/apps/fairing.h"
 #include "meshpde/apps/heat_wave.h"
+#include "meshpde/apps/selection.h"
 #include "meshpde/core/errors.h"
 #include "meshpde/operators/fem_operators.h"
 #include "meshpde/viz/render.h"
@@ -15,27 +17,11 @@
 namespace meshpde::cli {
 
 int parse_vertex(const Mesh& mesh, const std::string& spec, const char* what) {
-  if (!spec.empty() && spec[0] == '@') {
-    Eigen::Vector3d p;
-    if (std::sscanf(spec.c_str() + 1, "%lf,%lf,%lf", &p.x(), &p.y(), &p.z()) != 3)
-      throw InputError(fmt::format("{} '{}': '@X,Y,Z' needs three numbers", what, spec));
-    int v = 0;
-    (mesh.positions().rowwise() - p.transpose()).rowwise().squaredNorm().minCoeff(&v);
-    return v;
-  }
-  std::size_t used = 0;
-  int v = -1;
   try {
-    v = std::stoi(spec, &used);
-  } catch (const std::exception&) {
-    used = 0;
+    return parse_vertex_spec(mesh, spec);
+  } catch (const InputError& e) {
+    throw InputError(fmt::format("{}: {}", what, e.what()));
   }
-  if (used != spec.size() || spec.empty())
-    throw InputError(fmt::format("{} '{}' is neither a vertex index nor @X,Y,Z", what, spec));
-  if (v < 0 || v >= mesh.num_vertices())
-    throw InputError(
-        fmt::format("{} vertex {} does not exist (the mesh has {} vertices)", what, v, mesh.num_vertices()));
-  return v;
 }
 
 std::pair<int, double> parse_vertex_value(const Mesh& mesh, const std::string& spec, const char* what) {
@@ -168,11 +154,99 @@ void add_propagation_command(CLI::App& app, Propagation eq) {
   });
 }
 
+nlohmann::json quality_json(const TriangleQuality& q) {
+  nlohmann::json hist = nlohmann::json::array();
+  const auto& e = TriangleQuality::bin_edges();
+  for (std::size_t b = 0; b + 1 < e.size(); ++b)
+    hist.push_back({{"from", e[b]},
+                    {"to", std::isinf(e[b + 1]) ? nlohmann::json("inf") : nlohmann::json(e[b + 1])},
+                    {"count", q.area_histogram[b]}});
+  return {{"min_angle_deg", q.min_angle_deg}, {"area_ratio", q.area_ratio}, {"area_histogram", hist}};
+}
+
+void print_quality(const char* when, const TriangleQuality& q) {
+  fmt::print("{}: smallest angle {:.3g} deg, area ratio {:.3g}; A / mean A histogram:", when, q.min_angle_deg,
+             q.area_ratio);
+  const auto& e = TriangleQuality::bin_edges();
+  for (std::size_t b = 0; b + 1 < e.size(); ++b) fmt::print(" [{:g},{:g}) {}", e[b], e[b + 1], q.area_histogram[b]);
+  fmt::print("\n");
+}
+
+void add_fair_command(CLI::App& app) {
+  auto* cmd = app.add_subcommand(
+      "fair", "Fair the free part of a mesh: membrane (--order 1) or thin plate (--order 2), selection held fixed");
+  struct Args {
+    std::string mesh, out, png, view = "30,20", up = "y", size = "960x720";
+    std::vector<std::string> fixed;
+    FairParams p;
+    bool json = false;
+    RenderOptions r;
+  };
+  auto a = std::make_shared<Args>();
+  cmd->add_option("MESH", a->mesh, "Mesh file")->required();
+  cmd->add_option("--fixed", a->fixed,
+                  "Vertices held in place: file:PATH, rings:V:K, radius:V:R, halfspace:NX,NY,NZ:D, "
+                  "field:NAME<X, field:NAME>X, boundary, all (V: index or @X,Y,Z); repeatable, united")
+      ->required();
+  cmd->add_option("--order", a->p.order, "1: Laplacian (membrane), 2: bi-Laplacian (thin plate)")
+      ->check(CLI::IsMember({1, 2}))
+      ->capture_default_str();
+  cmd->add_flag("--regularize", a->p.regularize, "Re-assemble area-weighted stiffness every step (seed 000 Fig. 7)");
+  cmd->add_option("--dt", a->p.dt, "Regularization step (unit-free)")->capture_default_str();
+  cmd->add_option("--steps", a->p.steps, "Regularization steps")->capture_default_str();
+  cmd->add_option("--damping", a->p.damping, "Regularization damping relative to the mean area (0: quasi-static)")
+      ->capture_default_str();
+  cmd->add_option("-o,--output", a->out, "Faired mesh")->required();
+  cmd->add_option("--png", a->png, "Picture of the result (free part coloured)");
+  add_view_options(cmd, a->r, a->view, a->up, a->size);
+  cmd->add_flag("--json", a->json, "Print a JSON report");
+  cmd->callback([=] {
+    MeshData d;
+    const Mesh mesh = load_mesh(a->mesh, &d);
+    const auto fixed = select_vertices(mesh, a->fixed, d.vertex_scalars);
+    if (fixed.empty()) throw InputError("the --fixed selection is empty");
+    if (static_cast<int>(fixed.size()) == mesh.num_vertices())
+      throw InputError("every vertex is fixed: nothing to fair");
+    const auto t0 = std::chrono::steady_clock::now();
+    const FairResult r = fair(mesh, fixed, a->p);
+    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    Eigen::VectorXd free_mask = Eigen::VectorXd::Ones(mesh.num_vertices());
+    for (int v : fixed) free_mask[v] = 0;
+    save_mesh(a->out, r.V, mesh.triangles(),
+              format_from_path(a->out) == MeshFormat::Ply ? std::map<std::string, Eigen::VectorXd>{{"free", free_mask}}
+                                                          : std::map<std::string, Eigen::VectorXd>{});
+    if (!a->png.empty()) {
+      RenderOptions ro = a->r;
+      apply_view_options(ro, a->view, a->up, a->size);
+      ro.title =
+          fmt::format("{}{}", a->p.order == 1 ? "membrane" : "thin plate", a->p.regularize ? ", regularized" : "");
+      write_png(a->png, render(r.V, mesh.triangles(), ro));
+    }
+    if (a->json) {
+      print_json({{"fixed_vertices", fixed.size()},
+                  {"free_vertices", mesh.num_vertices() - static_cast<int>(fixed.size())},
+                  {"seconds", seconds},
+                  {"cg_iterations", r.cg_iterations},
+                  {"relative_residual", r.worst_residual},
+                  {"before", quality_json(r.before)},
+                  {"after", quality_json(r.after)}});
+    } else {
+      fmt::print("{} fixed, {} free vertices; {:.3f} s, {} CG iterations (worst relative residual {:.2g})\n",
+                 fixed.size(), mesh.num_vertices() - static_cast<int>(fixed.size()), seconds, r.cg_iterations,
+                 r.worst_residual);
+      print_quality("before", r.before);
+      print_quality("after ", r.after);
+      fmt::print("wrote {}\n", a->out);
+    }
+  });
+}
+
 }  // namespace
 
 void add_app_commands(CLI::App& app) {
   add_propagation_command(app, Propagation::Heat);
   add_propagation_command(app, Propagation::Wave);
+  add_fair_command(app);
 }
 
 }  // namespace meshpde::cli

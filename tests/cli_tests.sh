@@ -131,6 +131,24 @@ check "heat picture" [ -s "$T/h.png" ]
 check "bad source vertex exits 1" [ $? -eq 1 ]
 check "bad source named" grep -q "99999" "$T/err"
 
+# fair: a plate with a bump comes back flat; the fixed part never moves
+"$M" generate plane --nx 20 --ny 20 -o "$T/pl.off" >/dev/null
+python3 - "$T/pl.off" <<'PY'
+import sys, math
+rows = open(sys.argv[1]).read().split('\n')
+nv = int(rows[1].split()[0])
+for k in range(2, 2 + nv):
+    x, y, z = map(float, rows[k].split())
+    rows[k] = "%r %r %r" % (x, y, 0.1 * math.exp(-((x - .5) ** 2 + (y - .5) ** 2) / 0.005))
+open(sys.argv[1], 'w').write('\n'.join(rows))
+PY
+"$M" fair "$T/pl.off" --fixed boundary --fixed "halfspace:1,0,0:0.1" --fixed "halfspace:-1,0,0:-0.9" \
+  --fixed "halfspace:0,1,0:0.1" --fixed "halfspace:0,-1,0:-0.9" --order 2 -o "$T/pf.ply" --json >"$T/f.json" || bad "fair"
+check "fair reports quality" [ "$(json "$T/f.json" "'min_angle_deg' in d['after'] and len(d['after']['area_histogram']) == 7")" = True ]
+"$M" fair "$T/pl.off" --fixed "field:nope>1" -o "$T/x.ply" 2>"$T/err" >/dev/null
+check "fair with a bad selection exits 1" [ $? -eq 1 ]
+check "bad selection explained" grep -q "no vertex field 'nope'" "$T/err"
+
 # the main job
 "$M" demo -o "$T/demo" --json >"$T/d.json" || bad "demo"
 check "demo moved vertices" [ "$(json "$T/d.json" "d['moved_vertices'] > 100")" = True ]

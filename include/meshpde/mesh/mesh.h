@@ -12,6 +12,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>  // cross(): declared by Core, defined here; needed by every geometry user
 #include <cstdint>
 #include <span>
 #include <vector>

@@ -1,0 +1,39 @@
+// Vertex selections, written the same way everywhere (CLI, bindings, server):
+//
+//   file:PATH               vertex indices in a text file (whitespace or commas, # comments)
+//   rings:V:K               K rings of neighbours around vertex V
+//   radius:V:R              edge-path distance < R from vertex V (mesh units)
+//   halfspace:NX,NY,NZ:D    vertices with NX x + NY y + NZ z <= D
+//   field:NAME<X  field:NAME>X   a threshold on a per-vertex field
+//   boundary                vertices on boundary edges
+//   all
+//
+// V is an index or @X,Y,Z (the vertex nearest to that point). Several selections
+// are combined by union.
+#pragma once
+
+#include <Eigen/Core>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "meshpde/mesh/mesh.h"
+
+namespace meshpde {
+
+using VertexFields = std::map<std::string, Eigen::VectorXd>;
+
+/// Sorted, unique vertex indices. \throw InputError naming the selection and what is wrong.
+std::vector<int> select_vertices(const Mesh& mesh, const std::string& spec, const VertexFields& fields = {});
+
+/// Union of several selections.
+std::vector<int> select_vertices(const Mesh& mesh, const std::vector<std::string>& specs,
+                                 const VertexFields& fields = {});
+
+/// Vertex given as an index or @X,Y,Z. \throw InputError
+int parse_vertex_spec(const Mesh& mesh, const std::string& spec);
+
+/// Vertices on boundary edges (edges with one incident triangle).
+std::vector<int> boundary_vertices(const Mesh& mesh);
+
+}  // namespace meshpde
