@@ -4,10 +4,12 @@
 #include <chrono>
 #include <fstream>
 #include <memory>
+#include <sstream>
 
 #include "commands.h"
 #include "meshpde/apps/fairing.h"
 #include "meshpde/apps/heat_wave.h"
+#include "meshpde/apps/interpolation.h"
 #include "meshpde/apps/selection.h"
 #include "meshpde/core/errors.h"
 #include "meshpde/operators/fem_operators.h"
@@ -241,9 +243,179 @@ void add_fair_command(CLI::App& app) {
   });
 }
 
+/// Reads interpolation constraints: CSV lines "vertex,value[,value,value]" (a header
+/// line is allowed) or JSON {"constraints": [{"vertex": 12 or "@x,y,z", "value": 1 or [x, y, z]}]}.
+std::vector<InterpolationConstraint> read_constraints(const std::string& path, const Mesh& mesh, int m) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(fmt::format("{}: cannot open", path));
+  std::stringstream ss;
+  ss << in.rdbuf();
+  const std::string text = ss.str();
+  std::vector<InterpolationConstraint> out;
+  auto add = [&](int v, std::vector<double> x, const std::string& where) {
+    if (static_cast<int>(x.size()) != m)
+      throw InputError(fmt::format("{}: {}: {} values, expected {}", path, where, x.size(), m));
+    InterpolationConstraint c{v, Eigen::VectorXd(m)};
+    for (int k = 0; k < m; ++k) c.value[k] = x[k];
+    out.push_back(std::move(c));
+  };
+  const auto first = text.find_first_not_of(" \t\r\n");
+  if (first != std::string::npos && (text[first] == '{' || text[first] == '[')) {
+    nlohmann::json j;
+    try {
+      j = nlohmann::json::parse(text);
+    } catch (const nlohmann::json::parse_error& e) {
+      throw InputError(fmt::format("{}: invalid JSON: {}", path, e.what()));
+    }
+    const nlohmann::json& list = j.is_array() ? j : j.value("constraints", nlohmann::json::array());
+    if (!list.is_array()) throw InputError(fmt::format("{}: 'constraints' must be an array", path));
+    for (std::size_t k = 0; k < list.size(); ++k) {
+      const auto& e = list[k];
+      const std::string where = fmt::format("constraint {}", k);
+      if (!e.is_object() || !e.contains("vertex") || !e.contains("value"))
+        throw InputError(fmt::format("{}: {}: needs 'vertex' and 'value'", path, where));
+      const int v = e["vertex"].is_string() ? parse_vertex(mesh, e["vertex"].get<std::string>(), where.c_str())
+                                            : parse_vertex(mesh, e["vertex"].dump(), where.c_str());
+      std::vector<double> x;
+      if (e["value"].is_number())
+        x.push_back(e["value"].get<double>());
+      else if (e["value"].is_array())
+        for (const auto& q : e["value"]) {
+          if (!q.is_number()) throw InputError(fmt::format("{}: {}: values must be numbers", path, where));
+          x.push_back(q.get<double>());
+        }
+      else
+        throw InputError(fmt::format("{}: {}: 'value' must be a number or an array", path, where));
+      add(v, x, where);
+    }
+    return out;
+  }
+  std::stringstream lines(text);
+  std::string line;
+  int lineno = 0;
+  while (std::getline(lines, line)) {
+    ++lineno;
+    line = line.substr(0, line.find('#'));
+    if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
+    auto trim = [](std::string t) {
+      const auto b = t.find_first_not_of(" \t\r"), e = t.find_last_not_of(" \t\r");
+      return b == std::string::npos ? std::string() : t.substr(b, e - b + 1);
+    };
+    std::vector<std::string> f;
+    std::stringstream ls(line);
+    std::string item;
+    while (std::getline(ls, item, ',')) f.push_back(trim(item));
+    const std::string where = fmt::format("line {}", lineno);
+    if (out.empty() && !f[0].empty() && !std::isdigit(static_cast<unsigned char>(f[0][0]))) continue;  // header
+    const int v = parse_vertex(mesh, f[0], where.c_str());
+    std::vector<double> x;
+    for (std::size_t k = 1; k < f.size(); ++k) {
+      char* end = nullptr;
+      const double d = std::strtod(f[k].c_str(), &end);
+      if (f[k].empty() || *end != '\0' || !std::isfinite(d))
+        throw InputError(fmt::format("{}: {}: '{}' is not a number", path, where, f[k]));
+      x.push_back(d);
+    }
+    add(v, x, where);
+  }
+  if (out.empty()) throw InputError(fmt::format("{}: no constraints", path));
+  return out;
+}
+
+void add_interpolate_command(CLI::App& app) {
+  auto* cmd = app.add_subcommand("interpolate",
+                                 "Spread values given at a few vertices: scalars, displacements or tangent vectors");
+  struct Args {
+    std::string mesh, constraints, kind = "scalar", method = "componentwise", out, png;
+    std::string view = "30,20", up = "y", size = "960x720";
+    double g1 = 0, g2 = 1;
+    bool json = false;
+    RenderOptions r;
+  };
+  auto a = std::make_shared<Args>();
+  cmd->add_option("MESH", a->mesh, "Mesh file")->required();
+  cmd->add_option("--constraints", a->constraints,
+                  "CSV (vertex,value[,value,value]) or JSON ({\"constraints\": [{\"vertex\": V, \"value\": X}]})")
+      ->required();
+  cmd->add_option("--kind", a->kind, "scalar | displacement | tangent")
+      ->check(CLI::IsMember({"scalar", "displacement", "tangent"}))
+      ->capture_default_str();
+  cmd->add_option("--g1", a->g1, "Laplacian weight")->capture_default_str();
+  cmd->add_option("--g2", a->g2, "bi-Laplacian weight")->capture_default_str();
+  cmd->add_option("--method", a->method, "tangent fields: componentwise (seed) | connection | both")
+      ->check(CLI::IsMember({"componentwise", "connection", "both"}))
+      ->capture_default_str();
+  cmd->add_option("-o,--output", a->out,
+                  "Output .ply: field 'u'; displacements move the mesh and add d_x, d_y, d_z; "
+                  "tangent fields add NAME_x, NAME_y, NAME_z (NAME: componentwise, connection)")
+      ->required();
+  cmd->add_option("--png", a->png, "Picture (for --method both: the two side by side)");
+  add_view_options(cmd, a->r, a->view, a->up, a->size);
+  cmd->add_flag("--json", a->json, "Print a JSON report");
+  cmd->callback([=] {
+    if (format_from_path(a->out) != MeshFormat::Ply)
+      throw InputError(fmt::format("{}: fields need a .ply output", a->out));
+    const Mesh mesh = load_mesh(a->mesh);
+    warn_about_shape(mesh, a->mesh);
+    const FieldKind kind = a->kind == "scalar"         ? FieldKind::Scalar
+                           : a->kind == "displacement" ? FieldKind::Displacement
+                                                       : FieldKind::Tangent;
+    const auto cons = read_constraints(a->constraints, mesh, kind == FieldKind::Scalar ? 1 : 3);
+    const FemOperators ops = build_operators(mesh);
+    std::vector<std::pair<std::string, TangentMethod>> runs;
+    if (kind != FieldKind::Tangent || a->method == "componentwise" || a->method == "both")
+      runs.emplace_back("componentwise", TangentMethod::Componentwise);
+    if (kind == FieldKind::Tangent && (a->method == "connection" || a->method == "both"))
+      runs.emplace_back("connection", TangentMethod::Connection);
+    std::map<std::string, Eigen::VectorXd> fields;
+    Positions out_V = mesh.positions();
+    std::vector<Image> pictures;
+    nlohmann::json report{{"constraints", cons.size()}, {"g1", a->g1}, {"g2", a->g2}};
+    for (const auto& [name, method] : runs) {
+      const auto t0 = std::chrono::steady_clock::now();
+      const InterpolationResult r =
+          interpolate(mesh, ops, kind, cons, InterpolationParams{.g1 = a->g1, .g2 = a->g2, .method = method});
+      const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      RenderOptions ro = a->r;
+      apply_view_options(ro, a->view, a->up, a->size);
+      if (kind == FieldKind::Scalar) {
+        fields["u"] = r.values.col(0);
+        ro.field = r.values.col(0);
+        ro.field_name = "u";
+      } else if (kind == FieldKind::Displacement) {
+        out_V += r.values;
+        for (int c = 0; c < 3; ++c) fields[std::string("d_") + "xyz"[c]] = r.values.col(c);
+        ro.field = r.values.rowwise().norm();
+        ro.field_name = "|d|";
+      } else {
+        for (int c = 0; c < 3; ++c) fields[name + "_" + "xyz"[c]] = r.values.col(c);
+        ro.field = r.values.rowwise().norm();
+        ro.field_name = "|v|";
+        ro.vectors = r.values;
+        ro.arrow_color = Eigen::Vector3d(0.05, 0.05, 0.05);
+        ro.title = name;
+      }
+      report[kind == FieldKind::Tangent ? name : "result"] = {{"seconds", seconds},
+                                                              {"cg_iterations", r.cg.iterations},
+                                                              {"relative_residual", r.cg.relative_residual},
+                                                              {"min_magnitude", r.values.rowwise().norm().minCoeff()},
+                                                              {"max_magnitude", r.values.rowwise().norm().maxCoeff()}};
+      if (!a->png.empty()) pictures.push_back(render(out_V, mesh.triangles(), ro));
+      if (!a->json)
+        fmt::print("{}: {:.3f} s, {} CG iterations (relative residual {:.2g}), |value| in [{:.4g}, {:.4g}]\n", name,
+                   seconds, r.cg.iterations, r.cg.relative_residual, r.values.rowwise().norm().minCoeff(),
+                   r.values.rowwise().norm().maxCoeff());
+    }
+    save_mesh(a->out, out_V, mesh.triangles(), fields);
+    if (!a->png.empty()) write_png(a->png, side_by_side(pictures));
+    if (a->json) print_json(report);
+  });
+}
+
 }  // namespace
 
 void add_app_commands(CLI::App& app) {
+  add_interpolate_command(app);
   add_propagation_command(app, Propagation::Heat);
   add_propagation_command(app, Propagation::Wave);
   add_fair_command(app);

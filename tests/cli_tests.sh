@@ -149,6 +149,20 @@ check "fair reports quality" [ "$(json "$T/f.json" "'min_angle_deg' in d['after'
 check "fair with a bad selection exits 1" [ $? -eq 1 ]
 check "bad selection explained" grep -q "no vertex field 'nope'" "$T/err"
 
+# interpolate: CSV and JSON constraints, exact at the constraints, clear errors
+printf 'vertex,value\n0,1.5\n40,-1\n' >"$T/c.csv"
+"$M" interpolate "$T/ico.off" --constraints "$T/c.csv" -o "$T/i.ply" --json >"$T/i.json" || bad "interpolate csv"
+check "interpolate converged" [ "$(json "$T/i.json" "d['result']['relative_residual'] < 1e-8")" = True ]
+printf '{"constraints": [{"vertex": 0, "value": [0, 0.1, 0]}, {"vertex": "@0,0,-1", "value": [0.1, 0, 0]}]}' >"$T/c.json"
+"$M" interpolate "$T/ico.off" --constraints "$T/c.json" --kind tangent --method both -o "$T/t.ply" --png "$T/t.png" \
+  --json >"$T/t.json" || bad "interpolate tangent"
+check "connection keeps magnitudes better" [ "$(json "$T/t.json" "d['connection']['min_magnitude'] > d['componentwise']['min_magnitude']")" = True ]
+check "side-by-side picture" [ -s "$T/t.png" ]
+printf '0,abc\n' >"$T/bad.csv"
+"$M" interpolate "$T/ico.off" --constraints "$T/bad.csv" -o "$T/x.ply" 2>"$T/err" >/dev/null
+check "bad constraint value exits 1" [ $? -eq 1 ]
+check "bad constraint named by line" grep -q "line 1" "$T/err"
+
 # the main job
 "$M" demo -o "$T/demo" --json >"$T/d.json" || bad "demo"
 check "demo moved vertices" [ "$(json "$T/d.json" "d['moved_vertices'] > 100")" = True ]

@@ -65,7 +65,9 @@ TEST(Io, RoundTripEveryFormat) {
     ASSERT_EQ(s.V.rows(), d.V.rows());
     ASSERT_EQ(s.F.rows(), d.F.rows());
     for (Eigen::Index f = 0; f < d.F.rows(); ++f)
-      for (int c = 0; c < 3; ++c) EXPECT_LE((s.V.row(s.F(f, c)) - d.V.row(d.F(f, c))).norm(), 1e-6);
+      for (int c = 0; c < 3; ++c) {
+        EXPECT_LE((s.V.row(s.F(f, c)) - d.V.row(d.F(f, c))).norm(), 1e-6);
+      }
   }
 }
 

@@ -147,7 +147,9 @@ TEST(Operators, BilaplacianMatchesAssembledLMinvL) {
   const Eigen::VectorXd u0 = u.col(0);
   apply_bilaplacian_scalar(m, ops, u0.data(), t.data(), y.data());
   const Eigen::VectorXd b0 = B * u0;
-  for (int i = 0; i < m.num_vertices(); ++i) EXPECT_NEAR(y[i], b0[i], 1e-10 * b0.cwiseAbs().maxCoeff());
+  for (int i = 0; i < m.num_vertices(); ++i) {
+    EXPECT_NEAR(y[i], b0[i], 1e-10 * b0.cwiseAbs().maxCoeff());
+  }
   for (int i = 0; i < m.num_vertices(); ++i)
     EXPECT_NEAR(bilaplacian_diagonal(m, ops, i), B.coeff(i, i), 1e-10 * B.coeff(i, i));
 }

@@ -71,7 +71,9 @@ TEST(Pde, ConstraintsAreAddedMovedAndReleasedBetweenSteps) {
   for (int k = 0; k < 200; ++k) s.step(0.05);
   // Without a foundation term (g0 = 0) nothing holds the surface in place (K 1 = 0):
   // it settles at a rigid offset, every vertex displaced alike.
-  for (int c = 0; c < 3; ++c) EXPECT_LT(s.values().col(c).maxCoeff() - s.values().col(c).minCoeff(), 1e-3);
+  for (int c = 0; c < 3; ++c) {
+    EXPECT_LT(s.values().col(c).maxCoeff() - s.values().col(c).minCoeff(), 1e-3);
+  }
   EXPECT_GT(s.values().cwiseAbs().maxCoeff(), 1e-3);
 
   // With a foundation it returns to rest.

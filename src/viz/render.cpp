@@ -199,9 +199,16 @@ Image render(const Positions& V, const Triangles& F, const RenderOptions& o) {
   std::vector<std::pair<Eigen::Vector3d, Eigen::Vector3d>> arrows = o.extra_arrows;
   if (o.vectors.rows() > 0) {
     std::vector<int> which = o.arrow_vertices;
-    if (which.empty())
+    if (which.empty()) {
       for (Eigen::Index i = 0; i < nv; ++i)
         if (o.vectors.row(i).norm() > 0) which.push_back(static_cast<int>(i));
+      if (o.max_arrows > 0 && static_cast<int>(which.size()) > o.max_arrows) {
+        std::vector<int> kept;
+        const double stride = double(which.size()) / o.max_arrows;
+        for (int k = 0; k < o.max_arrows; ++k) kept.push_back(which[static_cast<std::size_t>(k * stride)]);
+        which.swap(kept);
+      }
+    }
     double longest = 0;
     for (int i : which) longest = std::max(longest, o.vectors.row(i).norm());
     const double s = o.arrow_scale > 0 ? o.arrow_scale : (longest > 0 ? 0.1 * (hi - lo).norm() / longest : 0);
@@ -269,6 +276,23 @@ Image render(const Positions& V, const Triangles& F, const RenderOptions& o) {
     draw_text(img, tx, ly1 - 3 * ts, label(fmin), ts + 1, ink);
   }
   return img;
+}
+
+Image side_by_side(const std::vector<Image>& images) {
+  Image out;
+  for (const auto& im : images) {
+    out.width += im.width;
+    out.height = std::max(out.height, im.height);
+  }
+  out.rgb.assign(3 * std::size_t(out.width) * out.height, 255);
+  int x0 = 0;
+  for (const auto& im : images) {
+    for (int y = 0; y < im.height; ++y)
+      std::copy_n(im.rgb.begin() + 3 * std::size_t(y) * im.width, 3 * im.width,
+                  out.rgb.begin() + 3 * (std::size_t(y) * out.width + x0));
+    x0 += im.width;
+  }
+  return out;
 }
 
 }  // namespace meshpde

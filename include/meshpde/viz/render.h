@@ -36,6 +36,7 @@ struct RenderOptions {
   Colormap colormap = Colormap::Viridis;
   Eigen::MatrixX3d vectors{};         ///< per-vertex arrows (#V x 3), empty: none
   std::vector<int> arrow_vertices{};  ///< draw arrows only here (empty: every vertex with a non-zero vector)
+  int max_arrows = 400;               ///< when arrow_vertices is empty, an even stride keeps at most this many
   double arrow_scale = 0;             ///< world length per unit vector; 0: longest arrow = 10% of the mesh size
   Eigen::Vector3d arrow_color{0.85, 0.1, 0.1};
   std::vector<std::pair<Eigen::Vector3d, Eigen::Vector3d>> extra_arrows{};  ///< (start, vector) in world units
@@ -48,6 +49,9 @@ Image render(const Positions& V, const Triangles& F, const RenderOptions& option
 
 /// Colour of t in [0, 1] (clamped), components in [0, 1].
 Eigen::Vector3d colormap(Colormap map, double t);
+
+/// Places images left to right (heights may differ; the shorter ones are padded white).
+Image side_by_side(const std::vector<Image>& images);
 
 /// Writes a PNG atomically. \throw Error if it cannot be written.
 void write_png(const std::filesystem::path& path, const Image& image);

@@ -1,0 +1,57 @@
+// Scattered-data interpolation over a surface (seed 000 section 5.3, Figs. 8-11):
+// values given at a few vertices spread smoothly by solving
+//     (g1 K + g2 K D K) u = 0   on the other vertices, u = value at the constraints.
+// g2 > 0 gives smooth bumps and reproduces linear fields exactly; g1 alone gives
+// spikes at the constraints (the seed's Fig. 8). Any mix is allowed.
+//
+// Tangent vector fields, two ways:
+//  - Componentwise (the seed): x, y, z interpolated separately, then each vertex's
+//    vector projected onto its tangent plane. Where the surface turns, vectors that
+//    point the "same way" along the surface disagree in 3D and partly cancel, so
+//    magnitudes collapse.
+//  - Connection: directions interpolated with the connection Laplacian
+//    (operators/connection.h), which compares vectors after parallel transport, and
+//    magnitudes interpolated as a scalar field; the result is direction times
+//    magnitude, as in the vector heat method (Sharp et al. 2019), with constraints
+//    held exactly. Needs an edge-manifold, consistently oriented mesh.
+#pragma once
+
+#include <Eigen/Core>
+#include <vector>
+
+#include "meshpde/mesh/mesh.h"
+#include "meshpde/operators/fem_operators.h"
+#include "meshpde/solvers/cg.h"
+
+namespace meshpde {
+
+enum class FieldKind { Scalar, Displacement, Tangent };
+enum class TangentMethod { Componentwise, Connection };
+
+struct InterpolationConstraint {
+  int vertex = 0;
+  Eigen::VectorXd value;  ///< 1 entry for scalars, 3 for displacements and tangent vectors
+};
+
+struct InterpolationParams {
+  double g1 = 0;  ///< Laplacian (membrane) weight
+  double g2 = 1;  ///< bi-Laplacian (thin plate) weight
+  TangentMethod method = TangentMethod::Componentwise;
+  CgOptions cg{.tolerance = 1e-11, .max_iterations = 200000};
+};
+
+struct InterpolationResult {
+  Field values;  ///< #V x 1 or #V x 3
+  CgResult cg;   ///< of the (last) iterative solve; the connection directions use a direct solve
+};
+
+/// \throw InputError (bad vertex, duplicate vertex, wrong value size, g1 = g2 = 0, no
+/// constraint), SolverError (breakdown).
+InterpolationResult interpolate(const Mesh& mesh, const FemOperators& ops, FieldKind kind,
+                                const std::vector<InterpolationConstraint>& constraints,
+                                const InterpolationParams& params = {});
+
+/// Unit vertex normals (area-weighted).
+Eigen::MatrixX3d vertex_normals(const Mesh& mesh);
+
+}  // namespace meshpde

@@ -1,0 +1,151 @@
+#include "meshpde/apps/interpolation.h"
+
+#include <fmt/format.h>
+
+#include <Eigen/SparseCholesky>
+#include <cmath>
+
+#include "meshpde/core/errors.h"
+#include "meshpde/operators/connection.h"
+#include "meshpde/pde/pde_session.h"
+
+namespace meshpde {
+
+Eigen::MatrixX3d vertex_normals(const Mesh& mesh) {
+  const auto& V = mesh.positions();
+  const auto& F = mesh.triangles();
+  Eigen::MatrixX3d N = Eigen::MatrixX3d::Zero(mesh.num_vertices(), 3);
+  for (int f = 0; f < mesh.num_faces(); ++f) {
+    const Eigen::Vector3d a = V.row(F(f, 0)), b = V.row(F(f, 1)), c = V.row(F(f, 2));
+    const Eigen::Vector3d n = (b - a).cross(c - a);
+    for (int k = 0; k < 3; ++k) N.row(F(f, k)) += n.transpose();
+  }
+  for (int i = 0; i < mesh.num_vertices(); ++i) {
+    const double nn = N.row(i).norm();
+    if (nn > 0) N.row(i) /= nn;
+  }
+  return N;
+}
+
+namespace {
+
+Field solve_scalar_like(const Mesh& mesh, const FemOperators& ops, int m,
+                        const std::vector<InterpolationConstraint>& cons, const InterpolationParams& p, CgResult& cg,
+                        const std::vector<Eigen::VectorXd>* values = nullptr) {
+  PdeSession s(mesh, ops, m, PdeCoefficients{.alpha = 0, .b1 = 0, .b2 = 0, .g0 = 0, .g1 = p.g1, .g2 = p.g2},
+               DomainOptions{.seed_rings = 0});
+  s.cg_options = p.cg;
+  s.activate_all();
+  for (std::size_t k = 0; k < cons.size(); ++k) {
+    const Eigen::VectorXd& v = values ? (*values)[k] : cons[k].value;
+    s.constrain(cons[k].vertex, std::span<const double>(v.data(), static_cast<std::size_t>(v.size())));
+  }
+  const StepResult r = s.solve_steady();
+  cg = r.cg;
+  if (!r.cg.converged()) throw SolverError(fmt::format("interpolation: {}", r.cg.message));
+  return s.values();
+}
+
+}  // namespace
+
+InterpolationResult interpolate(const Mesh& mesh, const FemOperators& ops, FieldKind kind,
+                                const std::vector<InterpolationConstraint>& cons, const InterpolationParams& p) {
+  const int nv = mesh.num_vertices();
+  const int m = kind == FieldKind::Scalar ? 1 : 3;
+  if (cons.empty()) throw InputError("interpolation needs at least one constrained vertex");
+  if (!(p.g1 >= 0 && p.g2 >= 0) || p.g1 + p.g2 <= 0) throw InputError("interpolation needs g1, g2 >= 0, not both 0");
+  std::vector<char> seen(nv, 0);
+  for (const auto& c : cons) {
+    if (c.vertex < 0 || c.vertex >= nv)
+      throw InputError(fmt::format("constraint vertex {} does not exist (the mesh has {})", c.vertex, nv));
+    if (seen[c.vertex]) throw InputError(fmt::format("vertex {} is constrained twice", c.vertex));
+    seen[c.vertex] = 1;
+    if (c.value.size() != m)
+      throw InputError(fmt::format("constraint at vertex {} has {} values, expected {}", c.vertex, c.value.size(), m));
+    if (!c.value.allFinite()) throw InputError(fmt::format("constraint at vertex {} is not finite", c.vertex));
+    if (ops.mass[c.vertex] <= 0) throw InputError(fmt::format("constraint vertex {} has no incident area", c.vertex));
+  }
+  InterpolationResult r;
+  if (kind != FieldKind::Tangent || p.method == TangentMethod::Componentwise) {
+    r.values = solve_scalar_like(mesh, ops, m, cons, p, r.cg);
+    if (kind == FieldKind::Tangent) {
+      const Eigen::MatrixX3d N = vertex_normals(mesh);
+      for (int i = 0; i < nv; ++i) {
+        const Eigen::RowVector3d n = N.row(i);
+        r.values.row(i) -= r.values.row(i).dot(n) * n;
+      }
+    }
+    return r;
+  }
+  // Connection-aware: directions through the connection Laplacian, magnitudes as a scalar.
+  const Connection conn = build_connection(mesh);
+  std::vector<InterpolationConstraint> mags;
+  std::vector<Eigen::VectorXd> mag_values;
+  Eigen::VectorXd dir_fixed = Eigen::VectorXd::Zero(2 * nv);
+  for (const auto& c : cons) {
+    const Eigen::Vector3d v = c.value;
+    const Eigen::RowVector3d n = conn.normal.row(c.vertex);
+    const Eigen::Vector3d t = v - v.dot(n.transpose()) * n.transpose();
+    const double a = tangent_angle(conn, c.vertex, t);
+    dir_fixed[2 * c.vertex] = std::cos(a);
+    dir_fixed[2 * c.vertex + 1] = std::sin(a);
+    mags.push_back({c.vertex, Eigen::VectorXd::Constant(1, t.norm())});
+  }
+  const Field magnitude = solve_scalar_like(mesh, ops, 1, mags, p, r.cg);
+  // Kt for directions: g1 L + g2 L D L on the 2-vectors, solved directly on free DOFs.
+  const Eigen::SparseMatrix<double> L = connection_laplacian(mesh, conn, ops.Kii, ops.Kij);
+  Eigen::SparseMatrix<double> D2(2 * nv, 2 * nv);
+  {
+    std::vector<Eigen::Triplet<double>> t;
+    for (int i = 0; i < nv; ++i) {
+      t.emplace_back(2 * i, 2 * i, ops.D(i));
+      t.emplace_back(2 * i + 1, 2 * i + 1, ops.D(i));
+    }
+    D2.setFromTriplets(t.begin(), t.end());
+  }
+  const Eigen::SparseMatrix<double> A = p.g1 * L + p.g2 * (L * D2 * L);
+  std::vector<int> free_index(2 * nv, -1), free_dofs;
+  for (int i = 0; i < nv; ++i)
+    if (!seen[i] && ops.mass[i] > 0)
+      for (int k = 0; k < 2; ++k) {
+        free_index[2 * i + k] = static_cast<int>(free_dofs.size());
+        free_dofs.push_back(2 * i + k);
+      }
+  const int nf = static_cast<int>(free_dofs.size());
+  std::vector<Eigen::Triplet<double>> t;
+  Eigen::VectorXd rhs = Eigen::VectorXd::Zero(nf);
+  for (int col = 0; col < A.outerSize(); ++col)
+    for (Eigen::SparseMatrix<double>::InnerIterator it(A, col); it; ++it) {
+      const int fr = free_index[it.row()], fc = free_index[it.col()];
+      if (fr < 0) continue;
+      if (fc >= 0)
+        t.emplace_back(fr, fc, it.value());
+      else
+        rhs[fr] -= it.value() * dir_fixed[it.col()];
+    }
+  Eigen::SparseMatrix<double> Aff(nf, nf);
+  Aff.setFromTriplets(t.begin(), t.end());
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver(Aff);
+  if (solver.info() != Eigen::Success)
+    throw SolverError(
+        "connection interpolation: the direction system could not be factored (is a connected part "
+        "without constraints?)");
+  const Eigen::VectorXd x = solver.solve(rhs);
+  Eigen::VectorXd dir = dir_fixed;
+  for (int k = 0; k < nf; ++k) dir[free_dofs[k]] = x[k];
+  r.values = Field::Zero(nv, 3);
+  for (int i = 0; i < nv; ++i) {
+    if (seen[i]) continue;
+    const double a = std::atan2(dir[2 * i + 1], dir[2 * i]);
+    if (std::hypot(dir[2 * i], dir[2 * i + 1]) > 0)
+      r.values.row(i) = tangent_vector(conn, i, a, magnitude(i, 0)).transpose();
+  }
+  for (const auto& c : cons) {
+    const Eigen::RowVector3d n = conn.normal.row(c.vertex);
+    const Eigen::RowVector3d v = c.value.transpose();
+    r.values.row(c.vertex) = v - v.dot(n) * n;  // exact (tangential part of the given vector)
+  }
+  return r;
+}
+
+}  // namespace meshpde
