@@ -1,17 +1,21 @@
 // meshpde heat | wave
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <chrono>
 #include <fstream>
 #include <memory>
 #include <sstream>
+#include <thread>
 
 #include "commands.h"
 #include "meshpde/apps/fairing.h"
+#include "meshpde/apps/haptics.h"
 #include "meshpde/apps/heat_wave.h"
 #include "meshpde/apps/interpolation.h"
 #include "meshpde/apps/selection.h"
 #include "meshpde/core/errors.h"
+#include "meshpde/mesh/topology.h"
 #include "meshpde/operators/fem_operators.h"
 #include "meshpde/viz/render.h"
 #include "progress.h"
@@ -412,9 +416,189 @@ void add_interpolate_command(CLI::App& app) {
   });
 }
 
+struct PathPoint {
+  double t;
+  Eigen::Vector3d offset;
+};
+
+/// Probe path CSV: "t,dx,dy,dz" per line (seconds; offset from the vertex's rest
+/// position in mesh units), times increasing; a header line is allowed.
+std::vector<PathPoint> read_path(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw InputError(fmt::format("{}: cannot open", path));
+  std::vector<PathPoint> out;
+  std::string line;
+  int lineno = 0;
+  while (std::getline(in, line)) {
+    ++lineno;
+    line = line.substr(0, line.find('#'));
+    std::replace(line.begin(), line.end(), ',', ' ');
+    std::stringstream ss(line);
+    std::vector<std::string> tok;
+    for (std::string t; ss >> t;) tok.push_back(t);
+    if (tok.empty()) continue;
+    if (out.empty() && !std::isdigit(static_cast<unsigned char>(tok[0][0])) && tok[0][0] != '-' && tok[0][0] != '.')
+      continue;  // header
+    if (tok.size() != 4) throw InputError(fmt::format("{}: line {}: expected t,dx,dy,dz", path, lineno));
+    double v[4];
+    for (int k = 0; k < 4; ++k) {
+      char* end = nullptr;
+      v[k] = std::strtod(tok[k].c_str(), &end);
+      if (*end != '\0' || !std::isfinite(v[k]))
+        throw InputError(fmt::format("{}: line {}: '{}' is not a number", path, lineno, tok[k]));
+    }
+    if (!out.empty() && v[0] <= out.back().t)
+      throw InputError(fmt::format("{}: line {}: times must increase", path, lineno));
+    out.push_back({v[0], Eigen::Vector3d(v[1], v[2], v[3])});
+  }
+  if (out.empty()) throw InputError(fmt::format("{}: no path points", path));
+  return out;
+}
+
+Eigen::Vector3d path_at(const std::vector<PathPoint>& p, double t) {
+  if (t <= p.front().t) return p.front().offset;
+  if (t >= p.back().t) return p.back().offset;
+  const auto it = std::upper_bound(p.begin(), p.end(), t, [](double x, const PathPoint& q) { return x < q.t; });
+  const auto& b = *it;
+  const auto& a = *(it - 1);
+  return a.offset + (b.offset - a.offset) * ((t - a.t) / (b.t - a.t));
+}
+
+void add_poke_command(CLI::App& app) {
+  auto* cmd = app.add_subcommand("poke", "Replay a probe path on a haptic session: forces, latency, domain size");
+  struct Args {
+    std::string mesh, vertex = "0", path, png, view = "30,20", up = "y", size = "960x720";
+    double settle = 0.3, depth = 0.5;
+    bool json = false, realtime = true;
+    HapticParams h;
+    RenderOptions r;
+  };
+  auto a = std::make_shared<Args>();
+  cmd->add_option("MESH", a->mesh, "Mesh file")->required();
+  cmd->add_option("--vertex", a->vertex, "Contact vertex (index or @X,Y,Z)")->capture_default_str();
+  cmd->add_option("--path", a->path,
+                  "Probe path CSV t,dx,dy,dz (s; offset from the rest position). Default: press along the inward "
+                  "normal to --depth mean edge lengths over 0.5 s, hold 0.2 s");
+  cmd->add_option("--depth", a->depth, "Default path: depth in mean edge lengths")->capture_default_str();
+  cmd->add_option("--rate", a->h.rate_hz, "Servo rate (Hz)")->capture_default_str();
+  cmd->add_option("--settle", a->settle, "Seconds to keep stepping after the release")->capture_default_str();
+  cmd->add_option("--influence", a->h.influence, "Decay length of a poke (mesh units; 0: 4 mean edges)")
+      ->capture_default_str();
+  cmd->add_option("--stiffness", a->h.stiffness, "Foundation stiffness g0 (g2 = g0 influence^4)")
+      ->capture_default_str();
+  cmd->add_flag("!--no-realtime", a->realtime, "Step as fast as possible instead of on the real-time servo thread");
+  cmd->add_option("--png", a->png, "Picture at the end of the path: displacement and the force arrow");
+  add_view_options(cmd, a->r, a->view, a->up, a->size);
+  cmd->add_flag("--json", a->json, "Print a JSON report with every step");
+  cmd->callback([=] {
+    const Mesh mesh = load_mesh(a->mesh);
+    const int v = parse_vertex(mesh, a->vertex, "--vertex");
+    const FemOperators ops = build_operators(mesh);
+    std::vector<PathPoint> path;
+    if (!a->path.empty()) {
+      path = read_path(a->path);
+    } else {
+      const double h = analyze(mesh).mean_edge_length;
+      Eigen::Vector3d n = Eigen::Vector3d::Zero();
+      for (int w : mesh.neighbors(v)) {
+        const Eigen::Vector3d e1 = mesh.positions().row(w) - mesh.positions().row(v);
+        n += e1;  // towards the neighbours' centroid: inward on a convex patch
+      }
+      n = n.norm() > 0 ? n.normalized() : Eigen::Vector3d::UnitZ();
+      path = {{0.0, Eigen::Vector3d::Zero()}, {0.5, a->depth * h * n}, {0.7, a->depth * h * n}};
+    }
+    HapticSession s(mesh, ops, a->h);
+    s.touch(v);
+    const double period = 1.0 / a->h.rate_hz;
+    const double t_end = path.back().t;
+    Eigen::VectorXd picture_field;
+    Positions picture_V;
+    Eigen::Vector3d picture_force = Eigen::Vector3d::Zero();
+    auto snapshot = [&] {
+      picture_V = mesh.positions() + s.pde().values();
+      picture_field = s.pde().values().rowwise().norm();
+      picture_force = s.latest_force();
+    };
+    Progress progress(static_cast<long long>((t_end + a->settle) * 1000), "poke", !a->json && a->realtime);
+    if (a->realtime) {
+      s.start();
+      const auto t0 = std::chrono::steady_clock::now();
+      for (;;) {
+        const double t = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        if (t > t_end) break;
+        s.move_probe(path_at(path, t));
+        progress.update(static_cast<long long>(t * 1000));
+        std::this_thread::sleep_for(std::chrono::microseconds(250));
+      }
+      s.stop();
+      snapshot();
+      s.release();
+      s.start();
+      std::this_thread::sleep_for(std::chrono::duration<double>(a->settle));
+      s.stop();
+      progress.update(static_cast<long long>((t_end + a->settle) * 1000));
+    } else {
+      for (double t = period; t <= t_end + 1e-12; t += period) {
+        s.move_probe(path_at(path, t));
+        s.step(period);
+      }
+      snapshot();
+      s.release();
+      for (double t = 0; t < a->settle; t += period) s.step(period);
+    }
+    const auto log = s.log();
+    std::vector<double> lat;
+    for (const auto& x : log) lat.push_back(x.latency_us);
+    std::sort(lat.begin(), lat.end());
+    auto pct = [&](double q) {
+      return lat.empty() ? 0.0 : lat[std::min(lat.size() - 1, static_cast<std::size_t>(q * lat.size()))];
+    };
+    int max_free = 0;
+    for (const auto& x : log) max_free = std::max(max_free, x.free_vertices);
+    if (!a->png.empty()) {
+      RenderOptions ro = a->r;
+      apply_view_options(ro, a->view, a->up, a->size);
+      ro.field = picture_field;
+      ro.field_name = "|d|";
+      const double L = 0.1 * (mesh.positions().colwise().maxCoeff() - mesh.positions().colwise().minCoeff()).norm();
+      if (picture_force.norm() > 0)
+        ro.extra_arrows.emplace_back(picture_V.row(v).transpose(), L * picture_force.normalized());
+      ro.title = fmt::format("poke: force {:.3g}", picture_force.norm());
+      write_png(a->png, render(picture_V, mesh.triangles(), ro));
+    }
+    if (a->json) {
+      nlohmann::json samples = nlohmann::json::array();
+      for (const auto& x : log)
+        samples.push_back({{"t", x.time},
+                           {"probe", {x.probe.x(), x.probe.y(), x.probe.z()}},
+                           {"force", {x.force.x(), x.force.y(), x.force.z()}},
+                           {"latency_us", x.latency_us},
+                           {"free_vertices", x.free_vertices},
+                           {"cg_iterations", x.cg_iterations},
+                           {"missed", x.missed}});
+      print_json({{"vertex", v},
+                  {"rate", a->h.rate_hz},
+                  {"realtime", a->realtime},
+                  {"steps", log.size()},
+                  {"deadline_misses", s.misses()},
+                  {"latency_us", {{"p50", pct(0.5)}, {"p99", pct(0.99)}, {"max", lat.empty() ? 0.0 : lat.back()}}},
+                  {"max_free_vertices", max_free},
+                  {"final_free_vertices", log.empty() ? 0 : log.back().free_vertices},
+                  {"samples", samples}});
+    } else {
+      fmt::print("{} steps at {} Hz: latency p50 {:.0f} us, p99 {:.0f} us, max {:.0f} us; {} deadline misses\n",
+                 log.size(), a->h.rate_hz, pct(0.5), pct(0.99), lat.empty() ? 0.0 : lat.back(), s.misses());
+      fmt::print(
+          "active domain: up to {} vertices, {} after the release settled; force at the end of the path {:.4g}\n",
+          max_free, log.empty() ? 0 : log.back().free_vertices, picture_force.norm());
+    }
+  });
+}
+
 }  // namespace
 
 void add_app_commands(CLI::App& app) {
+  add_poke_command(app);
   add_interpolate_command(app);
   add_propagation_command(app, Propagation::Heat);
   add_propagation_command(app, Propagation::Wave);

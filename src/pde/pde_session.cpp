@@ -22,13 +22,14 @@ PdeSession::PdeSession(const Mesh& mesh, const FemOperators& ops, int components
   u_ = Field::Zero(nv, m_);
   v_ = Field::Zero(nv, m_);
   rest_ = Field::Zero(nv, m_);
-  p_full_ = Field::Zero(nv, m_);
   k_full_ = Field::Zero(nv, m_);
   t_full_ = Field::Zero(nv, m_);
+  kt_full_ = Field::Zero(nv, m_);
   cons_pos_.assign(nv, -1);
   cons_target_.resize(0, m_);
   reaction_.resize(0, m_);
   kdk_diag_ = Eigen::VectorXd::Constant(nv, std::numeric_limits<double>::quiet_NaN());
+  local_id_.assign(nv, -1);
   rest_count_.assign(nv, 0);
 }
 
@@ -147,31 +148,122 @@ void PdeSession::apply_Kt_free(const double* w, double* y) {
   const auto A = domain_.free_vertices();
   const int n = static_cast<int>(A.size());
   double* K = k_full_.data();
-  double* T = t_full_.data();
-  if (coef_.g2 != 0) {
+  const double* mass = ops_.mass.data();
+  const double g0 = coef_.g0, g1 = coef_.g1, g2 = coef_.g2;
+  if (g2 != 0) {
     // K w on A and its ring, then D, then K again on A (seed 000 Fig. 4).
+    double* T = t_full_.data();
+    double* KT = kt_full_.data();
     apply_stiffness_rows(mesh_, ops_, w, K, m_, ring_rows_);
     for (int i : ring_rows_) {
-      const double d = ops_.D(i);
+      const double d = mass[i] > 0 ? 1.0 / mass[i] : 0.0;
       for (int c = 0; c < m_; ++c) T[m_ * i + c] = d * K[m_ * i + c];
     }
-    const int* off = mesh_.offsets().data();
-    const int* nbr = mesh_.neighbors().data();
+    apply_stiffness_rows(mesh_, ops_, T, KT, m_, A);
     for (int k = 0; k < n; ++k) {
       const int i = A[k];
-      for (int c = 0; c < m_; ++c) {
-        double kt = ops_.Kii[i] * T[m_ * i + c];
-        for (int s = off[i]; s < off[i + 1]; ++s) kt += ops_.Kij[s] * T[m_ * nbr[s] + c];
-        y[m_ * k + c] = coef_.g0 * ops_.mass[i] * w[m_ * i + c] + coef_.g1 * K[m_ * i + c] + coef_.g2 * kt;
-      }
+      for (int c = 0; c < m_; ++c)
+        y[m_ * k + c] = g0 * mass[i] * w[m_ * i + c] + g1 * K[m_ * i + c] + g2 * KT[m_ * i + c];
     }
   } else {
     apply_stiffness_rows(mesh_, ops_, w, K, m_, A);
-    for (int k = 0; k < n; ++k)
-      for (int c = 0; c < m_; ++c) {
-        const int i = A[k];
-        y[m_ * k + c] = coef_.g0 * ops_.mass[i] * w[m_ * i + c] + coef_.g1 * K[m_ * i + c];
-      }
+    for (int k = 0; k < n; ++k) {
+      const int i = A[k];
+      for (int c = 0; c < m_; ++c) y[m_ * k + c] = g0 * mass[i] * w[m_ * i + c] + g1 * K[m_ * i + c];
+    }
+  }
+}
+
+void PdeSession::build_local_system() {
+  LocalSystem& L = local_;
+  const int nl = static_cast<int>(ring_rows_.size());
+  for (int k = 0; k < nl; ++k) local_id_[ring_rows_[k]] = k;
+  L.off.assign(1, 0);
+  L.nbr.clear();
+  L.w.clear();
+  L.kii.resize(nl);
+  L.mass.resize(nl);
+  L.inv_mass.resize(nl);
+  const auto off = mesh_.offsets();
+  const auto nbr = mesh_.neighbors();
+  for (int k = 0; k < nl; ++k) {
+    const int i = ring_rows_[k];
+    for (int s = off[i]; s < off[i + 1]; ++s) {
+      const int j = local_id_[nbr[s]];
+      if (j < 0) continue;
+      L.nbr.push_back(j);
+      L.w.push_back(ops_.Kij[s]);
+    }
+    L.off.push_back(static_cast<int>(L.nbr.size()));
+    L.kii[k] = ops_.Kii[i];
+    L.mass[k] = ops_.mass[i];
+    L.inv_mass[k] = ops_.D(i);
+  }
+  for (int k = 0; k < nl; ++k) local_id_[ring_rows_[k]] = -1;
+  const std::size_t size = static_cast<std::size_t>(nl) * m_;
+  L.p.assign(size, 0.0);
+  L.k.resize(size);
+  L.t.resize(size);
+  L.kt.resize(size);
+}
+
+namespace {
+
+// y(rows 0..n) = K x over the local CSR, m components.
+template <int M>
+void local_stiffness(const std::vector<int>& off, const std::vector<int>& nbr, const std::vector<double>& w,
+                     const std::vector<double>& kii, const double* x, double* y, int n, int m_dyn) {
+  const int m = M > 0 ? M : m_dyn;
+  for (int i = 0; i < n; ++i) {
+    double acc[8];
+    const int mm = std::min(m, 8);
+    for (int c = 0; c < mm; ++c) acc[c] = kii[i] * x[m * i + c];
+    for (int s = off[i]; s < off[i + 1]; ++s) {
+      const double* xs = x + m * nbr[s];
+      for (int c = 0; c < mm; ++c) acc[c] += w[s] * xs[c];
+    }
+    for (int c = 0; c < mm; ++c) y[m * i + c] = acc[c];
+    for (int c = 8; c < m; ++c) {  // wide fields (rare): plain loop
+      double a = kii[i] * x[m * i + c];
+      for (int s = off[i]; s < off[i + 1]; ++s) a += w[s] * x[m * nbr[s] + c];
+      y[m * i + c] = a;
+    }
+  }
+}
+
+void local_stiffness_dispatch(const std::vector<int>& off, const std::vector<int>& nbr, const std::vector<double>& w,
+                              const std::vector<double>& kii, const double* x, double* y, int n, int m) {
+  if (m == 1)
+    local_stiffness<1>(off, nbr, w, kii, x, y, n, 1);
+  else if (m == 3)
+    local_stiffness<3>(off, nbr, w, kii, x, y, n, 3);
+  else
+    local_stiffness<0>(off, nbr, w, kii, x, y, n, m);
+}
+
+}  // namespace
+
+void PdeSession::apply_local(const double* P, double* Y, double cM, double cK) {
+  LocalSystem& L = local_;
+  const int n = domain_.num_free();
+  const int nl = static_cast<int>(L.kii.size());
+  const int m = m_;
+  std::copy_n(P, static_cast<std::size_t>(n) * m, L.p.begin());  // ring entries stay zero
+  const double g0 = coef_.g0, g1 = coef_.g1, g2 = coef_.g2;
+  if (g2 != 0) {
+    local_stiffness_dispatch(L.off, L.nbr, L.w, L.kii, L.p.data(), L.k.data(), nl, m);
+    for (int i = 0; i < nl; ++i)
+      for (int c = 0; c < m; ++c) L.t[m * i + c] = L.inv_mass[i] * L.k[m * i + c];
+    local_stiffness_dispatch(L.off, L.nbr, L.w, L.kii, L.t.data(), L.kt.data(), n, m);
+  } else {
+    local_stiffness_dispatch(L.off, L.nbr, L.w, L.kii, L.p.data(), L.k.data(), n, m);
+  }
+  for (int i = 0; i < n; ++i) {
+    const double a = cM * L.mass[i] + cK * g0 * L.mass[i];
+    for (int c = 0; c < m; ++c) {
+      const int q = m * i + c;
+      Y[q] = a * P[q] + cK * (g1 * L.k[q] + (g2 != 0 ? g2 * L.kt[q] : 0.0));
+    }
   }
 }
 
@@ -236,18 +328,11 @@ StepResult PdeSession::solve(Mode mode, double dt, const Field* f) {
     const double d = jacobi(A[k], cM, cK);
     inv_diag[k] = d > 0 ? 1.0 / d : 1.0;
   }
-  auto apply = [&](const Block& P, Block& Y) {
-    for (int k = 0; k < n; ++k) p_full_.row(A[k]) = P.row(k);
-    apply_Kt_free(p_full_.data(), Y.data());
-    if (cM != 0)
-      for (int k = 0; k < n; ++k) Y.row(k) = cK * Y.row(k) + cM * ops_.mass[A[k]] * P.row(k);
-    else if (cK != 1)
-      Y *= cK;
-  };
+  build_local_system();
+  auto apply = [&](const Block& P, Block& Y) { apply_local(P.data(), Y.data(), cM, cK); };
   StepResult r;
   r.free_vertices = n;
   r.cg = pcg(apply, inv_diag, b, x, cg_options, ws_);
-  for (int k = 0; k < n; ++k) p_full_.row(A[k]).setZero();  // scratch stays zero outside A
 
   if (r.cg.status == CgStatus::Breakdown) {
     for (int k = 0; k < nc; ++k) v_.row(cons_[k]) = v_old_c.row(k);
@@ -312,7 +397,10 @@ void PdeSession::adjust_domain(StepResult& r) {
   const std::vector<int> snapshot(domain_.free_vertices().begin(), domain_.free_vertices().end());
   for (int i : snapshot) {
     if (domain_.state(i) != VertexState::Free) continue;
-    const bool moving = rate(i) > grow_rate || offset(i) > grow_value;
+    // Growth follows a disturbance that spreads: a border vertex heading back towards
+    // rest (v . (u - rest) < 0, as everywhere after a release) recruits nobody.
+    const bool receding = v_.row(i).dot(u_.row(i) - rest_.row(i)) < 0;
+    const bool moving = !receding && (rate(i) > grow_rate || offset(i) > grow_value);
     if (moving) {
       rest_count_[i] = 0;
       if (!domain_.on_border(i)) continue;

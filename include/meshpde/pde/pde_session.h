@@ -59,7 +59,8 @@ struct DomainOptions {
   bool self_adjusting = false;  ///< grow and shrink automatically after each step
   /// A border vertex pulls its frozen neighbours in when its rate |u'| exceeds this
   /// fraction of the largest rate in the domain and at the constraints (or its
-  /// offset from rest exceeds this fraction of the largest offset).
+  /// offset from rest exceeds this fraction of the largest offset), unless it is
+  /// heading back towards rest (u' . (u - rest) < 0): relaxation never grows the domain.
   double grow_fraction = 1e-3;
   double rest_value = 1e-6;  ///< |u - u_rest| at or below this counts as at rest
   double rest_rate = 1e-4;   ///< |u'| at or below this counts as at rest (per second)
@@ -149,11 +150,22 @@ class PdeSession {
   std::vector<int> cons_pos_;
   Field reaction_;
   // Scratch, full size, kept zero outside the domain.
-  Field p_full_, k_full_, t_full_;
-  Eigen::VectorXd kdk_diag_;  // lazily computed (NaN = not yet)
+  Field k_full_, t_full_, kt_full_;  // scratch for the right-hand side (global numbering)
+  Eigen::VectorXd kdk_diag_;         // lazily computed (NaN = not yet)
   std::vector<int> rest_count_;
   std::vector<int> ring_rows_;  // A followed by A+1, rebuilt per solve
   CgWorkspace ws_;
+  // The solve's local system: A then its ring in local numbering, with CSR rows
+  // restricted to A + ring (exact for CG directions, which vanish outside A). Built
+  // once per solve so the CG iterations run on contiguous memory.
+  struct LocalSystem {
+    std::vector<int> off, nbr;
+    std::vector<double> w, kii, mass, inv_mass;
+    std::vector<double> p, k, t, kt;  // local fields, (n + ring) x m
+  } local_;
+  std::vector<int> local_id_;  // vertex -> local index, -1 outside (kept -1 between solves)
+  void build_local_system();
+  void apply_local(const double* P, double* Y, double cM, double cK);
 };
 
 }  // namespace meshpde

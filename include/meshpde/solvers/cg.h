@@ -11,6 +11,7 @@
 #include <fmt/format.h>
 
 #include <Eigen/Core>
+#include <chrono>
 #include <cmath>
 #include <string>
 #include <vector>
@@ -22,9 +23,12 @@ using Block = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMa
 struct CgOptions {
   double tolerance = 1e-8;     ///< relative residual |b - A x| / |b| per column
   int max_iterations = 20000;  ///< iteration cap
+  /// Stop with status Deadline (keeping the current iterate) once this time has passed;
+  /// the default (epoch) means no deadline. Used by real-time loops.
+  std::chrono::steady_clock::time_point deadline{};
 };
 
-enum class CgStatus { Converged, MaxIterations, Breakdown };
+enum class CgStatus { Converged, MaxIterations, Breakdown, Deadline };
 
 struct CgResult {
   CgStatus status = CgStatus::Converged;
@@ -46,73 +50,113 @@ struct CgWorkspace {
 template <class Apply>
 CgResult pcg(Apply&& apply, const Eigen::VectorXd& inv_diag, const Block& b, Block& x, const CgOptions& opt,
              CgWorkspace& w) {
+  // Flat loops over the row-major n x m blocks: the solves are small and frequent
+  // (haptic steps), so per-iteration overhead matters more than vectorized width.
   const Eigen::Index n = b.rows(), m = b.cols();
   CgResult res;
   if (n == 0) return res;
-  Eigen::VectorXd bnorm = b.colwise().norm().transpose();
   w.r.resize(n, m);
   w.z.resize(n, m);
   w.p.resize(n, m);
   w.q.resize(n, m);
+  std::vector<double> bnorm(m, 0.0), rz(m, 0.0), rr(m, 0.0);
+  std::vector<char> active(m, 1);
+  const double* B = b.data();
+  double* X = x.data();
+  double* R = w.r.data();
+  double* Z = w.z.data();
+  double* P = w.p.data();
+  double* Q = w.q.data();
+  const double* Dinv = inv_diag.data();
+  for (Eigen::Index i = 0; i < n; ++i)
+    for (Eigen::Index c = 0; c < m; ++c) bnorm[c] += B[i * m + c] * B[i * m + c];
+  for (auto& v : bnorm) v = std::sqrt(v);
   for (Eigen::Index c = 0; c < m; ++c)
-    if (bnorm[c] == 0) x.col(c).setZero();  // exact solution of an SPD system
+    if (bnorm[c] == 0)
+      for (Eigen::Index i = 0; i < n; ++i) X[i * m + c] = 0;  // exact solution of an SPD system
   apply(x, w.q);
-  w.r = b - w.q;
-  w.z = inv_diag.asDiagonal() * w.r;
-  w.p = w.z;
-  Eigen::VectorXd rz = (w.r.cwiseProduct(w.z)).colwise().sum().transpose();
-  std::vector<char> active(m);
-  auto residual = [&](Eigen::Index c) { return bnorm[c] > 0 ? w.r.col(c).norm() / bnorm[c] : 0.0; };
+  std::fill(rz.begin(), rz.end(), 0.0);
+  std::fill(rr.begin(), rr.end(), 0.0);
+  for (Eigen::Index i = 0; i < n; ++i)
+    for (Eigen::Index c = 0; c < m; ++c) {
+      const Eigen::Index k = i * m + c;
+      R[k] = B[k] - Q[k];
+      Z[k] = Dinv[i] * R[k];
+      P[k] = Z[k];
+      rz[c] += R[k] * Z[k];
+      rr[c] += R[k] * R[k];
+    }
   auto update_active = [&]() {
     bool any = false;
     res.relative_residual = 0;
     for (Eigen::Index c = 0; c < m; ++c) {
-      const double rr = residual(c);
-      if (!std::isfinite(rr)) {
+      const double rel = bnorm[c] > 0 ? std::sqrt(rr[c]) / bnorm[c] : 0.0;
+      if (!std::isfinite(rel)) {
         res.status = CgStatus::Breakdown;
         res.message = "the residual became NaN or infinite (non-finite input or operator)";
         return false;
       }
-      res.relative_residual = std::max(res.relative_residual, rr);
-      active[c] = rr > opt.tolerance;
+      res.relative_residual = std::max(res.relative_residual, rel);
+      active[c] = rel > opt.tolerance;
       any |= active[c] != 0;
     }
     return any;
   };
   if (!update_active()) return res;
+  const bool timed = opt.deadline != std::chrono::steady_clock::time_point{};
+  std::vector<double> pq(m), alpha(m), beta(m), rz_new(m);
   for (int it = 0; it < opt.max_iterations; ++it) {
+    if (timed && std::chrono::steady_clock::now() > opt.deadline) {
+      res.status = CgStatus::Deadline;
+      res.message =
+          fmt::format("deadline reached after {} iterations (relative residual {:.3g})", it, res.relative_residual);
+      return res;
+    }
     apply(w.p, w.q);
     res.iterations = it + 1;
+    std::fill(pq.begin(), pq.end(), 0.0);
+    for (Eigen::Index i = 0; i < n; ++i)
+      for (Eigen::Index c = 0; c < m; ++c) pq[c] += P[i * m + c] * Q[i * m + c];
     for (Eigen::Index c = 0; c < m; ++c) {
-      if (!active[c]) continue;
-      const double pq = w.p.col(c).dot(w.q.col(c));
-      if (!(pq > 0)) {
+      if (!active[c]) {
+        alpha[c] = 0;
+        continue;
+      }
+      if (!(pq[c] > 0)) {
         res.status = CgStatus::Breakdown;
         res.message = fmt::format(
             "the system is not positive definite on the free vertices (p'Ap = {:.3g} in component {}); "
             "is there a connected part with no constrained vertex?",
-            pq, c);
+            pq[c], c);
         return res;
       }
-      const double alpha = rz[c] / pq;
-      x.col(c) += alpha * w.p.col(c);
-      w.r.col(c) -= alpha * w.q.col(c);
+      alpha[c] = rz[c] / pq[c];
     }
+    std::fill(rr.begin(), rr.end(), 0.0);
+    std::fill(rz_new.begin(), rz_new.end(), 0.0);
+    for (Eigen::Index i = 0; i < n; ++i)
+      for (Eigen::Index c = 0; c < m; ++c) {
+        const Eigen::Index k = i * m + c;
+        X[k] += alpha[c] * P[k];
+        R[k] -= alpha[c] * Q[k];
+        Z[k] = Dinv[i] * R[k];
+        rr[c] += R[k] * R[k];
+        rz_new[c] += R[k] * Z[k];
+      }
     if (!update_active()) {
       if (res.status == CgStatus::Breakdown) return res;
       res.status = CgStatus::Converged;
       return res;
     }
     for (Eigen::Index c = 0; c < m; ++c) {
-      if (!active[c]) continue;
-      w.z.col(c) = inv_diag.cwiseProduct(w.r.col(c));
-      const double rz_new = w.r.col(c).dot(w.z.col(c));
-      const double beta = rz_new / rz[c];
-      rz[c] = rz_new;
-      w.p.col(c) = w.z.col(c) + beta * w.p.col(c);
+      beta[c] = active[c] ? rz_new[c] / rz[c] : 0.0;
+      rz[c] = rz_new[c];
     }
-    for (Eigen::Index c = 0; c < m; ++c)
-      if (!active[c]) w.p.col(c).setZero();
+    for (Eigen::Index i = 0; i < n; ++i)
+      for (Eigen::Index c = 0; c < m; ++c) {
+        const Eigen::Index k = i * m + c;
+        P[k] = active[c] ? Z[k] + beta[c] * P[k] : 0.0;
+      }
   }
   res.status = CgStatus::MaxIterations;
   res.message = fmt::format("no convergence in {} iterations (relative residual {:.3g} > {:.3g})", opt.max_iterations,
@@ -128,6 +172,8 @@ inline const char* to_string(CgStatus s) {
       return "max_iterations";
     case CgStatus::Breakdown:
       return "breakdown";
+    case CgStatus::Deadline:
+      return "deadline";
   }
   return "unknown";
 }

@@ -1,0 +1,110 @@
+// Haptic poking (seed 000 section 5.4, Fig. 12): a probe holds a surface vertex and
+// moves; the surface yields on a self-adjusting active domain and pushes back.
+//
+// The displacement field d (#V x 3) follows PdeSession's dynamics with the contact
+// vertex constrained to the probe's offset. The feedback force felt by the probe is
+// minus the reaction force that holds the contact vertex (pde_session.h), so it
+// points back out of an indentation. Units: force = stiffness x displacement
+// (g0 in force / length^3 x area, etc.); with the defaults below, a displacement in
+// mesh units gives a force in "mesh units" too: scale it to your device.
+//
+// Threading: step() may be called directly (replay, tests), or start() runs a
+// fixed-rate servo loop on its own thread that steps at `rate_hz` with a per-step
+// deadline: if a solve cannot finish before the next tick, CG stops with its current
+// iterate (the best available force is returned) and the miss is counted. Probe
+// commands (touch, move_probe, release) and force reads are thread-safe.
+#pragma once
+
+#include <Eigen/Core>
+#include <atomic>
+#include <memory>
+#include <mutex>
+#include <thread>
+#include <vector>
+
+#include "meshpde/mesh/mesh.h"
+#include "meshpde/operators/fem_operators.h"
+#include "meshpde/pde/pde_session.h"
+
+namespace meshpde {
+
+/// Defaults give a light, critically damped surface (settles in about 0.3 s)
+/// whose step system is well conditioned at 1 kHz: the inertia term (alpha + b1 dt) M
+/// dominates (b2 + dt) dt Kt by a few times, so CG needs about ten iterations.
+struct HapticParams {
+  double influence = 0;  ///< decay length of a poke (mesh units); 0: 3 mean edge lengths
+  double stiffness = 1;  ///< g0, the foundation; g2 = g0 influence^4 follows from it
+  double mass = 1e-2;    ///< alpha: inertia
+  double damping = 0.2;  ///< b1: critical damping of the foundation mode (b1 = 2 sqrt(alpha g0)): no overshoot
+  double stiffness_damping = 1e-3;  ///< b2
+  /// The active domain stops growing where the motion falls below this fraction of the
+  /// largest motion (DomainOptions::grow_fraction).
+  double domain_tolerance = 2e-2;
+  double rate_hz = 1000;                                   ///< servo rate of start()
+  CgOptions cg{.tolerance = 1e-4, .max_iterations = 500};  ///< per step, relative to the step's right-hand side
+};
+
+/// One servo step, as logged by the session.
+struct HapticSample {
+  double time = 0;                                  ///< seconds since start (step count x period)
+  Eigen::Vector3d probe = Eigen::Vector3d::Zero();  ///< probe offset from the contact's rest position
+  Eigen::Vector3d force = Eigen::Vector3d::Zero();  ///< feedback force on the probe
+  double latency_us = 0;                            ///< wall time of the step
+  int free_vertices = 0;                            ///< active domain size
+  int cg_iterations = 0;
+  bool missed = false;  ///< the step overran its period (or hit the deadline)
+};
+
+class HapticSession {
+ public:
+  /// Keeps references to mesh and ops. \throw InputError for bad parameters.
+  HapticSession(const Mesh& mesh, const FemOperators& ops, const HapticParams& params = {});
+  ~HapticSession();
+  HapticSession(const HapticSession&) = delete;
+  HapticSession& operator=(const HapticSession&) = delete;
+
+  /// Grabs vertex v (probe offset zero). \throw InputError for a bad vertex.
+  void touch(int vertex);
+  /// Grabs the vertex nearest to a surface point.
+  void touch_point(const Eigen::Vector3d& point);
+  /// Probe offset from the grabbed vertex's rest position (mesh units).
+  void move_probe(const Eigen::Vector3d& offset);
+  /// Lets go: the surface relaxes and the domain shrinks back.
+  void release();
+  bool touching() const;
+  int contact_vertex() const;
+
+  /// One step of length dt; returns the feedback force (zero when not touching).
+  Eigen::Vector3d step(double dt);
+
+  /// Servo loop on its own thread at params.rate_hz; log() fills as it runs.
+  void start();
+  /// Stops the loop (joins the thread). Safe to call twice.
+  void stop();
+  bool running() const { return running_; }
+
+  Eigen::Vector3d latest_force() const;
+  std::vector<HapticSample> log() const;
+  int misses() const { return misses_; }
+  const PdeSession& pde() const { return *session_; }
+
+ private:
+  void servo_loop();
+  Eigen::Vector3d step_locked(double dt, std::chrono::steady_clock::time_point deadline);
+
+  const Mesh& mesh_;
+  const FemOperators& ops_;
+  HapticParams params_;
+  std::unique_ptr<PdeSession> session_;
+  mutable std::mutex mutex_;
+  int contact_ = -1;
+  Eigen::Vector3d probe_ = Eigen::Vector3d::Zero();
+  Eigen::Vector3d force_ = Eigen::Vector3d::Zero();
+  std::vector<HapticSample> log_;
+  double time_ = 0;
+  std::atomic<bool> running_{false};
+  std::atomic<int> misses_{0};
+  std::thread thread_;
+};
+
+}  // namespace meshpde
