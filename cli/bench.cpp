@@ -8,6 +8,7 @@
 #include <numeric>
 
 #include "commands.h"
+#include "meshpde/apps/haptics.h"
 #include "meshpde/mesh/generators.h"
 #include "meshpde/mesh/topology.h"
 #include "meshpde/operators/fem_operators.h"
@@ -195,6 +196,52 @@ void add_bench_command(CLI::App& app) {
     j["poke_setup"] =
         "icospheres scaled to mean edge length 1; alpha 1, b1 1, b2 0.01, g0 1, g1 0, g2 100; dt 1 ms; "
         "handle moved along the inward normal to depth 0.5 and back; CG rel. tol 1e-6";
+
+    // Haptic poke on a real scan and on the same scan subdivided twice (2.15M vertices):
+    // the default haptic session, pressed along the inward normal to half an edge over
+    // 0.5 s and held, stepped at 1 kHz (dt = 1 ms) as fast as it goes.
+    const auto igea = data_dir() / "igea-134k.ply";
+    if (std::filesystem::exists(igea)) {
+      auto haptic = [&](const Mesh& mesh, const std::string& tag) {
+        progress("haptic poke on " + tag);
+        const FemOperators ops = build_operators(mesh);
+        HapticSession h(mesh, ops);
+        const int v = mesh.num_vertices() / 3;
+        Eigen::Vector3d n = Eigen::Vector3d::Zero();
+        for (int w : mesh.neighbors(v)) n += (mesh.positions().row(w) - mesh.positions().row(v)).transpose();
+        n.normalize();
+        const double depth = 0.5 * analyze(mesh).mean_edge_length;
+        h.touch(v);
+        std::vector<double> us;
+        int max_free = 0, misses = 0;
+        for (int k = 1; k <= steps; ++k) {
+          h.move_probe(std::min(1.0, k / (0.5 * steps)) * depth * n);
+          const auto t = clock_type::now();
+          h.step(1e-3);
+          const double lat = seconds_since(t) * 1e6;
+          us.push_back(lat);
+          misses += lat > 1000;
+          max_free = std::max(max_free, h.pde().domain().num_free());
+        }
+        const Percentiles p = percentiles(us);
+        j["haptic_p50_us_" + tag] = p.p50;
+        j["haptic_p99_us_" + tag] = p.p99;
+        j["haptic_max_us_" + tag] = p.max;
+        j["haptic_over_1ms_" + tag] = misses;
+        j["haptic_max_free_vertices_" + tag] = max_free;
+        j["haptic_vertices_" + tag] = mesh.num_vertices();
+        return p.p99;
+      };
+      MeshData d = read_mesh(igea);
+      const Mesh scan(d.V, d.F);
+      const double p_scan = haptic(scan, "igea134k");
+      GeneratedMesh sub = subdivide_midpoint(d.V, d.F);
+      sub = subdivide_midpoint(sub.V, sub.F);
+      const double p_big = haptic(Mesh(sub.V, sub.F), "igea_subdivided_2m");
+      j["haptic_p99_ratio_2m_over_134k"] = p_big / p_scan;
+    } else {
+      fmt::print(stderr, "warning: {} not found; haptic figures skipped\n", igea.string());
+    }
 
     const auto bunny = data_dir() / "bunny-36k.obj";
     if (std::filesystem::exists(bunny)) {

@@ -163,6 +163,20 @@ printf '0,abc\n' >"$T/bad.csv"
 check "bad constraint value exits 1" [ $? -eq 1 ]
 check "bad constraint named by line" grep -q "line 1" "$T/err"
 
+# poke: replay a path, JSON report with latency percentiles, the force pushes back
+printf 't,dx,dy,dz\n0,0,0,0\n0.2,0,0,-0.05\n' >"$T/path.csv"
+"$M" poke "$T/ico.off" --vertex @0,0,1 --path "$T/path.csv" --no-realtime --settle 0.05 --json >"$T/p.json" || bad "poke"
+for key in p50 p99 max; do
+  check "poke latency_us.$key" [ "$(json "$T/p.json" "'$key' in d['latency_us']")" = True ]
+done
+check "poke reports misses and steps" [ "$(json "$T/p.json" "d['steps'] >= 200 and 'deadline_misses' in d")" = True ]
+check "poke force opposes the indentation" \
+  [ "$(json "$T/p.json" "[s for s in d['samples'] if abs(s['t'] - 0.2) < 1e-9][0]['force'][2] > 0")" = True ]
+printf 't,dx,dy,dz\n0,0,0,0\n0,0,0,1\n' >"$T/badpath.csv"
+"$M" poke "$T/ico.off" --path "$T/badpath.csv" 2>"$T/err" >/dev/null
+check "poke with non-increasing times exits 1" [ $? -eq 1 ]
+check "path error names the line" grep -q "line 3" "$T/err"
+
 # the main job
 "$M" demo -o "$T/demo" --json >"$T/d.json" || bad "demo"
 check "demo moved vertices" [ "$(json "$T/d.json" "d['moved_vertices'] > 100")" = True ]

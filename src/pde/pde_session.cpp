@@ -231,14 +231,34 @@ void local_stiffness(const std::vector<int>& off, const std::vector<int>& nbr, c
   }
 }
 
-void local_stiffness_dispatch(const std::vector<int>& off, const std::vector<int>& nbr, const std::vector<double>& w,
-                              const std::vector<double>& kii, const double* x, double* y, int n, int m) {
-  if (m == 1)
-    local_stiffness<1>(off, nbr, w, kii, x, y, n, 1);
-  else if (m == 3)
-    local_stiffness<3>(off, nbr, w, kii, x, y, n, 3);
-  else
-    local_stiffness<0>(off, nbr, w, kii, x, y, n, m);
+}  // namespace
+
+namespace {
+
+template <int M>
+void apply_local_impl(const PdeSession::LocalSystem& L, const PdeCoefficients& co, int n, int m_dyn, const double* P,
+                      double* Y, double cM, double cK, double* p, double* k, double* t, double* kt) {
+  const int m = M > 0 ? M : m_dyn;
+  const int nl = static_cast<int>(L.kii.size());
+  std::copy_n(P, static_cast<std::size_t>(n) * m, p);  // ring entries stay zero
+  if (co.g2 != 0) {
+    local_stiffness<M>(L.off, L.nbr, L.w, L.kii, p, k, nl, m);
+    for (int i = 0; i < nl; ++i)
+      for (int c = 0; c < m; ++c) t[m * i + c] = L.inv_mass[i] * k[m * i + c];
+    local_stiffness<M>(L.off, L.nbr, L.w, L.kii, t, kt, n, m);
+    const double a1 = cK * co.g1, a2 = cK * co.g2;
+    for (int i = 0; i < n; ++i) {
+      const double a = (cM + cK * co.g0) * L.mass[i];
+      for (int c = 0; c < m; ++c) Y[m * i + c] = a * P[m * i + c] + a1 * k[m * i + c] + a2 * kt[m * i + c];
+    }
+  } else {
+    local_stiffness<M>(L.off, L.nbr, L.w, L.kii, p, k, n, m);
+    const double a1 = cK * co.g1;
+    for (int i = 0; i < n; ++i) {
+      const double a = (cM + cK * co.g0) * L.mass[i];
+      for (int c = 0; c < m; ++c) Y[m * i + c] = a * P[m * i + c] + a1 * k[m * i + c];
+    }
+  }
 }
 
 }  // namespace
@@ -246,25 +266,12 @@ void local_stiffness_dispatch(const std::vector<int>& off, const std::vector<int
 void PdeSession::apply_local(const double* P, double* Y, double cM, double cK) {
   LocalSystem& L = local_;
   const int n = domain_.num_free();
-  const int nl = static_cast<int>(L.kii.size());
-  const int m = m_;
-  std::copy_n(P, static_cast<std::size_t>(n) * m, L.p.begin());  // ring entries stay zero
-  const double g0 = coef_.g0, g1 = coef_.g1, g2 = coef_.g2;
-  if (g2 != 0) {
-    local_stiffness_dispatch(L.off, L.nbr, L.w, L.kii, L.p.data(), L.k.data(), nl, m);
-    for (int i = 0; i < nl; ++i)
-      for (int c = 0; c < m; ++c) L.t[m * i + c] = L.inv_mass[i] * L.k[m * i + c];
-    local_stiffness_dispatch(L.off, L.nbr, L.w, L.kii, L.t.data(), L.kt.data(), n, m);
-  } else {
-    local_stiffness_dispatch(L.off, L.nbr, L.w, L.kii, L.p.data(), L.k.data(), n, m);
-  }
-  for (int i = 0; i < n; ++i) {
-    const double a = cM * L.mass[i] + cK * g0 * L.mass[i];
-    for (int c = 0; c < m; ++c) {
-      const int q = m * i + c;
-      Y[q] = a * P[q] + cK * (g1 * L.k[q] + (g2 != 0 ? g2 * L.kt[q] : 0.0));
-    }
-  }
+  if (m_ == 1)
+    apply_local_impl<1>(L, coef_, n, 1, P, Y, cM, cK, L.p.data(), L.k.data(), L.t.data(), L.kt.data());
+  else if (m_ == 3)
+    apply_local_impl<3>(L, coef_, n, 3, P, Y, cM, cK, L.p.data(), L.k.data(), L.t.data(), L.kt.data());
+  else
+    apply_local_impl<0>(L, coef_, n, m_, P, Y, cM, cK, L.p.data(), L.k.data(), L.t.data(), L.kt.data());
 }
 
 StepResult PdeSession::step(double dt, const Field* f) {
@@ -307,7 +314,10 @@ StepResult PdeSession::solve(Mode mode, double dt, const Field* f) {
     else
       u_.row(i) = cons_target_.row(k);
   }
-  Block b(n, m_), x(n, m_);
+  Block& b = rhs_;
+  Block& x = sol_;
+  b.resize(n, m_);
+  x.resize(n, m_);
   apply_Kt_free(u_.data(), b.data());
   for (int k = 0; k < nc; ++k) u_.row(cons_[k]) = saved.row(k);
   for (int k = 0; k < n; ++k) {
@@ -323,7 +333,8 @@ StepResult PdeSession::solve(Mode mode, double dt, const Field* f) {
     }
   }
 
-  Eigen::VectorXd inv_diag(n);
+  Eigen::VectorXd& inv_diag = inv_diag_;
+  inv_diag.resize(n);
   for (int k = 0; k < n; ++k) {
     const double d = jacobi(A[k], cM, cK);
     inv_diag[k] = d > 0 ? 1.0 / d : 1.0;
@@ -394,8 +405,8 @@ void PdeSession::adjust_domain(StepResult& r) {
   }
   const double grow_rate = std::max(dopt_.grow_fraction * v_ref, dopt_.rest_rate);
   const double grow_value = std::max(dopt_.grow_fraction * u_ref, dopt_.rest_value);
-  const std::vector<int> snapshot(domain_.free_vertices().begin(), domain_.free_vertices().end());
-  for (int i : snapshot) {
+  snapshot_.assign(domain_.free_vertices().begin(), domain_.free_vertices().end());
+  for (int i : snapshot_) {
     if (domain_.state(i) != VertexState::Free) continue;
     // Growth follows a disturbance that spreads: a border vertex heading back towards
     // rest (v . (u - rest) < 0, as everywhere after a release) recruits nobody.

@@ -128,6 +128,16 @@ class PdeSession {
 
   CgOptions cg_options;  ///< tolerance and cap of every solve
 
+  /// The solve's local system: A then its ring in local numbering, with CSR rows
+  /// restricted to A + ring (exact for CG directions, which vanish outside A). Built
+  /// once per solve so the CG iterations run on contiguous memory. (Public only so
+  /// the kernels in the implementation file can name it.)
+  struct LocalSystem {
+    std::vector<int> off, nbr;
+    std::vector<double> w, kii, mass, inv_mass;
+    std::vector<double> p, k, t, kt;  // local fields, (n + ring) x m
+  };
+
  private:
   enum class Mode { Step, Steady };
   // y(rows) = Kt w(rows), reading w on rows and two rings beyond; uses scratch t_, k_.
@@ -155,14 +165,10 @@ class PdeSession {
   std::vector<int> rest_count_;
   std::vector<int> ring_rows_;  // A followed by A+1, rebuilt per solve
   CgWorkspace ws_;
-  // The solve's local system: A then its ring in local numbering, with CSR rows
-  // restricted to A + ring (exact for CG directions, which vanish outside A). Built
-  // once per solve so the CG iterations run on contiguous memory.
-  struct LocalSystem {
-    std::vector<int> off, nbr;
-    std::vector<double> w, kii, mass, inv_mass;
-    std::vector<double> p, k, t, kt;  // local fields, (n + ring) x m
-  } local_;
+  LocalSystem local_;
+  Block rhs_, sol_;  // per-solve right-hand side and iterate, kept to avoid allocations
+  Eigen::VectorXd inv_diag_;
+  std::vector<int> snapshot_;  // adjust_domain's copy of A
   std::vector<int> local_id_;  // vertex -> local index, -1 outside (kept -1 between solves)
   void build_local_system();
   void apply_local(const double* P, double* Y, double cM, double cK);

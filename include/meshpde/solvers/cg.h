@@ -11,9 +11,11 @@
 #include <fmt/format.h>
 
 #include <Eigen/Core>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 namespace meshpde {
@@ -45,22 +47,34 @@ struct CgWorkspace {
   Block r, z, p, q;
 };
 
-/// Solves A x = b. `apply(P, Q)` must write Q = A P for n x m blocks; `inv_diag`
-/// (length n) is the Jacobi preconditioner 1 / A_ii. `x` holds the initial guess.
-template <class Apply>
-CgResult pcg(Apply&& apply, const Eigen::VectorXd& inv_diag, const Block& b, Block& x, const CgOptions& opt,
-             CgWorkspace& w) {
+namespace detail {
+
+/// CG on n x M blocks; M > 0 fixes the column count at compile time so the per-column
+/// accumulators live in registers (M = 0: any count, read from b).
+template <int M, class Apply>
+CgResult pcg_impl(Apply&& apply, const Eigen::VectorXd& inv_diag, const Block& b, Block& x, const CgOptions& opt,
+                  CgWorkspace& w) {
   // Flat loops over the row-major n x m blocks: the solves are small and frequent
   // (haptic steps), so per-iteration overhead matters more than vectorized width.
-  const Eigen::Index n = b.rows(), m = b.cols();
+  const Eigen::Index n = b.rows();
+  const Eigen::Index m = M > 0 ? M : b.cols();
   CgResult res;
   if (n == 0) return res;
   w.r.resize(n, m);
   w.z.resize(n, m);
   w.p.resize(n, m);
   w.q.resize(n, m);
-  std::vector<double> bnorm(m, 0.0), rz(m, 0.0), rr(m, 0.0);
-  std::vector<char> active(m, 1);
+  constexpr int kMax = M > 0 ? M : 1;
+  using Acc = std::conditional_t<(M > 0), std::array<double, kMax>, std::vector<double>>;
+  using Flags = std::conditional_t<(M > 0), std::array<char, kMax>, std::vector<char>>;
+  Acc bnorm{}, rz{}, rr{}, pq{}, alpha{}, beta{}, rz_new{};
+  Flags active{};
+  if constexpr (M == 0) {
+    for (auto* v : {&bnorm, &rz, &rr, &pq, &alpha, &beta, &rz_new}) v->assign(m, 0.0);
+    active.assign(m, 1);
+  } else {
+    active.fill(1);
+  }
   const double* B = b.data();
   double* X = x.data();
   double* R = w.r.data();
@@ -70,13 +84,12 @@ CgResult pcg(Apply&& apply, const Eigen::VectorXd& inv_diag, const Block& b, Blo
   const double* Dinv = inv_diag.data();
   for (Eigen::Index i = 0; i < n; ++i)
     for (Eigen::Index c = 0; c < m; ++c) bnorm[c] += B[i * m + c] * B[i * m + c];
-  for (auto& v : bnorm) v = std::sqrt(v);
+  for (Eigen::Index c = 0; c < m; ++c) bnorm[c] = std::sqrt(bnorm[c]);
   for (Eigen::Index c = 0; c < m; ++c)
     if (bnorm[c] == 0)
       for (Eigen::Index i = 0; i < n; ++i) X[i * m + c] = 0;  // exact solution of an SPD system
   apply(x, w.q);
-  std::fill(rz.begin(), rz.end(), 0.0);
-  std::fill(rr.begin(), rr.end(), 0.0);
+  for (Eigen::Index c = 0; c < m; ++c) rz[c] = rr[c] = 0;
   for (Eigen::Index i = 0; i < n; ++i)
     for (Eigen::Index c = 0; c < m; ++c) {
       const Eigen::Index k = i * m + c;
@@ -104,7 +117,6 @@ CgResult pcg(Apply&& apply, const Eigen::VectorXd& inv_diag, const Block& b, Blo
   };
   if (!update_active()) return res;
   const bool timed = opt.deadline != std::chrono::steady_clock::time_point{};
-  std::vector<double> pq(m), alpha(m), beta(m), rz_new(m);
   for (int it = 0; it < opt.max_iterations; ++it) {
     if (timed && std::chrono::steady_clock::now() > opt.deadline) {
       res.status = CgStatus::Deadline;
@@ -114,7 +126,7 @@ CgResult pcg(Apply&& apply, const Eigen::VectorXd& inv_diag, const Block& b, Blo
     }
     apply(w.p, w.q);
     res.iterations = it + 1;
-    std::fill(pq.begin(), pq.end(), 0.0);
+    for (Eigen::Index c = 0; c < m; ++c) pq[c] = 0;
     for (Eigen::Index i = 0; i < n; ++i)
       for (Eigen::Index c = 0; c < m; ++c) pq[c] += P[i * m + c] * Q[i * m + c];
     for (Eigen::Index c = 0; c < m; ++c) {
@@ -132,8 +144,7 @@ CgResult pcg(Apply&& apply, const Eigen::VectorXd& inv_diag, const Block& b, Blo
       }
       alpha[c] = rz[c] / pq[c];
     }
-    std::fill(rr.begin(), rr.end(), 0.0);
-    std::fill(rz_new.begin(), rz_new.end(), 0.0);
+    for (Eigen::Index c = 0; c < m; ++c) rr[c] = rz_new[c] = 0;
     for (Eigen::Index i = 0; i < n; ++i)
       for (Eigen::Index c = 0; c < m; ++c) {
         const Eigen::Index k = i * m + c;
@@ -162,6 +173,23 @@ CgResult pcg(Apply&& apply, const Eigen::VectorXd& inv_diag, const Block& b, Blo
   res.message = fmt::format("no convergence in {} iterations (relative residual {:.3g} > {:.3g})", opt.max_iterations,
                             res.relative_residual, opt.tolerance);
   return res;
+}
+
+}  // namespace detail
+
+/// Solves A x = b. `apply(P, Q)` must write Q = A P for n x m blocks; `inv_diag`
+/// (length n) is the Jacobi preconditioner 1 / A_ii. `x` holds the initial guess.
+template <class Apply>
+CgResult pcg(Apply&& apply, const Eigen::VectorXd& inv_diag, const Block& b, Block& x, const CgOptions& opt,
+             CgWorkspace& w) {
+  switch (b.cols()) {
+    case 1:
+      return detail::pcg_impl<1>(apply, inv_diag, b, x, opt, w);
+    case 3:
+      return detail::pcg_impl<3>(apply, inv_diag, b, x, opt, w);
+    default:
+      return detail::pcg_impl<0>(apply, inv_diag, b, x, opt, w);
+  }
 }
 
 inline const char* to_string(CgStatus s) {
