@@ -39,7 +39,7 @@ struct HapticParams {
   double stiffness_damping = 1e-3;  ///< b2
   /// The active domain stops growing where the motion falls below this fraction of the
   /// largest motion (DomainOptions::grow_fraction).
-  double domain_tolerance = 2e-2;
+  double domain_tolerance = 5e-2;
   double rate_hz = 1000;                                   ///< servo rate of start()
   CgOptions cg{.tolerance = 1e-4, .max_iterations = 500};  ///< per step, relative to the step's right-hand side
 };
