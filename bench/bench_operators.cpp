@@ -23,7 +23,7 @@ struct Fixture {
     // Scaled to mean edge length 1, as in `meshpde bench`: every level has the same
     // local resolution, so a poke touches the same neighbourhood.
     GeneratedMesh g = icosphere(level);
-    g.V /= analyze(Mesh(g.V, g.F)).mean_edge_length;
+    g.V /= mean_edge_length(Mesh(g.V, g.F));
     mesh = Mesh(g.V, g.F);
     ops = build_operators(mesh);
     rows.resize(mesh.num_vertices());

@@ -65,7 +65,7 @@ Percentiles percentiles(std::vector<double> v) {
 Mesh unit_edge_icosphere(int level) {
   GeneratedMesh g = icosphere(level, 1.0);
   Mesh m(g.V, g.F);
-  const double e = analyze(m).mean_edge_length;
+  const double e = mean_edge_length(m);
   g.V /= e;
   return Mesh(g.V, g.F);
 }
@@ -210,7 +210,7 @@ void add_bench_command(CLI::App& app) {
         Eigen::Vector3d n = Eigen::Vector3d::Zero();
         for (int w : mesh.neighbors(v)) n += (mesh.positions().row(w) - mesh.positions().row(v)).transpose();
         n.normalize();
-        const double depth = 0.5 * analyze(mesh).mean_edge_length;
+        const double depth = 0.5 * mean_edge_length(mesh);
         h.touch(v);
         std::vector<double> us;
         int max_free = 0, misses = 0;

@@ -498,7 +498,7 @@ void add_poke_command(CLI::App& app) {
     if (!a->path.empty()) {
       path = read_path(a->path);
     } else {
-      const double h = analyze(mesh).mean_edge_length;
+      const double h = mean_edge_length(mesh);
       Eigen::Vector3d n = Eigen::Vector3d::Zero();
       for (int w : mesh.neighbors(v)) {
         const Eigen::Vector3d e1 = mesh.positions().row(w) - mesh.positions().row(v);

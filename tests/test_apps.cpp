@@ -11,14 +11,10 @@
 #include "meshpde/core/errors.h"
 #include "meshpde/mesh/generators.h"
 #include "meshpde/operators/fem_operators.h"
+#include "test_support.h"
 
 using namespace meshpde;
-
-namespace {
-Mesh make(const GeneratedMesh& g) {
-  return Mesh(g.V, g.F);
-}
-}  // namespace
+using test::make;
 
 TEST(HeatWave, HeatWithoutSourcesConservesTheMassWeightedTotal) {
   const Mesh m = make(icosphere(4));
@@ -308,16 +304,10 @@ TEST(Interpolation, ConnectionKeepsMagnitudesWhereComponentwiseCollapses) {
 #include "meshpde/apps/haptics.h"
 #include "meshpde/mesh/topology.h"
 
-namespace {
-Mesh unit_edge(int level) {
-  GeneratedMesh g = icosphere(level);
-  g.V /= analyze(make(g)).mean_edge_length;
-  return make(g);
-}
-}  // namespace
+using meshpde::test::unit_edge_icosphere;
 
 TEST(Haptics, ForceOpposesIndentationGrowsWithDepthAndVanishesAtRest) {
-  const Mesh m = unit_edge(4);
+  const Mesh m = unit_edge_icosphere(4);
   const FemOperators ops = build_operators(m);
   HapticSession h(m, ops);
   const int v = 0;
@@ -337,7 +327,7 @@ TEST(Haptics, ForceOpposesIndentationGrowsWithDepthAndVanishesAtRest) {
 }
 
 TEST(Haptics, SettledForceMatchesAnIndependentFullMatrixSolve) {
-  const Mesh m = unit_edge(4);
+  const Mesh m = unit_edge_icosphere(4);
   const FemOperators ops = build_operators(m);
   const HapticParams params;
   HapticSession h(m, ops, params);
@@ -348,7 +338,7 @@ TEST(Haptics, SettledForceMatchesAnIndependentFullMatrixSolve) {
   Eigen::Vector3d f;
   for (int k = 0; k < 300; ++k) f = h.step(5e-2);  // 15 s of model time: settled
   // Independent: Kt = g0 M + g2 K D K assembled, Dirichlet at the contact, direct solve.
-  const double L = 3 * analyze(m).mean_edge_length;
+  const double L = 3 * mean_edge_length(m);
   const Eigen::SparseMatrix<double> K = stiffness_matrix(m, ops), M = mass_matrix(ops);
   Eigen::SparseMatrix<double> D(m.num_vertices(), m.num_vertices());
   for (int i = 0; i < m.num_vertices(); ++i) D.insert(i, i) = ops.D(i);
@@ -382,7 +372,7 @@ TEST(Haptics, SettledForceMatchesAnIndependentFullMatrixSolve) {
 }
 
 TEST(Haptics, DomainGrowsWithIndentationAndShrinksAfterRelease) {
-  const Mesh m = unit_edge(5);
+  const Mesh m = unit_edge_icosphere(5);
   const FemOperators ops = build_operators(m);
   HapticSession h(m, ops);
   h.touch(0);
@@ -402,7 +392,7 @@ TEST(Haptics, DomainGrowsWithIndentationAndShrinksAfterRelease) {
 }
 
 TEST(Haptics, ServoThreadStepsAndCountsMisses) {
-  const Mesh m = unit_edge(4);
+  const Mesh m = unit_edge_icosphere(4);
   const FemOperators ops = build_operators(m);
   HapticSession h(m, ops, HapticParams{.rate_hz = 500});
   h.touch(3);

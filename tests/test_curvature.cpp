@@ -3,6 +3,7 @@
 
 #include "meshpde/mesh/generators.h"
 #include "meshpde/operators/curvature.h"
+#include "test_support.h"
 
 using namespace meshpde;
 

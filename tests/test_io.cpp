@@ -8,6 +8,7 @@
 #include "meshpde/io/mesh_io.h"
 #include "meshpde/mesh/generators.h"
 #include "test_data.h"
+#include "test_support.h"
 
 using namespace meshpde;
 namespace fs = std::filesystem;

@@ -6,14 +6,10 @@
 #include "meshpde/mesh/generators.h"
 #include "meshpde/mesh/topology.h"
 #include "test_data.h"
+#include "test_support.h"
 
 using namespace meshpde;
-
-namespace {
-Mesh make(const GeneratedMesh& g) {
-  return Mesh(g.V, g.F);
-}
-}  // namespace
+using test::make;
 
 TEST(Mesh, CsrAdjacencyIsSortedSymmetricAndIndexesEdges) {
   const Mesh m = make(icosphere(2));

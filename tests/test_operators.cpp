@@ -11,14 +11,12 @@
 #include "meshpde/operators/cotan_laplacian.h"
 #include "meshpde/operators/fem_operators.h"
 #include "test_data.h"
+#include "test_support.h"
 
 using namespace meshpde;
+using test::make;
 
 namespace {
-
-Mesh make(const GeneratedMesh& g) {
-  return Mesh(g.V, g.F);
-}
 
 /// max |K + L| / max |L| with L from an independent cotangent formula.
 double k_vs_cotan(const Mesh& m, CotanFormula formula = CotanFormula::Angles) {
@@ -109,14 +107,7 @@ TEST(Operators, ScaleInvarianceAt1e8And1em8) {
 }
 
 TEST(Operators, LinearPrecisionOnAPerturbedPlane) {
-  GeneratedMesh g = plane_grid(10, 10);
-  std::mt19937 rng(7);
-  std::uniform_real_distribution<double> jitter(-0.02, 0.02);
-  for (Eigen::Index i = 0; i < g.V.rows(); ++i)
-    if (g.V(i, 0) > 0 && g.V(i, 0) < 1 && g.V(i, 1) > 0 && g.V(i, 1) < 1) {
-      g.V(i, 0) += jitter(rng);
-      g.V(i, 1) += jitter(rng);
-    }
+  const GeneratedMesh g = test::jittered_plane(10, 0.02, 7);
   const Mesh m = make(g);
   const FemOperators ops = build_operators(m);
   Field u(m.num_vertices(), 1);

@@ -9,22 +9,11 @@
 #include "meshpde/mesh/topology.h"
 #include "meshpde/operators/fem_operators.h"
 #include "meshpde/pde/pde_session.h"
+#include "test_support.h"
 
 using namespace meshpde;
-
-namespace {
-
-Mesh make(const GeneratedMesh& g) {
-  return Mesh(g.V, g.F);
-}
-
-Mesh unit_edge_icosphere(int level) {
-  GeneratedMesh g = icosphere(level);
-  g.V /= analyze(make(g)).mean_edge_length;
-  return make(g);
-}
-
-}  // namespace
+using test::make;
+using test::unit_edge_icosphere;
 
 TEST(Pde, HeatConservesTheMassWeightedTotal) {
   const Mesh m = make(icosphere(3));

@@ -5,6 +5,7 @@
 #include "meshpde/core/errors.h"
 #include "meshpde/mesh/generators.h"
 #include "meshpde/viz/render.h"
+#include "test_support.h"
 
 using namespace meshpde;
 

@@ -10,14 +10,10 @@
 #include "meshpde/operators/fem_operators.h"
 #include "meshpde/pde/pde_session.h"
 #include "meshpde/solvers/cg.h"
+#include "test_support.h"
 
 using namespace meshpde;
-
-namespace {
-Mesh make(const GeneratedMesh& g) {
-  return Mesh(g.V, g.F);
-}
-}  // namespace
+using test::make;
 
 TEST(Cg, SolvesSpdWithSeveralRightHandSides) {
   const int n = 50;
@@ -83,14 +79,7 @@ TEST(Heat, SphericalHarmonicsDecayAtTheAnalyticRate) {
 }
 
 TEST(Steady, BilaplacianReproducesLinearFieldsExactly) {
-  GeneratedMesh g = plane_grid(16, 16);
-  std::mt19937 rng(11);
-  std::uniform_real_distribution<double> jitter(-0.015, 0.015);
-  for (Eigen::Index i = 0; i < g.V.rows(); ++i)
-    if (g.V(i, 0) > 0 && g.V(i, 0) < 1 && g.V(i, 1) > 0 && g.V(i, 1) < 1) {
-      g.V(i, 0) += jitter(rng);
-      g.V(i, 1) += jitter(rng);
-    }
+  const GeneratedMesh g = test::jittered_plane(16, 0.015, 11);
   const Mesh m = make(g);
   const FemOperators ops = build_operators(m);
   PdeSession s(m, ops, 1, PdeCoefficients{.alpha = 0, .b1 = 0, .b2 = 0, .g1 = 0, .g2 = 1},

@@ -43,6 +43,14 @@ bool is_degenerate(const Mesh& mesh, int f) {
   return triangle_area(mesh, f) <= kDegenerateAreaRelTol * longest_edge_sq(a, b, c);
 }
 
+double mean_edge_length(const Mesh& mesh) {
+  const auto& V = mesh.positions();
+  const auto& E = mesh.edges();
+  double sum = 0;
+  for (int e = 0; e < mesh.num_edges(); ++e) sum += (V.row(E(e, 0)) - V.row(E(e, 1))).norm();
+  return mesh.num_edges() ? sum / mesh.num_edges() : 0.0;
+}
+
 std::vector<int> vertex_components(const Mesh& mesh, int* count) {
   const int nv = mesh.num_vertices();
   UnionFind uf(nv);
@@ -111,9 +119,7 @@ MeshReport analyze(const Mesh& mesh, const ShapeWarningThresholds& thresholds) {
   UnionFind boundary(nv);
   std::vector<char> on_boundary(nv, 0);
   const auto& E = mesh.edges();
-  double edge_len = 0;
   for (int e = 0; e < ne; ++e) {
-    edge_len += (V.row(E(e, 0)) - V.row(E(e, 1))).norm();
     if (face_count[e] == 1) {
       ++r.boundary_edges;
       boundary.unite(E(e, 0), E(e, 1));
@@ -124,7 +130,7 @@ MeshReport analyze(const Mesh& mesh, const ShapeWarningThresholds& thresholds) {
       ++r.inconsistent_edges;
     }
   }
-  r.mean_edge_length = ne ? edge_len / ne : 0.0;
+  r.mean_edge_length = mean_edge_length(mesh);
   r.orientation_consistent = r.inconsistent_edges == 0;
   for (int v = 0; v < nv; ++v)
     if (on_boundary[v] && boundary.find(v) == v) ++r.boundary_loops;

@@ -57,6 +57,9 @@ struct ShapeWarningThresholds {
 
 MeshReport analyze(const Mesh& mesh, const ShapeWarningThresholds& thresholds = {});
 
+/// Mean length of the unique edges (0 for a mesh without edges).
+double mean_edge_length(const Mesh& mesh);
+
 /// Connected-component label per vertex (unreferenced vertices get their own label).
 std::vector<int> vertex_components(const Mesh& mesh, int* count = nullptr);
 

@@ -1,0 +1,37 @@
+// Mesh helpers shared by the test files.
+#pragma once
+
+#include <random>
+
+#include "meshpde/mesh/generators.h"
+#include "meshpde/mesh/mesh.h"
+#include "meshpde/mesh/topology.h"
+
+namespace meshpde::test {
+
+inline Mesh make(const GeneratedMesh& g) {
+  return Mesh(g.V, g.F);
+}
+
+/// Icosphere scaled to mean edge length 1, so every level has the same local resolution.
+inline Mesh unit_edge_icosphere(int level) {
+  GeneratedMesh g = icosphere(level);
+  g.V /= mean_edge_length(make(g));
+  return make(g);
+}
+
+/// Unit-square grid with its interior vertices moved in-plane by up to +-amplitude
+/// (seeded), so that it is planar but irregular.
+inline GeneratedMesh jittered_plane(int n, double amplitude, unsigned seed) {
+  GeneratedMesh g = plane_grid(n, n);
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> jitter(-amplitude, amplitude);
+  for (Eigen::Index i = 0; i < g.V.rows(); ++i)
+    if (g.V(i, 0) > 0 && g.V(i, 0) < 1 && g.V(i, 1) > 0 && g.V(i, 1) < 1) {
+      g.V(i, 0) += jitter(rng);
+      g.V(i, 1) += jitter(rng);
+    }
+  return g;
+}
+
+}  // namespace meshpde::test
