@@ -411,3 +411,29 @@ TEST(Haptics, ServoThreadStepsAndCountsMisses) {
   EXPECT_GT(h.latest_force().dot(n), 0.0);
   h.stop();  // twice is fine
 }
+
+TEST(Haptics, DefaultStepToleranceTracksATightSolve) {
+  const Mesh m = unit_edge_icosphere(5);
+  const FemOperators ops = build_operators(m);
+  HapticParams tight;
+  tight.cg.tolerance = 1e-10;
+  tight.cg.max_iterations = 5000;
+  HapticSession fast(m, ops), exact(m, ops, tight);
+  const int v = 7;
+  const Eigen::Vector3d n = m.positions().row(v).normalized();
+  fast.touch(v);
+  exact.touch(v);
+  double worst = 0, largest = 0;
+  for (int k = 1; k <= 600; ++k) {  // press in over 0.3 s, sideways, hold
+    const double s = std::min(k, 300) / 300.0;
+    const Eigen::Vector3d offset =
+        -0.5 * s * n + (k > 300 ? 0.2 * (k - 300) / 300.0 : 0.0) * m.positions().row(0).normalized().transpose();
+    fast.move_probe(offset);
+    exact.move_probe(offset);
+    const Eigen::Vector3d a = fast.step(1e-3), b = exact.step(1e-3);
+    worst = std::max(worst, (a - b).norm());
+    largest = std::max(largest, b.norm());
+  }
+  EXPECT_GT(largest, 0.0);
+  EXPECT_LE(worst, 0.01 * largest);
+}
