@@ -195,3 +195,94 @@ TEST(Step, ReactionForceEqualsAssembledBackwardEulerRow) {
     EXPECT_LE(res.cwiseAbs().maxCoeff(), 1e-10 * bb.cwiseAbs().maxCoeff());
   }
 }
+
+// ---- direct path -------------------------------------------------------------
+
+#include "meshpde/apps/interpolation.h"
+#include "meshpde/pde/steady_direct.h"
+#include "meshpde/solvers/direct.h"
+#include "test_data.h"
+
+TEST(Direct, BackendsAgreeReuseTheAnalysisAndRejectIndefinite) {
+  const Mesh m = make(icosphere(4));
+  const FemOperators ops = build_operators(m);
+  Eigen::SparseMatrix<double> A = stiffness_matrix(m, ops) + mass_matrix(ops);  // SPD
+  const Eigen::MatrixXd B = Eigen::MatrixXd::Random(m.num_vertices(), 3);
+  SparseCholesky eig(SparseCholesky::Backend::Eigen);
+  eig.factorize(A);
+  const Eigen::MatrixXd xe = eig.solve(B);
+  EXPECT_LE((A * xe - B).norm(), 1e-10 * B.norm());
+  if (SparseCholesky::cholmod_available()) {
+    SparseCholesky chol(SparseCholesky::Backend::Cholmod);
+    chol.factorize(A);
+    EXPECT_LE((chol.solve(B) - xe).norm(), 1e-9 * xe.norm());
+    A *= 2.0;  // same pattern, new values: numeric factorization only
+    chol.factorize(A);
+    EXPECT_EQ(chol.analyses(), 1);
+    EXPECT_EQ(chol.factorizations(), 2);
+    EXPECT_LE((chol.solve(B) - 0.5 * xe).norm(), 1e-9 * xe.norm());
+  }
+  Eigen::SparseMatrix<double> bad = stiffness_matrix(m, ops);
+  bad.coeffRef(3, 3) = -10;
+  for (const auto b : {SparseCholesky::Backend::Eigen, SparseCholesky::Backend::Auto}) {
+    SparseCholesky s(b);
+    try {
+      s.factorize(bad);
+      FAIL() << "indefinite matrix accepted";
+    } catch (const SolverError& e) {
+      EXPECT_NE(std::string(e.what()).find("not positive definite"), std::string::npos) << e.what();
+    }
+  }
+}
+
+TEST(Direct, SteadySolveMatchesConjugateGradientsAndReusesItsFactor) {
+  Mesh m;
+  if (!test::load_data("bunny-3k.off", m)) return;
+  const FemOperators ops = build_operators(m);
+  const std::vector<InterpolationConstraint> cons = {{10, Eigen::VectorXd::Constant(1, 1.0)},
+                                                     {1000, Eigen::VectorXd::Constant(1, -2.0)},
+                                                     {2500, Eigen::VectorXd::Constant(1, 0.5)}};
+  for (const auto& [g1, g2] : {std::pair{1.0, 0.0}, {0.0, 1.0}, {1.0, 0.1}}) {
+    const auto direct = interpolate(m, ops, FieldKind::Scalar, cons, InterpolationParams{.g1 = g1, .g2 = g2});
+    const auto cg = interpolate(m, ops, FieldKind::Scalar, cons,
+                                InterpolationParams{.g1 = g1, .g2 = g2, .solver = SteadySolver::Iterative});
+    EXPECT_LE(direct.cg.relative_residual, 1e-10);
+    EXPECT_LE((direct.values - cg.values).cwiseAbs().maxCoeff(), 1e-7 * cg.values.cwiseAbs().maxCoeff());
+  }
+  // One factor, many held values: a drag's handle moving step after step.
+  std::vector<int> free;
+  for (int v = 0; v < m.num_vertices(); ++v)
+    if (v != 10 && v != 1000) free.push_back(v);
+  const SteadyDirectSolver s(m, ops, PdeCoefficients{.g0 = 0, .g1 = 0, .g2 = 1}, free);
+  Field u = Field::Zero(m.num_vertices(), 3);
+  for (int k = 1; k <= 3; ++k) {
+    u(10, 0) = 0.001 * k;
+    const Field x = s.solve(u);
+    EXPECT_EQ(x(10, 0), 0.001 * k);
+    EXPECT_LE(s.last_relative_residual(), 1e-10);
+  }
+  EXPECT_EQ(s.factor().factorizations(), 1);
+}
+
+TEST(Direct, AFloatingPartIsNamed) {
+  // Two separate spheres; only the first has a held vertex.
+  const GeneratedMesh a = icosphere(2), b = icosphere(2);
+  Positions V(a.V.rows() + b.V.rows(), 3);
+  V << a.V, (b.V.rowwise() + Eigen::RowVector3d(5, 0, 0));
+  Triangles F(a.F.rows() + b.F.rows(), 3);
+  F << a.F, (b.F.array() + static_cast<int>(a.V.rows())).matrix();
+  const Mesh m(V, F);
+  const FemOperators ops = build_operators(m);
+  std::vector<int> free;
+  for (int v = 1; v < m.num_vertices(); ++v) free.push_back(v);
+  try {
+    SteadyDirectSolver s(m, ops, PdeCoefficients{.g0 = 0, .g1 = 1, .g2 = 0}, free);
+    FAIL() << "floating part accepted";
+  } catch (const SolverError& e) {
+    const std::string msg = e.what();
+    EXPECT_NE(msg.find("touches no held vertex"), std::string::npos) << msg;
+    EXPECT_NE(msg.find(std::to_string(a.V.rows())), std::string::npos) << msg;  // names a vertex of sphere 2
+  }
+  // With a foundation term the floating part is determined.
+  EXPECT_NO_THROW(SteadyDirectSolver(m, ops, PdeCoefficients{.g0 = 1, .g1 = 1, .g2 = 0}, free));
+}

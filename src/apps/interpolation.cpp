@@ -2,12 +2,12 @@
 
 #include <fmt/format.h>
 
-#include <Eigen/SparseCholesky>
 #include <cmath>
 
 #include "meshpde/core/errors.h"
 #include "meshpde/operators/connection.h"
 #include "meshpde/pde/pde_session.h"
+#include "meshpde/solvers/direct.h"
 
 namespace meshpde {
 
@@ -32,6 +32,24 @@ namespace {
 Field solve_scalar_like(const Mesh& mesh, const FemOperators& ops, int m,
                         const std::vector<InterpolationConstraint>& cons, const InterpolationParams& p, CgResult& cg,
                         const std::vector<Eigen::VectorXd>* values = nullptr) {
+  if (p.solver == SteadySolver::Direct) {
+    std::vector<char> held(mesh.num_vertices(), 0);
+    Field u = Field::Zero(mesh.num_vertices(), m);
+    for (std::size_t k = 0; k < cons.size(); ++k) {
+      held[cons[k].vertex] = 1;
+      u.row(cons[k].vertex) = (values ? (*values)[k] : cons[k].value).transpose();
+    }
+    std::vector<int> free;
+    for (int v = 0; v < mesh.num_vertices(); ++v)
+      if (!held[v] && ops.mass[v] > 0) free.push_back(v);
+    const SteadyDirectSolver solver(mesh, ops, PdeCoefficients{.g0 = 0, .g1 = p.g1, .g2 = p.g2}, free);
+    Field out = solver.solve(u);
+    cg = CgResult{.status = CgStatus::Converged,
+                  .iterations = 0,
+                  .relative_residual = solver.last_relative_residual(),
+                  .message = {}};
+    return out;
+  }
   PdeSession s(mesh, ops, m, PdeCoefficients{.alpha = 0, .b1 = 0, .b2 = 0, .g0 = 0, .g1 = p.g1, .g2 = p.g2},
                DomainOptions{.seed_rings = 0});
   s.cg_options = p.cg;
@@ -125,11 +143,8 @@ InterpolationResult interpolate(const Mesh& mesh, const FemOperators& ops, Field
     }
   Eigen::SparseMatrix<double> Aff(nf, nf);
   Aff.setFromTriplets(t.begin(), t.end());
-  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver(Aff);
-  if (solver.info() != Eigen::Success)
-    throw SolverError(
-        "connection interpolation: the direction system could not be factored (is a connected part "
-        "without constraints?)");
+  SparseCholesky solver;
+  solver.factorize(Aff);
   const Eigen::VectorXd x = solver.solve(rhs);
   Eigen::VectorXd dir = dir_fixed;
   for (int k = 0; k < nf; ++k) dir[free_dofs[k]] = x[k];

@@ -57,14 +57,45 @@ DragResult drag_vertex(const Mesh& mesh, const FemOperators& ops, const DragPara
   if (ops.mass[p.vertex] <= 0) throw InputError(fmt::format("handle vertex {} has no incident area", p.vertex));
   DragResult r;
   r.region = p.radius > 0 ? geodesic_ball(mesh, p.vertex, p.radius) : ring_ball(mesh, p.vertex, p.rings);
-  PdeSession s(mesh, ops, 3, PdeCoefficients{.alpha = 0, .b1 = 0, .b2 = 0, .g1 = p.g1, .g2 = p.g2},
-               DomainOptions{.seed_rings = 0});
-  s.cg_options = p.cg;
-  s.activate(r.region);
-  s.constrain(p.vertex, std::span<const double>(p.displacement.data(), 3));
-  r.region.erase(std::remove(r.region.begin(), r.region.end(), p.vertex), r.region.end());
-  r.cg = s.solve_steady().cg;
-  r.displacement = s.values();
+  if (p.solver == SteadySolver::Direct) {
+    r.region.erase(std::remove(r.region.begin(), r.region.end(), p.vertex), r.region.end());
+    std::vector<int> free;
+    for (int v : r.region)
+      if (ops.mass[v] > 0) free.push_back(v);
+    const SteadyDirectSolver solver(mesh, ops, PdeCoefficients{.g0 = 0, .g1 = p.g1, .g2 = p.g2}, free);
+    Field held = Field::Zero(mesh.num_vertices(), 3);
+    held.row(p.vertex) = p.displacement.transpose();
+    r.displacement = solver.solve(held);
+    r.cg = CgResult{.status = CgStatus::Converged,
+                    .iterations = 0,
+                    .relative_residual = solver.last_relative_residual(),
+                    .message = {}};
+    // Reaction at the handle: row of Kt applied to the solution (steady: no inertia).
+    const FemOperators& o = ops;
+    const auto off = mesh.offsets();
+    const auto nbr = mesh.neighbors();
+    auto Kd = [&](int i, int c) {
+      double y = o.Kii[i] * r.displacement(i, c);
+      for (int q = off[i]; q < off[i + 1]; ++q) y += o.Kij[q] * r.displacement(nbr[q], c);
+      return y;
+    };
+    for (int c = 0; c < 3; ++c) {
+      const int h = p.vertex;
+      double kdk = o.Kii[h] * o.D(h) * Kd(h, c);
+      for (int q = off[h]; q < off[h + 1]; ++q) kdk += o.Kij[q] * o.D(nbr[q]) * Kd(nbr[q], c);
+      r.reaction[c] = p.g1 * Kd(h, c) + p.g2 * kdk;
+    }
+  } else {
+    PdeSession s(mesh, ops, 3, PdeCoefficients{.alpha = 0, .b1 = 0, .b2 = 0, .g1 = p.g1, .g2 = p.g2},
+                 DomainOptions{.seed_rings = 0});
+    s.cg_options = p.cg;
+    s.activate(r.region);
+    s.constrain(p.vertex, std::span<const double>(p.displacement.data(), 3));
+    r.region.erase(std::remove(r.region.begin(), r.region.end(), p.vertex), r.region.end());
+    r.cg = s.solve_steady().cg;
+    r.displacement = s.values();
+    r.reaction = s.reaction_forces().row(0).transpose();
+  }
   r.V = mesh.positions() + r.displacement;
   const double scale = p.displacement.norm();
   for (int v : r.region) {
@@ -74,7 +105,6 @@ DragResult drag_vertex(const Mesh& mesh, const FemOperators& ops, const DragPara
   }
   r.max_displacement = std::max(r.max_displacement, scale);
   r.moved_vertices += scale > 0;
-  r.reaction = s.reaction_forces().row(0).transpose();
   return r;
 }
 

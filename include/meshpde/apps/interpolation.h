@@ -21,6 +21,7 @@
 
 #include "meshpde/mesh/mesh.h"
 #include "meshpde/operators/fem_operators.h"
+#include "meshpde/pde/steady_direct.h"
 #include "meshpde/solvers/cg.h"
 
 namespace meshpde {
@@ -37,12 +38,13 @@ struct InterpolationParams {
   double g1 = 0;  ///< Laplacian (membrane) weight
   double g2 = 1;  ///< bi-Laplacian (thin plate) weight
   TangentMethod method = TangentMethod::Componentwise;
-  CgOptions cg{.tolerance = 1e-11, .max_iterations = 200000};
+  SteadySolver solver = SteadySolver::Direct;
+  CgOptions cg{.tolerance = 1e-11, .max_iterations = 200000};  ///< for SteadySolver::Iterative
 };
 
 struct InterpolationResult {
   Field values;  ///< #V x 1 or #V x 3
-  CgResult cg;   ///< of the (last) iterative solve; the connection directions use a direct solve
+  CgResult cg;   ///< of the (last) solve: iterations (0 for direct) and relative residual
 };
 
 /// \throw InputError (bad vertex, duplicate vertex, wrong value size, g1 = g2 = 0, no

@@ -13,6 +13,7 @@
 
 #include "meshpde/mesh/mesh.h"
 #include "meshpde/operators/fem_operators.h"
+#include "meshpde/pde/steady_direct.h"
 #include "meshpde/solvers/cg.h"
 
 namespace meshpde {
@@ -24,7 +25,8 @@ struct DragParams {
   int rings = 0;      ///< region of influence in rings of neighbours (used when radius == 0)
   double g1 = 0;      ///< membrane stiffness
   double g2 = 1;      ///< plate (bi-Laplacian) stiffness
-  CgOptions cg{.tolerance = 1e-10, .max_iterations = 50000};
+  SteadySolver solver = SteadySolver::Direct;
+  CgOptions cg{.tolerance = 1e-10, .max_iterations = 50000};  ///< for SteadySolver::Iterative
 };
 
 struct DragResult {

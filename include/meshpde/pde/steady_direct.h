@@ -1,0 +1,51 @@
+// Steady problems (g0 M + g1 K + g2 K D K) u = f solved directly on a set of free
+// vertices, every other vertex held at its given value. The matrix on the free set,
+//     Kt_FF = g0 M_FF + g1 K_FF + g2 (K_SF)^T D_S K_SF,   S = F and its one-ring,
+// is assembled from the stored K (K D K never appears whole) and factored once; solve()
+// then costs two triangular sweeps per right-hand side, for any held values and any
+// forcing. This is the path for interpolation, fairing and static drags, where
+// Jacobi-CG's iteration count grows like h^-4 (see docs/solvers.md).
+#pragma once
+
+#include <vector>
+
+#include "meshpde/mesh/mesh.h"
+#include "meshpde/operators/fem_operators.h"
+#include "meshpde/pde/pde_session.h"
+#include "meshpde/solvers/direct.h"
+
+namespace meshpde {
+
+/// Which solver steady problems use: Direct (SteadyDirectSolver, the default) or
+/// Iterative (Jacobi-CG through PdeSession::solve_steady, no factorization memory).
+enum class SteadySolver { Direct, Iterative };
+
+class SteadyDirectSolver {
+ public:
+  /// Assembles and factors Kt_FF. Keeps references to mesh and ops.
+  /// \throw InputError for a bad vertex; SolverError if a connected part of the free
+  ///        set touches no held vertex (and g0 = 0): its values would be undetermined.
+  SteadyDirectSolver(const Mesh& mesh, const FemOperators& ops, const PdeCoefficients& coefficients,
+                     std::vector<int> free, SparseCholesky::Backend backend = SparseCholesky::Backend::Auto);
+
+  /// Returns u with the free rows solved; the other rows of u are the held values.
+  /// `f` (optional) is the load, #V x m like u.
+  Field solve(const Field& u, const Field* f = nullptr) const;
+
+  /// Relative residual |b - Kt_FF x| / |b| of the last solve (worst column).
+  double last_relative_residual() const { return residual_; }
+  const SparseCholesky& factor() const { return chol_; }
+  int num_free() const { return static_cast<int>(free_.size()); }
+
+ private:
+  const Mesh& mesh_;
+  const FemOperators& ops_;
+  PdeCoefficients c_;
+  std::vector<int> free_;
+  std::vector<int> local_;  // vertex -> index in free_, or -1
+  Eigen::SparseMatrix<double> A_;
+  SparseCholesky chol_;
+  mutable double residual_ = 0;
+};
+
+}  // namespace meshpde

@@ -1,0 +1,133 @@
+#include "meshpde/pde/steady_direct.h"
+
+#include <fmt/format.h>
+
+#include <numeric>
+
+#include "meshpde/core/errors.h"
+
+namespace meshpde {
+
+SteadyDirectSolver::SteadyDirectSolver(const Mesh& mesh, const FemOperators& ops, const PdeCoefficients& c,
+                                       std::vector<int> free, SparseCholesky::Backend backend)
+    : mesh_(mesh), ops_(ops), c_(c), free_(std::move(free)), local_(mesh.num_vertices(), -1), chol_(backend) {
+  const int nv = mesh.num_vertices(), n = static_cast<int>(free_.size());
+  for (int k = 0; k < n; ++k) {
+    const int v = free_[k];
+    if (v < 0 || v >= nv) throw InputError(fmt::format("free vertex {} does not exist (the mesh has {})", v, nv));
+    if (local_[v] >= 0) throw InputError(fmt::format("free vertex {} is listed twice", v));
+    local_[v] = k;
+  }
+  const auto off = mesh.offsets();
+  const auto nbr = mesh.neighbors();
+  // Parts of the free set that touch no held vertex are undetermined without g0.
+  if (c.g0 <= 0) {
+    std::vector<int> comp(n, -1);
+    for (int s = 0; s < n; ++s) {
+      if (comp[s] >= 0) continue;
+      std::vector<int> stack{s}, members;
+      comp[s] = s;
+      bool anchored = false;
+      while (!stack.empty()) {
+        const int k = stack.back();
+        stack.pop_back();
+        members.push_back(free_[k]);
+        for (int t = off[free_[k]]; t < off[free_[k] + 1]; ++t) {
+          const int j = local_[nbr[t]];
+          if (j < 0)
+            anchored = true;
+          else if (comp[j] < 0) {
+            comp[j] = s;
+            stack.push_back(j);
+          }
+        }
+      }
+      if (!anchored)
+        throw SolverError(
+            fmt::format("a connected part of {} free vertices (vertex {} among them) touches no held "
+                        "vertex: its values are undetermined; constrain a vertex there",
+                        members.size(), members.front()));
+    }
+  }
+  // Assemble Kt_FF from CSR rows: K_FF directly, K D K as (K_SF)^T D_S K_SF.
+  std::vector<Eigen::Triplet<double>> t;
+  std::vector<int> S;  // F and its ring, local index into K_SF rows
+  std::vector<int> s_index(nv, -1);
+  for (int v : free_) {
+    if (s_index[v] < 0) {
+      s_index[v] = static_cast<int>(S.size());
+      S.push_back(v);
+    }
+    for (int q = off[v]; q < off[v + 1]; ++q)
+      if (s_index[nbr[q]] < 0) {
+        s_index[nbr[q]] = static_cast<int>(S.size());
+        S.push_back(nbr[q]);
+      }
+  }
+  for (int k = 0; k < n; ++k) {
+    const int v = free_[k];
+    t.emplace_back(k, k, c.g0 * ops.mass[v] + c.g1 * ops.Kii[v]);
+    if (c.g1 != 0)
+      for (int q = off[v]; q < off[v + 1]; ++q)
+        if (local_[nbr[q]] >= 0) t.emplace_back(k, local_[nbr[q]], c.g1 * ops.Kij[q]);
+  }
+  Eigen::SparseMatrix<double> A(n, n);
+  A.setFromTriplets(t.begin(), t.end());
+  if (c.g2 != 0) {
+    std::vector<Eigen::Triplet<double>> ks;
+    for (std::size_t r = 0; r < S.size(); ++r) {
+      const int i = S[r];
+      if (local_[i] >= 0) ks.emplace_back(static_cast<int>(r), local_[i], ops.Kii[i]);
+      for (int q = off[i]; q < off[i + 1]; ++q)
+        if (local_[nbr[q]] >= 0) ks.emplace_back(static_cast<int>(r), local_[nbr[q]], ops.Kij[q]);
+    }
+    Eigen::SparseMatrix<double> KSF(static_cast<Eigen::Index>(S.size()), n);
+    KSF.setFromTriplets(ks.begin(), ks.end());
+    Eigen::VectorXd d(static_cast<Eigen::Index>(S.size()));
+    for (std::size_t r = 0; r < S.size(); ++r) d[static_cast<Eigen::Index>(r)] = ops.D(S[r]);
+    const Eigen::SparseMatrix<double> KDK = KSF.transpose() * d.asDiagonal() * KSF;
+    A += c.g2 * KDK;
+  }
+  A_ = A;
+  chol_.factorize(A_);
+}
+
+Field SteadyDirectSolver::solve(const Field& u, const Field* f) const {
+  const int nv = mesh_.num_vertices(), n = static_cast<int>(free_.size());
+  if (u.rows() != nv) throw InputError(fmt::format("values have {} rows for {} vertices", u.rows(), nv));
+  if (f && (f->rows() != nv || f->cols() != u.cols())) throw InputError("forcing has the wrong shape");
+  const int m = static_cast<int>(u.cols());
+  const auto off = mesh_.offsets();
+  const auto nbr = mesh_.neighbors();
+  // b_F = f_F - Kt_FC u_C: Kt applied to the held values only (free entries read as 0).
+  auto held = [&](int j, int c) { return local_[j] >= 0 ? 0.0 : u(j, c); };
+  auto K_held = [&](int i, int c) {
+    double y = ops_.Kii[i] * held(i, c);
+    for (int q = off[i]; q < off[i + 1]; ++q) y += ops_.Kij[q] * held(nbr[q], c);
+    return y;
+  };
+  Eigen::MatrixXd b(n, m);
+  for (int k = 0; k < n; ++k) {
+    const int i = free_[k];
+    for (int c = 0; c < m; ++c) {
+      double kt = c_.g1 * K_held(i, c);
+      if (c_.g2 != 0) {
+        double kdk = ops_.Kii[i] * ops_.D(i) * K_held(i, c);
+        for (int q = off[i]; q < off[i + 1]; ++q) kdk += ops_.Kij[q] * ops_.D(nbr[q]) * K_held(nbr[q], c);
+        kt += c_.g2 * kdk;
+      }
+      b(k, c) = (f ? (*f)(i, c) : 0.0) - kt;
+    }
+  }
+  const Eigen::MatrixXd x = chol_.solve(b);
+  residual_ = 0;
+  for (int c = 0; c < m; ++c) {
+    const double bn = b.col(c).norm();
+    if (bn > 0) residual_ = std::max(residual_, (b.col(c) - A_ * x.col(c)).norm() / bn);
+  }
+  Field out = u;
+  for (int k = 0; k < n; ++k) out.row(free_[k]) = x.row(k);
+  return out;
+}
+
+}  // namespace meshpde
