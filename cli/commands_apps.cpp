@@ -182,7 +182,7 @@ void add_fair_command(CLI::App& app) {
   auto* cmd = app.add_subcommand(
       "fair", "Fair the free part of a mesh: membrane (--order 1) or thin plate (--order 2), selection held fixed");
   struct Args {
-    std::string mesh, out, png, view = "30,20", up = "y", size = "960x720";
+    std::string mesh, out, png, view = "30,20", up = "y", size = "960x720", solver = "direct";
     std::vector<std::string> fixed;
     FairParams p;
     bool json = false;
@@ -198,6 +198,9 @@ void add_fair_command(CLI::App& app) {
       ->check(CLI::IsMember({1, 2}))
       ->capture_default_str();
   cmd->add_flag("--regularize", a->p.regularize, "Re-assemble area-weighted stiffness every step (seed 000 Fig. 7)");
+  cmd->add_option("--solver", a->solver, "Static solve: direct (sparse Cholesky) | iterative (Jacobi-CG)")
+      ->check(CLI::IsMember({"direct", "iterative"}))
+      ->capture_default_str();
   cmd->add_option("--dt", a->p.dt, "Regularization step (unit-free)")->capture_default_str();
   cmd->add_option("--steps", a->p.steps, "Regularization steps")->capture_default_str();
   cmd->add_option("--damping", a->p.damping, "Regularization damping relative to the mean area (0: quasi-static)")
@@ -214,7 +217,9 @@ void add_fair_command(CLI::App& app) {
     if (static_cast<int>(fixed.size()) == mesh.num_vertices())
       throw InputError("every vertex is fixed: nothing to fair");
     const auto t0 = std::chrono::steady_clock::now();
-    const FairResult r = fair(mesh, fixed, a->p);
+    FairParams params = a->p;
+    params.solver = a->solver == "direct" ? SteadySolver::Direct : SteadySolver::Iterative;
+    const FairResult r = fair(mesh, fixed, params);
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     Eigen::VectorXd free_mask = Eigen::VectorXd::Ones(mesh.num_vertices());
     for (int v : fixed) free_mask[v] = 0;
@@ -330,7 +335,7 @@ void add_interpolate_command(CLI::App& app) {
   auto* cmd = app.add_subcommand("interpolate",
                                  "Spread values given at a few vertices: scalars, displacements or tangent vectors");
   struct Args {
-    std::string mesh, constraints, kind = "scalar", method = "componentwise", out, png;
+    std::string mesh, constraints, kind = "scalar", method = "componentwise", out, png, solver = "direct";
     std::string view = "30,20", up = "y", size = "960x720";
     double g1 = 0, g2 = 1;
     bool json = false;
@@ -346,6 +351,9 @@ void add_interpolate_command(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--g1", a->g1, "Laplacian weight")->capture_default_str();
   cmd->add_option("--g2", a->g2, "bi-Laplacian weight")->capture_default_str();
+  cmd->add_option("--solver", a->solver, "direct (sparse Cholesky) | iterative (Jacobi-CG)")
+      ->check(CLI::IsMember({"direct", "iterative"}))
+      ->capture_default_str();
   cmd->add_option("--method", a->method, "tangent fields: componentwise (seed) | connection | both")
       ->check(CLI::IsMember({"componentwise", "connection", "both"}))
       ->capture_default_str();
@@ -378,7 +386,11 @@ void add_interpolate_command(CLI::App& app) {
     for (const auto& [name, method] : runs) {
       const auto t0 = std::chrono::steady_clock::now();
       const InterpolationResult r =
-          interpolate(mesh, ops, kind, cons, InterpolationParams{.g1 = a->g1, .g2 = a->g2, .method = method});
+          interpolate(mesh, ops, kind, cons,
+                      InterpolationParams{.g1 = a->g1,
+                                          .g2 = a->g2,
+                                          .method = method,
+                                          .solver = a->solver == "direct" ? SteadySolver::Direct : SteadySolver::Iterative});
       const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
       RenderOptions ro = a->r;
       apply_view_options(ro, a->view, a->up, a->size);

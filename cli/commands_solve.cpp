@@ -86,7 +86,7 @@ void add_solve_commands(CLI::App& app) {
     auto* cmd = app.add_subcommand(
         "correct", "Drag one vertex by a displacement; the region around it follows (bi-Laplacian, static)");
     struct Args {
-      std::string mesh, move, out;
+      std::string mesh, move, out, solver = "direct";
       int vertex = -1, rings = 0;
       double radius = 0, g1 = 0, g2 = 1, tol = 1e-10;
       bool json = false;
@@ -100,7 +100,10 @@ void add_solve_commands(CLI::App& app) {
     radius->excludes(rings);
     cmd->add_option("--g1", a->g1, "Membrane (Laplacian) stiffness")->capture_default_str();
     cmd->add_option("--g2", a->g2, "Plate (bi-Laplacian) stiffness")->capture_default_str();
-    cmd->add_option("--tolerance", a->tol, "CG relative residual tolerance")->capture_default_str();
+    cmd->add_option("--solver", a->solver, "direct (sparse Cholesky of the region) | iterative (Jacobi-CG)")
+        ->check(CLI::IsMember({"direct", "iterative"}))
+        ->capture_default_str();
+    cmd->add_option("--tolerance", a->tol, "CG relative residual tolerance (iterative)")->capture_default_str();
     cmd->add_option("-o,--output", a->out, "Corrected mesh (.ply keeps a 'displacement' magnitude field)")->required();
     cmd->add_flag("--json", a->json, "Print a JSON report");
     cmd->callback([=] {
@@ -114,6 +117,7 @@ void add_solve_commands(CLI::App& app) {
                    .g1 = a->g1,
                    .g2 = a->g2};
       p.cg.tolerance = a->tol;
+      p.solver = a->solver == "direct" ? SteadySolver::Direct : SteadySolver::Iterative;
       const DragReport r = run_drag(mesh, p);
       if (!r.result.cg.converged()) fmt::print(stderr, "warning: {}\n", r.result.cg.message);
       save_mesh(a->out, r.result.V, mesh.triangles(),
