@@ -70,8 +70,10 @@ nlohmann::json drag_json(const DragReport& r) {
 void print_drag(const DragReport& r, const std::string& out) {
   fmt::print("moved {} vertices (region of {} free vertices), largest displacement {:.4g}\n", r.result.moved_vertices,
              r.result.region.size(), r.result.max_displacement);
-  fmt::print("time {:.1f} ms (operators {:.1f} ms, solve {:.1f} ms, {} CG iterations, relative residual {:.2g})\n",
-             r.setup_ms + r.solve_ms, r.setup_ms, r.solve_ms, r.result.cg.iterations, r.result.cg.relative_residual);
+  const std::string how = r.result.cg.iterations > 0 ? fmt::format("{} CG iterations", r.result.cg.iterations)
+                                                     : std::string("direct solve");
+  fmt::print("time {:.1f} ms (operators {:.1f} ms, solve {:.1f} ms, {}, relative residual {:.2g})\n",
+             r.setup_ms + r.solve_ms, r.setup_ms, r.solve_ms, how, r.result.cg.relative_residual);
   fmt::print("wrote {}\n", out);
 }
 
