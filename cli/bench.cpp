@@ -6,13 +6,17 @@
 #include <chrono>
 #include <memory>
 #include <numeric>
+#include <span>
 
 #include "commands.h"
 #include "meshpde/apps/haptics.h"
+#include "meshpde/apps/local_drag.h"
+#include "meshpde/core/errors.h"
 #include "meshpde/mesh/generators.h"
 #include "meshpde/mesh/topology.h"
 #include "meshpde/operators/fem_operators.h"
 #include "meshpde/pde/pde_session.h"
+#include "meshpde/pde/steady_direct.h"
 
 namespace meshpde::cli {
 
@@ -168,6 +172,50 @@ void add_bench_command(CLI::App& app) {
           "positions 24 + K_ii 8 + M 8 per vertex; CSR offsets 4 per vertex; "
           "neighbour index 4 + K_ij 8 per adjacency slot";
       j["mesh_topology_bytes_per_vertex"] = static_cast<double>(big.connectivity_bytes()) / nv;
+    }
+
+    {
+      // Local drag with a reused factor: a region of about 10k free vertices on the 655k
+      // mesh, bi-Laplacian, the handle moved a little each update. Baseline: the same
+      // updates solved by warm-started Jacobi-CG on the same region.
+      progress("drag with a reused factor: 10k-vertex region on 655k");
+      int handle = 0;
+      big.positions().col(2).maxCoeff(&handle);
+      std::vector<int> region = geodesic_ball(big, handle, 59.0);  // about 10k vertices at unit edge length
+      region.erase(std::remove(region.begin(), region.end(), handle), region.end());
+      const auto t_setup = clock_type::now();
+      const SteadyDirectSolver drag(big, big_ops, PdeCoefficients{.g0 = 0, .g1 = 0, .g2 = 1}, region);
+      j["drag_setup_ms_10k_region"] = seconds_since(t_setup) * 1e3;
+      j["drag_region_vertices"] = drag.num_free();
+      Field u = Field::Zero(nv, 3);
+      std::vector<double> us;
+      const Eigen::Vector3d nrm = big.positions().row(handle).normalized();
+      for (int k = 1; k <= (*quick ? 50 : 200); ++k) {
+        u.row(handle) = (0.01 * k) * nrm.transpose();
+        const auto t = clock_type::now();
+        const Eigen::MatrixXd x = drag.solve_free(u);
+        us.push_back(seconds_since(t) * 1e6);
+        if (!x.allFinite()) throw SolverError("drag benchmark produced non-finite values");
+      }
+      const Percentiles dp = percentiles(us);
+      j["drag_p50_us_10k_region"] = dp.p50;
+      j["drag_p99_us_10k_region"] = dp.p99;
+      PdeSession cg(big, big_ops, 3, PdeCoefficients{.alpha = 0, .b1 = 0, .b2 = 0, .g0 = 0, .g1 = 0, .g2 = 1},
+                    DomainOptions{.seed_rings = 0});
+      cg.cg_options.tolerance = 1e-8;
+      cg.activate(region);
+      std::vector<double> cg_us;
+      int iterations = 0;
+      for (int k = 1; k <= 3; ++k) {
+        const Eigen::Vector3d target = (0.01 * k) * nrm;
+        cg.constrain(handle, std::span<const double>(target.data(), 3));
+        const auto t = clock_type::now();
+        iterations += cg.solve_steady().cg.iterations;
+        cg_us.push_back(seconds_since(t) * 1e6);
+      }
+      j["drag_cg_baseline_us_per_update"] = percentiles(cg_us).p50;
+      j["drag_cg_baseline_iterations_per_update"] = iterations / 3.0;
+      j["drag_speedup_over_cg"] = percentiles(cg_us).p50 / dp.p50;
     }
 
     progress("poke on 10k (level 5)");

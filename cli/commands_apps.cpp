@@ -385,12 +385,12 @@ void add_interpolate_command(CLI::App& app) {
     nlohmann::json report{{"constraints", cons.size()}, {"g1", a->g1}, {"g2", a->g2}};
     for (const auto& [name, method] : runs) {
       const auto t0 = std::chrono::steady_clock::now();
-      const InterpolationResult r =
-          interpolate(mesh, ops, kind, cons,
-                      InterpolationParams{.g1 = a->g1,
-                                          .g2 = a->g2,
-                                          .method = method,
-                                          .solver = a->solver == "direct" ? SteadySolver::Direct : SteadySolver::Iterative});
+      const InterpolationResult r = interpolate(
+          mesh, ops, kind, cons,
+          InterpolationParams{.g1 = a->g1,
+                              .g2 = a->g2,
+                              .method = method,
+                              .solver = a->solver == "direct" ? SteadySolver::Direct : SteadySolver::Iterative});
       const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
       RenderOptions ro = a->r;
       apply_view_options(ro, a->view, a->up, a->size);

@@ -10,13 +10,13 @@ namespace meshpde {
 
 SteadyDirectSolver::SteadyDirectSolver(const Mesh& mesh, const FemOperators& ops, const PdeCoefficients& c,
                                        std::vector<int> free, SparseCholesky::Backend backend)
-    : mesh_(mesh), ops_(ops), c_(c), free_(std::move(free)), local_(mesh.num_vertices(), -1), chol_(backend) {
+    : mesh_(mesh), ops_(ops), c_(c), free_(std::move(free)), chol_(backend) {
   const int nv = mesh.num_vertices(), n = static_cast<int>(free_.size());
+  local_.reserve(2 * static_cast<std::size_t>(n));
   for (int k = 0; k < n; ++k) {
     const int v = free_[k];
     if (v < 0 || v >= nv) throw InputError(fmt::format("free vertex {} does not exist (the mesh has {})", v, nv));
-    if (local_[v] >= 0) throw InputError(fmt::format("free vertex {} is listed twice", v));
-    local_[v] = k;
+    if (!local_.emplace(v, k).second) throw InputError(fmt::format("free vertex {} is listed twice", v));
   }
   const auto off = mesh.offsets();
   const auto nbr = mesh.neighbors();
@@ -33,7 +33,7 @@ SteadyDirectSolver::SteadyDirectSolver(const Mesh& mesh, const FemOperators& ops
         stack.pop_back();
         members.push_back(free_[k]);
         for (int t = off[free_[k]]; t < off[free_[k] + 1]; ++t) {
-          const int j = local_[nbr[t]];
+          const int j = local_index(nbr[t]);
           if (j < 0)
             anchored = true;
           else if (comp[j] < 0) {
@@ -52,24 +52,21 @@ SteadyDirectSolver::SteadyDirectSolver(const Mesh& mesh, const FemOperators& ops
   // Assemble Kt_FF from CSR rows: K_FF directly, K D K as (K_SF)^T D_S K_SF.
   std::vector<Eigen::Triplet<double>> t;
   std::vector<int> S;  // F and its ring, local index into K_SF rows
-  std::vector<int> s_index(nv, -1);
-  for (int v : free_) {
-    if (s_index[v] < 0) {
-      s_index[v] = static_cast<int>(S.size());
-      S.push_back(v);
+  {
+    std::unordered_map<int, int> s_index;
+    s_index.reserve(4 * static_cast<std::size_t>(n));
+    for (int v : free_) {
+      if (s_index.emplace(v, static_cast<int>(S.size())).second) S.push_back(v);
+      for (int q = off[v]; q < off[v + 1]; ++q)
+        if (s_index.emplace(nbr[q], static_cast<int>(S.size())).second) S.push_back(nbr[q]);
     }
-    for (int q = off[v]; q < off[v + 1]; ++q)
-      if (s_index[nbr[q]] < 0) {
-        s_index[nbr[q]] = static_cast<int>(S.size());
-        S.push_back(nbr[q]);
-      }
   }
   for (int k = 0; k < n; ++k) {
     const int v = free_[k];
     t.emplace_back(k, k, c.g0 * ops.mass[v] + c.g1 * ops.Kii[v]);
     if (c.g1 != 0)
       for (int q = off[v]; q < off[v + 1]; ++q)
-        if (local_[nbr[q]] >= 0) t.emplace_back(k, local_[nbr[q]], c.g1 * ops.Kij[q]);
+        if (const int j = local_index(nbr[q]); j >= 0) t.emplace_back(k, j, c.g1 * ops.Kij[q]);
   }
   Eigen::SparseMatrix<double> A(n, n);
   A.setFromTriplets(t.begin(), t.end());
@@ -77,9 +74,9 @@ SteadyDirectSolver::SteadyDirectSolver(const Mesh& mesh, const FemOperators& ops
     std::vector<Eigen::Triplet<double>> ks;
     for (std::size_t r = 0; r < S.size(); ++r) {
       const int i = S[r];
-      if (local_[i] >= 0) ks.emplace_back(static_cast<int>(r), local_[i], ops.Kii[i]);
+      if (const int li = local_index(i); li >= 0) ks.emplace_back(static_cast<int>(r), li, ops.Kii[i]);
       for (int q = off[i]; q < off[i + 1]; ++q)
-        if (local_[nbr[q]] >= 0) ks.emplace_back(static_cast<int>(r), local_[nbr[q]], ops.Kij[q]);
+        if (const int j = local_index(nbr[q]); j >= 0) ks.emplace_back(static_cast<int>(r), j, ops.Kij[q]);
     }
     Eigen::SparseMatrix<double> KSF(static_cast<Eigen::Index>(S.size()), n);
     KSF.setFromTriplets(ks.begin(), ks.end());
@@ -93,6 +90,13 @@ SteadyDirectSolver::SteadyDirectSolver(const Mesh& mesh, const FemOperators& ops
 }
 
 Field SteadyDirectSolver::solve(const Field& u, const Field* f) const {
+  const Eigen::MatrixXd x = solve_free(u, f);
+  Field out = u;
+  for (std::size_t k = 0; k < free_.size(); ++k) out.row(free_[k]) = x.row(static_cast<Eigen::Index>(k));
+  return out;
+}
+
+Eigen::MatrixXd SteadyDirectSolver::solve_free(const Field& u, const Field* f) const {
   const int nv = mesh_.num_vertices(), n = static_cast<int>(free_.size());
   if (u.rows() != nv) throw InputError(fmt::format("values have {} rows for {} vertices", u.rows(), nv));
   if (f && (f->rows() != nv || f->cols() != u.cols())) throw InputError("forcing has the wrong shape");
@@ -100,7 +104,7 @@ Field SteadyDirectSolver::solve(const Field& u, const Field* f) const {
   const auto off = mesh_.offsets();
   const auto nbr = mesh_.neighbors();
   // b_F = f_F - Kt_FC u_C: Kt applied to the held values only (free entries read as 0).
-  auto held = [&](int j, int c) { return local_[j] >= 0 ? 0.0 : u(j, c); };
+  auto held = [&](int j, int c) { return local_.count(j) ? 0.0 : u(j, c); };
   auto K_held = [&](int i, int c) {
     double y = ops_.Kii[i] * held(i, c);
     for (int q = off[i]; q < off[i + 1]; ++q) y += ops_.Kij[q] * held(nbr[q], c);
@@ -125,9 +129,7 @@ Field SteadyDirectSolver::solve(const Field& u, const Field* f) const {
     const double bn = b.col(c).norm();
     if (bn > 0) residual_ = std::max(residual_, (b.col(c) - A_ * x.col(c)).norm() / bn);
   }
-  Field out = u;
-  for (int k = 0; k < n; ++k) out.row(free_[k]) = x.row(k);
-  return out;
+  return x;
 }
 
 }  // namespace meshpde

@@ -7,6 +7,7 @@
 // Jacobi-CG's iteration count grows like h^-4 (see docs/solvers.md).
 #pragma once
 
+#include <unordered_map>
 #include <vector>
 
 #include "meshpde/mesh/mesh.h"
@@ -31,6 +32,10 @@ class SteadyDirectSolver {
   /// Returns u with the free rows solved; the other rows of u are the held values.
   /// `f` (optional) is the load, #V x m like u.
   Field solve(const Field& u, const Field* f = nullptr) const;
+  /// The free rows only (num_free() x m, in the order of the free list): reads u only
+  /// at held neighbours, so the cost follows the region, not the mesh.
+  Eigen::MatrixXd solve_free(const Field& u, const Field* f = nullptr) const;
+  const std::vector<int>& free_vertices() const { return free_; }
 
   /// Relative residual |b - Kt_FF x| / |b| of the last solve (worst column).
   double last_relative_residual() const { return residual_; }
@@ -42,7 +47,11 @@ class SteadyDirectSolver {
   const FemOperators& ops_;
   PdeCoefficients c_;
   std::vector<int> free_;
-  std::vector<int> local_;  // vertex -> index in free_, or -1
+  std::unordered_map<int, int> local_;  // vertex -> index in free_ (sized to the region, not the mesh)
+  int local_index(int v) const {
+    const auto it = local_.find(v);
+    return it == local_.end() ? -1 : it->second;
+  }
   Eigen::SparseMatrix<double> A_;
   SparseCholesky chol_;
   mutable double residual_ = 0;
