@@ -238,10 +238,6 @@ void local_stiffness(const std::vector<int>& off, const std::vector<int>& nbr, c
   }
 }
 
-}  // namespace
-
-namespace {
-
 // The hot kernel of every localized step, cloned for AVX2+FMA with a run-time choice
 // (GCC function multiversioning): users' builds stay portable, capable CPUs go faster.
 __attribute__((target_clones("arch=x86-64-v3", "default"))) void local_stiffness3(const int* off, const int* nbr,
