@@ -1,0 +1,106 @@
+#include "meshpde/pde/global_bilaplacian.h"
+
+#include <fmt/format.h>
+
+#include <chrono>
+#include <cmath>
+
+#include "meshpde/core/errors.h"
+
+namespace meshpde {
+
+GlobalBilaplacianResult solve_global_bilaplacian(const Mesh& mesh, const FemOperators& ops,
+                                                 const std::vector<int>& free, const Field& u,
+                                                 const GlobalBilaplacianParams& p) {
+  using clock = std::chrono::steady_clock;
+  const auto t0 = clock::now();
+  const int nv = mesh.num_vertices(), n = static_cast<int>(free.size()), m = static_cast<int>(u.cols());
+  if (!(p.g2 > 0) || !(p.g1 >= 0)) throw InputError("the global bi-Laplacian solver needs g2 > 0 and g1 >= 0");
+  if (u.rows() != nv) throw InputError(fmt::format("values have {} rows for {} vertices", u.rows(), nv));
+  std::vector<int> local(nv, -1);
+  for (int k = 0; k < n; ++k) {
+    const int v = free[k];
+    if (v < 0 || v >= nv || local[v] >= 0) throw InputError(fmt::format("free vertex {} is invalid or repeated", v));
+    local[v] = k;
+  }
+  const auto off = mesh.offsets();
+  const auto nbr = mesh.neighbors();
+  // K_SF with S = all vertices (rows), F = free (columns); K_FF its free rows.
+  std::vector<Eigen::Triplet<double>> t, tf;
+  for (int i = 0; i < nv; ++i) {
+    if (local[i] >= 0) t.emplace_back(i, local[i], ops.Kii[i]);
+    for (int q = off[i]; q < off[i + 1]; ++q)
+      if (local[nbr[q]] >= 0) t.emplace_back(i, local[nbr[q]], ops.Kij[q]);
+  }
+  Eigen::SparseMatrix<double> KSF(nv, n);
+  KSF.setFromTriplets(t.begin(), t.end());
+  for (int k = 0; k < n; ++k) {
+    const int i = free[k];
+    tf.emplace_back(k, k, ops.Kii[i]);
+    for (int q = off[i]; q < off[i + 1]; ++q)
+      if (local[nbr[q]] >= 0) tf.emplace_back(k, local[nbr[q]], ops.Kij[q]);
+  }
+  Eigen::SparseMatrix<double> KFF(n, n);
+  KFF.setFromTriplets(tf.begin(), tf.end());
+  SparseCholesky chol;
+  chol.factorize(KFF);
+  Eigen::VectorXd d(nv), mass_f(n);
+  for (int i = 0; i < nv; ++i) d[i] = ops.D(i);
+  for (int k = 0; k < n; ++k) mass_f[k] = ops.mass[free[k]];
+  // Right-hand side: -(Kt w)_F with w the held values (free entries zero).
+  Field w = u;
+  for (int v : free) w.row(v).setZero();
+  const Field Kw = apply_stiffness(mesh, ops, w);
+  Field DKw = Kw;
+  for (int i = 0; i < nv; ++i) DKw.row(i) *= d[i];
+  const Field KDKw = apply_stiffness(mesh, ops, DKw);
+  Eigen::MatrixXd b(n, m);
+  for (int k = 0; k < n; ++k) b.row(k) = -(p.g1 * Kw.row(free[k]) + p.g2 * KDKw.row(free[k]));
+  auto apply = [&](const Eigen::MatrixXd& x) -> Eigen::MatrixXd {
+    const Eigen::MatrixXd kx = KSF * x;
+    Eigen::MatrixXd y = p.g2 * (KSF.transpose() * (d.asDiagonal() * kx));
+    if (p.g1 != 0) y += p.g1 * (KFF * x);
+    return y;
+  };
+  auto precondition = [&](const Eigen::MatrixXd& r) -> Eigen::MatrixXd {
+    return (chol.solve(mass_f.asDiagonal() * chol.solve(r))) / p.g2;
+  };
+  GlobalBilaplacianResult res;
+  res.setup_seconds = std::chrono::duration<double>(clock::now() - t0).count();
+  const auto t1 = clock::now();
+  // Block PCG: every component its own step lengths, one operator application for all.
+  Eigen::MatrixXd x = Eigen::MatrixXd::Zero(n, m), r = b, z = precondition(r), pdir = z;
+  Eigen::VectorXd bn = b.colwise().norm().transpose(), rz = (r.cwiseProduct(z)).colwise().sum().transpose();
+  auto worst = [&] {
+    double rel = 0;
+    for (int c = 0; c < m; ++c) rel = std::max(rel, bn[c] > 0 ? r.col(c).norm() / bn[c] : 0.0);
+    return rel;
+  };
+  res.relative_residual = worst();
+  while (res.relative_residual > p.tolerance && res.iterations < p.max_iterations) {
+    const Eigen::MatrixXd q = apply(pdir);
+    for (int c = 0; c < m; ++c) {
+      const double pq = pdir.col(c).dot(q.col(c));
+      if (!(pq > 0)) continue;  // this component has converged (or is zero)
+      const double alpha = rz[c] / pq;
+      x.col(c) += alpha * pdir.col(c);
+      r.col(c) -= alpha * q.col(c);
+    }
+    z = precondition(r);
+    for (int c = 0; c < m; ++c) {
+      const double rz_new = r.col(c).dot(z.col(c));
+      pdir.col(c) = z.col(c) + (rz[c] > 0 ? rz_new / rz[c] : 0.0) * pdir.col(c);
+      rz[c] = rz_new;
+    }
+    ++res.iterations;
+    res.relative_residual = worst();
+    if (!std::isfinite(res.relative_residual)) throw SolverError("global bi-Laplacian solve: the residual became NaN");
+  }
+  res.converged = res.relative_residual <= p.tolerance;
+  res.values = u;
+  for (int k = 0; k < n; ++k) res.values.row(free[k]) = x.row(k);
+  res.solve_seconds = std::chrono::duration<double>(clock::now() - t1).count();
+  return res;
+}
+
+}  // namespace meshpde
