@@ -71,19 +71,9 @@ DragResult drag_vertex(const Mesh& mesh, const FemOperators& ops, const DragPara
                     .relative_residual = solver.last_relative_residual(),
                     .message = {}};
     // Reaction at the handle: row of Kt applied to the solution (steady: no inertia).
-    const FemOperators& o = ops;
-    const auto off = mesh.offsets();
-    const auto nbr = mesh.neighbors();
-    auto Kd = [&](int i, int c) {
-      double y = o.Kii[i] * r.displacement(i, c);
-      for (int q = off[i]; q < off[i + 1]; ++q) y += o.Kij[q] * r.displacement(nbr[q], c);
-      return y;
-    };
     for (int c = 0; c < 3; ++c) {
-      const int h = p.vertex;
-      double kdk = o.Kii[h] * o.D(h) * Kd(h, c);
-      for (int q = off[h]; q < off[h + 1]; ++q) kdk += o.Kij[q] * o.D(nbr[q]) * Kd(nbr[q], c);
-      r.reaction[c] = p.g1 * Kd(h, c) + p.g2 * kdk;
+      auto d = [&](int j) { return r.displacement(j, c); };
+      r.reaction[c] = p.g1 * stiffness_row(mesh, ops, p.vertex, d) + p.g2 * bilaplacian_row(mesh, ops, p.vertex, d);
     }
   } else {
     PdeSession s(mesh, ops, 3, PdeCoefficients{.alpha = 0, .b1 = 0, .b2 = 0, .g1 = p.g1, .g2 = p.g2},

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <vector>
 
+#include "csr_row.h"
 #include "meshpde/core/errors.h"
 #include "meshpde/mesh/topology.h"
 
@@ -100,23 +101,12 @@ void apply_stiffness_rows(const Mesh& mesh, const FemOperators& ops, const doubl
   if (m == 1) {
     for (const int i : rows) {
       prefetch_row(off[i], kij, nbr);
-      double y = kii[i] * U[i];
-      for (int s = off[i]; s < off[i + 1]; ++s) y += kij[s] * U[nbr[s]];
-      Y[i] = y;
+      detail::csr_row<1>(i, off, nbr, kij, kii, U, Y);
     }
   } else if (m == 3) {
     for (const int i : rows) {
       prefetch_row(off[i], kij, nbr);
-      double y0 = kii[i] * U[3 * i], y1 = kii[i] * U[3 * i + 1], y2 = kii[i] * U[3 * i + 2];
-      for (int s = off[i]; s < off[i + 1]; ++s) {
-        const double* u = U + 3 * nbr[s];
-        y0 += kij[s] * u[0];
-        y1 += kij[s] * u[1];
-        y2 += kij[s] * u[2];
-      }
-      Y[3 * i] = y0;
-      Y[3 * i + 1] = y1;
-      Y[3 * i + 2] = y2;
+      detail::csr_row<3>(i, off, nbr, kij, kii, U, Y);
     }
   } else {
     for (const int i : rows) {

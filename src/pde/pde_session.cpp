@@ -5,8 +5,8 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
-#include <unordered_set>
 
+#include "../operators/csr_row.h"
 #include "meshpde/core/errors.h"
 
 namespace meshpde {
@@ -30,6 +30,7 @@ PdeSession::PdeSession(const Mesh& mesh, const FemOperators& ops, int components
   reaction_.resize(0, m_);
   kdk_diag_ = Eigen::VectorXd::Constant(nv, std::numeric_limits<double>::quiet_NaN());
   local_id_.assign(nv, -1);
+  visit_mark_.assign(nv, 0u);
   rest_count_.assign(nv, 0);
 }
 
@@ -85,20 +86,26 @@ void PdeSession::deactivate_all() {
 }
 
 void PdeSession::activate_rings(int v, int k) {
-  // Breadth-first search over k rings; cost follows the neighbourhood, not the mesh.
-  std::vector<int> frontier{v}, seen{v};
-  std::unordered_set<int> visited{v};
-  for (int r = 0; r < k; ++r) {
-    std::vector<int> next;
-    for (int a : frontier)
-      for (int b : mesh_.neighbors(a))
-        if (visited.insert(b).second) {
-          seen.push_back(b);
-          next.push_back(b);
-        }
-    frontier.swap(next);
+  // Breadth-first search over k rings with a visit stamp (no allocation once the
+  // scratch vectors have grown); cost follows the neighbourhood, not the mesh.
+  if (++visit_stamp_ == 0) {  // wrapped around: clear the marks once
+    std::fill(visit_mark_.begin(), visit_mark_.end(), 0u);
+    visit_stamp_ = 1;
   }
-  for (int w : seen)
+  ring_seen_.assign(1, v);
+  visit_mark_[v] = visit_stamp_;
+  std::size_t begin = 0;
+  for (int r = 0; r < k; ++r) {
+    const std::size_t end = ring_seen_.size();
+    for (std::size_t q = begin; q < end; ++q)
+      for (int b : mesh_.neighbors(ring_seen_[q]))
+        if (visit_mark_[b] != visit_stamp_) {
+          visit_mark_[b] = visit_stamp_;
+          ring_seen_.push_back(b);
+        }
+    begin = end;
+  }
+  for (int w : ring_seen_)
     if (domain_.state(w) == VertexState::Frozen) free_vertex(w);
 }
 
@@ -108,6 +115,13 @@ void PdeSession::constrain(int v, std::span<const double> value) {
     throw InputError(fmt::format("constraint at vertex {} has {} components, the field has {}", v, value.size(), m_));
   for (double x : value)
     if (!std::isfinite(x)) throw InputError(fmt::format("constraint at vertex {} is not finite", v));
+  // A constraint that is unchanged and already reached needs no seeding (a haptic
+  // probe held still re-sends its target every servo step).
+  if (cons_pos_[v] >= 0) {
+    bool same = true;
+    for (int c = 0; c < m_; ++c) same &= cons_target_(cons_pos_[v], c) == value[c] && u_(v, c) == value[c];
+    if (same) return;
+  }
   if (cons_pos_[v] < 0) {
     domain_.make_constrained(v);
     cons_pos_[v] = static_cast<int>(cons_.size());
@@ -209,51 +223,29 @@ void PdeSession::build_local_system() {
 
 namespace {
 
-// y(rows 0..n) = K x over the local CSR, m components.
-void local_stiffness3(const int* off, const int* nbr, const double* w, const double* kii, const double* x, double* y,
-                      int n);
+// y(rows 0..n) = K x over the local CSR, three components: the hot kernel of every
+// localized step, cloned for AVX2+FMA with a run-time choice (GCC function
+// multiversioning), so users' builds stay portable and capable CPUs go faster.
+__attribute__((target_clones("arch=x86-64-v3", "default"))) void local_stiffness3(const int* off, const int* nbr,
+                                                                                  const double* w, const double* kii,
+                                                                                  const double* x, double* y, int n) {
+  for (int i = 0; i < n; ++i) detail::csr_row<3>(i, off, nbr, w, kii, x, y);
+}
 
 template <int M>
 void local_stiffness(const std::vector<int>& off, const std::vector<int>& nbr, const std::vector<double>& w,
                      const std::vector<double>& kii, const double* x, double* y, int n, int m_dyn) {
   if constexpr (M == 3) {
     local_stiffness3(off.data(), nbr.data(), w.data(), kii.data(), x, y, n);
-    return;
-  }
-  const int m = M > 0 ? M : m_dyn;
-  for (int i = 0; i < n; ++i) {
-    double acc[8];
-    const int mm = std::min(m, 8);
-    for (int c = 0; c < mm; ++c) acc[c] = kii[i] * x[m * i + c];
-    for (int s = off[i]; s < off[i + 1]; ++s) {
-      const double* xs = x + m * nbr[s];
-      for (int c = 0; c < mm; ++c) acc[c] += w[s] * xs[c];
-    }
-    for (int c = 0; c < mm; ++c) y[m * i + c] = acc[c];
-    for (int c = 8; c < m; ++c) {  // wide fields (rare): plain loop
-      double a = kii[i] * x[m * i + c];
-      for (int s = off[i]; s < off[i + 1]; ++s) a += w[s] * x[m * nbr[s] + c];
-      y[m * i + c] = a;
-    }
-  }
-}
-
-// The hot kernel of every localized step, cloned for AVX2+FMA with a run-time choice
-// (GCC function multiversioning): users' builds stay portable, capable CPUs go faster.
-__attribute__((target_clones("arch=x86-64-v3", "default"))) void local_stiffness3(const int* off, const int* nbr,
-                                                                                  const double* w, const double* kii,
-                                                                                  const double* x, double* y, int n) {
-  for (int i = 0; i < n; ++i) {
-    double a0 = kii[i] * x[3 * i], a1 = kii[i] * x[3 * i + 1], a2 = kii[i] * x[3 * i + 2];
-    for (int s = off[i]; s < off[i + 1]; ++s) {
-      const double* xs = x + 3 * nbr[s];
-      a0 += w[s] * xs[0];
-      a1 += w[s] * xs[1];
-      a2 += w[s] * xs[2];
-    }
-    y[3 * i] = a0;
-    y[3 * i + 1] = a1;
-    y[3 * i + 2] = a2;
+  } else if constexpr (M == 1) {
+    for (int i = 0; i < n; ++i) detail::csr_row<1>(i, off.data(), nbr.data(), w.data(), kii.data(), x, y);
+  } else {
+    for (int i = 0; i < n; ++i)  // any other component count (rare): one pass per component
+      for (int c = 0; c < m_dyn; ++c) {
+        double a = kii[i] * x[m_dyn * i + c];
+        for (int s = off[i]; s < off[i + 1]; ++s) a += w[s] * x[m_dyn * nbr[s] + c];
+        y[m_dyn * i + c] = a;
+      }
   }
 }
 
@@ -384,25 +376,14 @@ StepResult PdeSession::solve(Mode mode, double dt, const Field* f) {
   for (int k = 0; k < nc; ++k) u_.row(cons_[k]) = cons_target_.row(k);
 
   // Reaction forces: Kt applied at each constrained vertex to w = u + b2 v (Step) or u
-  // (Steady), computed over its two rings directly from the CSR arrays.
-  const int* off = mesh_.offsets().data();
-  const int* nbr = mesh_.neighbors().data();
+  // (Steady), over its two rings.
   const double s = mode == Mode::Step ? coef_.b2 : 0.0;
-  auto w = [&](int j, int c) { return u_(j, c) + s * v_(j, c); };
-  auto Kw = [&](int j, int c) {
-    double y = ops_.Kii[j] * w(j, c);
-    for (int t = off[j]; t < off[j + 1]; ++t) y += ops_.Kij[t] * w(nbr[t], c);
-    return y;
-  };
   for (int k = 0; k < nc; ++k) {
     const int i = cons_[k];
     for (int c = 0; c < m_; ++c) {
-      double kt = coef_.g0 * ops_.mass[i] * w(i, c) + coef_.g1 * Kw(i, c);
-      if (coef_.g2 != 0) {
-        double kdk = ops_.Kii[i] * ops_.D(i) * Kw(i, c);
-        for (int t = off[i]; t < off[i + 1]; ++t) kdk += ops_.Kij[t] * ops_.D(nbr[t]) * Kw(nbr[t], c);
-        kt += coef_.g2 * kdk;
-      }
+      auto w = [&](int j) { return u_(j, c) + s * v_(j, c); };
+      double kt = coef_.g0 * ops_.mass[i] * w(i) + coef_.g1 * stiffness_row(mesh_, ops_, i, w);
+      if (coef_.g2 != 0) kt += coef_.g2 * bilaplacian_row(mesh_, ops_, i, w);
       double force = kt - (f ? (*f)(i, c) : 0.0);
       if (mode == Mode::Step)
         force += coef_.alpha * ops_.mass[i] * (v_(i, c) - v_old_c(k, c)) / dt + coef_.b1 * ops_.mass[i] * v_(i, c);

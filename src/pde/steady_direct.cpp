@@ -101,25 +101,14 @@ Eigen::MatrixXd SteadyDirectSolver::solve_free(const Field& u, const Field* f) c
   if (u.rows() != nv) throw InputError(fmt::format("values have {} rows for {} vertices", u.rows(), nv));
   if (f && (f->rows() != nv || f->cols() != u.cols())) throw InputError("forcing has the wrong shape");
   const int m = static_cast<int>(u.cols());
-  const auto off = mesh_.offsets();
-  const auto nbr = mesh_.neighbors();
   // b_F = f_F - Kt_FC u_C: Kt applied to the held values only (free entries read as 0).
-  auto held = [&](int j, int c) { return local_.count(j) ? 0.0 : u(j, c); };
-  auto K_held = [&](int i, int c) {
-    double y = ops_.Kii[i] * held(i, c);
-    for (int q = off[i]; q < off[i + 1]; ++q) y += ops_.Kij[q] * held(nbr[q], c);
-    return y;
-  };
   Eigen::MatrixXd b(n, m);
   for (int k = 0; k < n; ++k) {
     const int i = free_[k];
     for (int c = 0; c < m; ++c) {
-      double kt = c_.g1 * K_held(i, c);
-      if (c_.g2 != 0) {
-        double kdk = ops_.Kii[i] * ops_.D(i) * K_held(i, c);
-        for (int q = off[i]; q < off[i + 1]; ++q) kdk += ops_.Kij[q] * ops_.D(nbr[q]) * K_held(nbr[q], c);
-        kt += c_.g2 * kdk;
-      }
+      auto held = [&](int j) { return local_.count(j) ? 0.0 : u(j, c); };
+      double kt = c_.g1 * stiffness_row(mesh_, ops_, i, held);
+      if (c_.g2 != 0) kt += c_.g2 * bilaplacian_row(mesh_, ops_, i, held);
       b(k, c) = (f ? (*f)(i, c) : 0.0) - kt;
     }
   }

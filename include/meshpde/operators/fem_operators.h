@@ -67,6 +67,27 @@ Eigen::VectorXd vertex_to_face_average(const Mesh& mesh, const Eigen::VectorXd& 
 /// Diagonal of K D K: (K D K)_ii = sum_j K_ij^2 D_jj over j = i and its neighbours.
 double bilaplacian_diagonal(const Mesh& mesh, const FemOperators& ops, int i);
 
+/// (K w)_i for one vertex, the field read through value(j) -> double. For the few rows
+/// that reaction forces and right-hand sides need, without a whole-mesh apply.
+template <class Value>
+double stiffness_row(const Mesh& mesh, const FemOperators& ops, int i, Value&& value) {
+  const auto off = mesh.offsets();
+  const auto nbr = mesh.neighbors();
+  double y = ops.Kii[i] * value(i);
+  for (int s = off[i]; s < off[i + 1]; ++s) y += ops.Kij[s] * value(nbr[s]);
+  return y;
+}
+
+/// (K D K w)_i for one vertex (reads w two rings out).
+template <class Value>
+double bilaplacian_row(const Mesh& mesh, const FemOperators& ops, int i, Value&& value) {
+  const auto off = mesh.offsets();
+  const auto nbr = mesh.neighbors();
+  double y = ops.Kii[i] * ops.D(i) * stiffness_row(mesh, ops, i, value);
+  for (int s = off[i]; s < off[i + 1]; ++s) y += ops.Kij[s] * ops.D(nbr[s]) * stiffness_row(mesh, ops, nbr[s], value);
+  return y;
+}
+
 /// Y = K U, Y = M U, Y = K D K U over the whole mesh; U is #V x m.
 Field apply_stiffness(const Mesh& mesh, const FemOperators& ops, const Field& U);
 Field apply_mass(const FemOperators& ops, const Field& U);

@@ -168,8 +168,11 @@ class PdeSession {
   LocalSystem local_;
   Block rhs_, sol_;  // per-solve right-hand side and iterate, kept to avoid allocations
   Eigen::VectorXd inv_diag_;
-  std::vector<int> snapshot_;  // adjust_domain's copy of A
-  std::vector<int> local_id_;  // vertex -> local index, -1 outside (kept -1 between solves)
+  std::vector<int> snapshot_;         // adjust_domain's copy of A
+  std::vector<unsigned> visit_mark_;  // activate_rings' visit stamps, one per vertex
+  unsigned visit_stamp_ = 0;
+  std::vector<int> ring_seen_;  // activate_rings' breadth-first order
+  std::vector<int> local_id_;   // vertex -> local index, -1 outside (kept -1 between solves)
   void build_local_system();
   void apply_local(const double* P, double* Y, double cM, double cK);
 };
