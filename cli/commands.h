@@ -34,6 +34,11 @@ std::pair<int, double> parse_vertex_value(const Mesh& mesh, const std::string& s
 /// Reads the vector field NAME stored as vertex properties NAME_x, NAME_y, NAME_z.
 Eigen::MatrixX3d vector_field(const MeshData& d, const std::string& name, const std::string& file);
 
+/// Reads any supported mesh format (.obj .off .ply .stl, and .vtp .vtk when built
+/// with meshpde::medical); writes likewise, returning the writer's warnings.
+MeshData read_mesh_file(const std::filesystem::path& path);
+std::vector<std::string> write_mesh_file(const std::filesystem::path& path, const MeshData& data);
+
 /// Reads a mesh, prints reader warnings to stderr, builds connectivity.
 Mesh load_mesh(const std::filesystem::path& path, MeshData* data = nullptr);
 

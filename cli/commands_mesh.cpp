@@ -76,7 +76,7 @@ void add_mesh_commands(CLI::App& app) {
     auto* cmd = app.add_subcommand("info", "Report counts, topology, defects and shape quality of a mesh");
     auto path = std::make_shared<std::string>();
     auto json = std::make_shared<bool>(false);
-    cmd->add_option("MESH", *path, "Mesh file (.obj .off .ply .stl)")->required();
+    cmd->add_option("MESH", *path, "Mesh file (.obj .off .ply .stl .vtp .vtk)")->required();
     cmd->add_flag("--json", *json, "Print a JSON object");
     cmd->callback([=] {
       const Mesh mesh = load_mesh(*path);
@@ -85,6 +85,23 @@ void add_mesh_commands(CLI::App& app) {
         print_json(report_json(r));
       else
         print_report(*path, r);
+    });
+  }
+  {
+    auto* cmd = app.add_subcommand("convert",
+                                   "Convert a mesh between formats, keeping its vertex fields and data arrays "
+                                   "where the output format can hold them");
+    auto in = std::make_shared<std::string>();
+    auto out = std::make_shared<std::string>();
+    cmd->add_option("IN", *in, "Input mesh (.obj .off .ply .stl .vtp .vtk)")->required();
+    cmd->add_option("OUT", *out, "Output mesh; the format follows the extension")->required();
+    cmd->callback([=] {
+      MeshData d = read_mesh_file(*in);
+      for (const auto& w : d.warnings) fmt::print(stderr, "warning: {}\n", w);
+      Mesh(d.V, d.F);  // validates indices and coordinates before anything is written
+      for (const auto& w : write_mesh_file(*out, d)) fmt::print(stderr, "warning: {}\n", w);
+      fmt::print("{}: {} vertices, {} triangles, {} vertex fields\n", *out, d.V.rows(), d.F.rows(),
+                 d.vertex_scalars.size() + d.point_arrays.size());
     });
   }
   {

@@ -47,6 +47,26 @@ else
   echo "skipped real-data checks: $DATA missing"
 fi
 
+# medical formats (.vtp/.vtk): counts, arrays kept through convert, clear errors
+if [ -f "$DATA/aorta-closed-6k.vtp" ]; then
+  "$M" info "$DATA/aorta-closed-6k.vtp" --json >"$T/a.json" || bad "info .vtp"
+  check "aorta vtp vertices" [ "$(json "$T/a.json" "d['vertices']")" = 6468 ]
+  check "aorta vtp inward" [ "$(json "$T/a.json" "d['signed_volume'] < 0")" = True ]
+  "$M" convert "$DATA/aorta-closed-6k.vtp" "$T/a.ply" >/dev/null || bad "convert vtp -> ply"
+  check "ply keeps the Scalars_ array" grep -q "property double Scalars_" "$T/a.ply"
+  "$M" convert "$T/a.ply" "$T/a.vtk" >/dev/null && "$M" convert "$T/a.vtk" "$T/a2.vtp" >/dev/null || bad "convert ply -> vtk -> vtp"
+  check "vtp written with Normals_ as one 3-component array" grep -q 'Name="Normals_" NumberOfComponents="3"' "$T/a2.vtp"
+  "$M" info "$DATA/aorta-centerlines.vtp" 2>"$T/err" >/dev/null
+  check "centerlines (lines only) exit 1" [ $? -eq 1 ]
+  check "centerlines message" grep -q "aorta-centerlines.vtp: contains no polygons" "$T/err"
+elif [ "${CI:-}" = true ]; then
+  bad "missing $DATA/aorta-closed-6k.vtp under CI"
+fi
+printf '<?xml version="1.0"?>\n<VTKFile type="PolyData"><PolyData><Piece NumberOfPoints="3"' >"$T/cut.vtp"
+"$M" info "$T/cut.vtp" 2>"$T/err" >/dev/null
+check "truncated vtp exits 1" [ $? -eq 1 ]
+check "truncated vtp message names the file" grep -q "cut.vtp" "$T/err"
+
 # a solver on a badly shaped mesh warns
 if [ -f "$DATA/aorta-open-6k.stl" ]; then
   "$M" curvature "$DATA/aorta-open-6k.stl" 2>"$T/err" >/dev/null || bad "curvature on aorta"

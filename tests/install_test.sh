@@ -17,3 +17,6 @@ cmake -S "$consumer" -B "$T/build" -G Ninja -DCMAKE_PREFIX_PATH="$T/prefix" "${e
 cmake --build "$T/build" >/dev/null
 "$T/build/consumer" | tee "$T/out"
 grep -q "K 1 = 0" "$T/out"
+if ls "$T"/prefix/lib*/libmeshpde_medical.* >/dev/null 2>&1; then
+  grep -q "vtp round trip: same" "$T/out"
+fi

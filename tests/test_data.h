@@ -23,9 +23,9 @@ inline bool under_ci() {
   return ci && std::string(ci) == "true";
 }
 
-/// Loads ../shared/data/NAME into `mesh`; returns false (after failing or skipping)
-/// when the file is absent. Use as: if (!load(...)) return;
-inline bool load_data(const std::string& name, Mesh& mesh, MeshData* data = nullptr) {
+/// True when ../shared/data/NAME exists; otherwise fails (CI) or skips the test.
+/// Use as: if (!have_data(...)) return;
+inline bool have_data(const std::string& name) {
   const auto path = data_dir() / name;
   if (!std::filesystem::exists(path)) {
     if (under_ci()) {
@@ -36,7 +36,14 @@ inline bool load_data(const std::string& name, Mesh& mesh, MeshData* data = null
     }
     return false;
   }
-  MeshData d = read_mesh(path);
+  return true;
+}
+
+/// Loads ../shared/data/NAME (a core format) into `mesh`; returns false (after
+/// failing or skipping) when the file is absent.
+inline bool load_data(const std::string& name, Mesh& mesh, MeshData* data = nullptr) {
+  if (!have_data(name)) return false;
+  MeshData d = read_mesh(data_dir() / name);
   mesh = Mesh(d.V, d.F);
   if (data) *data = std::move(d);
   return true;

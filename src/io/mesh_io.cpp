@@ -71,8 +71,11 @@ std::vector<std::string> write_mesh(const std::filesystem::path& path, const Mes
   const auto format = format_from_path(path);
   std::vector<std::string> warnings;
   if (!data.vertex_scalars.empty() && format != MeshFormat::Ply)
-    warnings.push_back(fmt::format("{}: this format cannot store vertex fields; {} field(s) dropped (use .ply)",
+    warnings.push_back(fmt::format("{}: this format cannot store vertex fields; {} field(s) dropped (use .ply or .vtp)",
                                    path.string(), data.vertex_scalars.size()));
+  if (!data.point_arrays.empty() || !data.cell_arrays.empty())
+    warnings.push_back(fmt::format("{}: {} point and {} cell data array(s) dropped (only .vtp and .vtk keep them)",
+                                   path.string(), data.point_arrays.size(), data.cell_arrays.size()));
   for (const auto& [key, field] : data.vertex_scalars)
     if (field.size() != data.V.rows())
       throw InputError(fmt::format("field '{}' has {} values for {} vertices", key, field.size(), data.V.rows()));

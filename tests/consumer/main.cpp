@@ -1,7 +1,11 @@
 // A downstream project: builds operators on a generated sphere through the
-// installed package and checks one identity.
+// installed package and checks one identity; with meshpde::medical, also writes
+// the sphere as .vtp bytes and reads it back.
 #include <meshpde/mesh/generators.h>
 #include <meshpde/operators/fem_operators.h>
+#ifdef CONSUMER_HAS_MEDICAL
+#include <meshpde/io/medical_io.h>
+#endif
 
 #include <cstdio>
 
@@ -12,5 +16,14 @@ int main() {
   const meshpde::Field ones = meshpde::Field::Ones(mesh.num_vertices(), 1);
   const double r = meshpde::apply_stiffness(mesh, ops, ones).cwiseAbs().maxCoeff();
   std::printf("%d vertices, K 1 = 0 up to %.1e\n", mesh.num_vertices(), r);
+#ifdef CONSUMER_HAS_MEDICAL
+  meshpde::MeshData d;
+  d.V = g.V;
+  d.F = g.F;
+  const auto back =
+      meshpde::read_vtk_mesh_from_memory(meshpde::write_vtk_mesh_to_memory(d, "vtp"), "vtp", "consumer.vtp");
+  std::printf("vtp round trip: %s\n", back.V == d.V && back.F == d.F ? "same" : "DIFFERENT");
+  if (!(back.V == d.V && back.F == d.F)) return 1;
+#endif
   return r < 1e-12 ? 0 : 1;
 }

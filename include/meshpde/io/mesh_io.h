@@ -23,12 +23,28 @@ namespace meshpde {
 
 enum class MeshFormat { Obj, Off, Ply, Stl };
 
+/// A data array that only some formats carry (VTK point or cell data with any
+/// number of components): rows x components values plus the VTK type name it was
+/// read as ("Float32", "Int64", ...), so a round trip writes the same type back.
+struct DataArray {
+  Eigen::MatrixXd values;
+  std::string type = "Float64";
+};
+
 /// What a reader returns: plain arrays plus per-vertex scalar fields by name.
+///
+/// Vector fields follow one convention in every format: a 3-component field NAME
+/// is stored as the scalars NAME_x, NAME_y, NAME_z (PLY properties as they are;
+/// VTK arrays are split on reading and joined again on writing).
 struct MeshData {
   Positions V;
   Triangles F;
   std::map<std::string, Eigen::VectorXd> vertex_scalars;  ///< each of length #V
-  std::vector<std::string> warnings;                      ///< e.g. "triangulated 78 quads"
+  std::map<std::string, DataArray> point_arrays;          ///< other point data (VTK only: 2, 4+ components)
+  std::map<std::string, DataArray> cell_arrays;           ///< cell data, one row per triangle (VTK only)
+  std::map<std::string, std::string> scalar_types;        ///< VTK type of a vertex_scalars entry, when read from VTK
+  std::string space;                  ///< "LPS" or "RAS" when the file says so (3D Slicer's SPACE= header), else empty
+  std::vector<std::string> warnings;  ///< e.g. "triangulated 78 quads"
 };
 
 struct WriteOptions {

@@ -1,0 +1,436 @@
+// meshpde::medical: VTK PolyData and volume readers. The encodings the real data
+// lack are written here by hand (base64, zlib, NIfTI header bytes), independently
+// of VTK's writers, so the readers are checked against the file formats themselves.
+#include <fmt/format.h>
+#include <gtest/gtest.h>
+#include <zlib.h>
+
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+
+#include "meshpde/core/errors.h"
+#include "meshpde/io/medical_io.h"
+#include "meshpde/mesh/mesh.h"
+#include "test_data.h"
+
+using namespace meshpde;
+namespace fs = std::filesystem;
+
+namespace {
+
+fs::path scratch(const std::string& name) {
+  const fs::path dir = fs::temp_directory_path() / "meshpde_test_medical";
+  fs::create_directories(dir);
+  return dir / name;
+}
+
+void write_bytes(const fs::path& p, const std::string& s) {
+  std::ofstream out(p, std::ios::binary);
+  out.write(s.data(), static_cast<std::streamsize>(s.size()));
+}
+
+std::string base64(const std::string& in) {
+  static const char* t = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+  std::string out;
+  std::size_t i = 0;
+  for (; i + 2 < in.size(); i += 3) {
+    const unsigned v = (unsigned char)in[i] << 16 | (unsigned char)in[i + 1] << 8 | (unsigned char)in[i + 2];
+    out += {t[v >> 18], t[(v >> 12) & 63], t[(v >> 6) & 63], t[v & 63]};
+  }
+  if (i + 1 == in.size()) {
+    const unsigned v = (unsigned char)in[i] << 16;
+    out += {t[v >> 18], t[(v >> 12) & 63], '=', '='};
+  } else if (i + 2 == in.size()) {
+    const unsigned v = (unsigned char)in[i] << 16 | (unsigned char)in[i + 1] << 8;
+    out += {t[v >> 18], t[(v >> 12) & 63], t[(v >> 6) & 63], '='};
+  }
+  return out;
+}
+
+template <class T>
+std::string bytes_of(const std::vector<T>& v) {
+  return std::string(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(T));
+}
+
+template <class H>
+std::string header_bytes(std::initializer_list<std::size_t> values) {
+  std::string s;
+  for (auto v : values) {
+    const H h = static_cast<H>(v);
+    s.append(reinterpret_cast<const char*>(&h), sizeof(H));
+  }
+  return s;
+}
+
+// One VTK XML data block: [header][data], the header as the format defines it for
+// uncompressed (byte count) or zlib (one block: 1, size, size, compressed size) data.
+template <class H>
+std::pair<std::string, std::string> block(const std::string& data, bool compress) {
+  if (!compress) return {header_bytes<H>({data.size()}), data};
+  uLongf n = compressBound(data.size());
+  std::string z(n, '\0');
+  EXPECT_EQ(
+      compress2(reinterpret_cast<Bytef*>(z.data()), &n, reinterpret_cast<const Bytef*>(data.data()), data.size(), 6),
+      Z_OK);
+  z.resize(n);
+  return {header_bytes<H>({1, data.size(), data.size(), z.size()}), z};
+}
+
+// A unit tetrahedron as .vtp text in the requested encoding.
+struct VtpOptions {
+  bool appended = false;
+  bool base64 = true;  // appended: base64 or raw; inline binary is always base64
+  bool compress = false;
+  bool uint64_header = false;
+  bool float64_points = false;
+  bool int64_ids = false;
+};
+
+template <class H>
+std::string make_vtp(const VtpOptions& o) {
+  std::vector<double> p64 = {0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1};
+  std::vector<float> p32(p64.begin(), p64.end());
+  std::vector<long long> c64 = {0, 2, 1, 0, 1, 3, 0, 3, 2, 1, 2, 3}, o64 = {3, 6, 9, 12};
+  std::vector<int> c32(c64.begin(), c64.end()), o32(o64.begin(), o64.end());
+  std::vector<float> temperature = {1.5f, 2.5f, 3.5f, 4.5f};
+  std::vector<int> label = {7, 8, 9, 10};
+  struct Arr {
+    std::string name, type, data;
+    int comps;
+  };
+  std::vector<std::vector<Arr>> sections = {
+      {{"temperature", "Float32", bytes_of(temperature), 1}},
+      {{"label", "Int32", bytes_of(label), 1}},
+      {{"Points", o.float64_points ? "Float64" : "Float32", o.float64_points ? bytes_of(p64) : bytes_of(p32), 3}},
+      {{"connectivity", o.int64_ids ? "Int64" : "Int32", o.int64_ids ? bytes_of(c64) : bytes_of(c32), 1},
+       {"offsets", o.int64_ids ? "Int64" : "Int32", o.int64_ids ? bytes_of(o64) : bytes_of(o32), 1}}};
+  std::string appended;
+  auto element = [&](const Arr& a) {
+    auto [h, d] = block<H>(a.data, o.compress);
+    std::string head = "<DataArray type=\"" + a.type + "\" Name=\"" + a.name + "\" NumberOfComponents=\"" +
+                       std::to_string(a.comps) + "\" format=\"";
+    if (o.appended) {
+      const std::string offset = std::to_string(appended.size());
+      appended += o.base64 ? base64(h) + base64(d) : h + d;
+      return head + "appended\" offset=\"" + offset + "\"/>\n";
+    }
+    return head + "binary\">" + base64(h) + base64(d) + "</DataArray>\n";
+  };
+  std::string x = "<?xml version=\"1.0\"?>\n<VTKFile type=\"PolyData\" version=\"1.0\" byte_order=\"LittleEndian\"";
+  x += std::string(" header_type=\"") + (o.uint64_header ? "UInt64" : "UInt32") + "\"";
+  if (o.compress) x += " compressor=\"vtkZLibDataCompressor\"";
+  x += ">\n<PolyData>\n<Piece NumberOfPoints=\"4\" NumberOfPolys=\"4\">\n";
+  x += "<PointData>\n" + element(sections[0][0]) + "</PointData>\n";
+  x += "<CellData>\n" + element(sections[1][0]) + "</CellData>\n";
+  x += "<Points>\n" + element(sections[2][0]) + "</Points>\n";
+  x += "<Polys>\n" + element(sections[3][0]) + element(sections[3][1]) + "</Polys>\n";
+  x += "</Piece>\n</PolyData>\n";
+  if (o.appended)
+    x += std::string("<AppendedData encoding=\"") + (o.base64 ? "base64" : "raw") + "\">\n_" + appended +
+         "\n</AppendedData>\n";
+  x += "</VTKFile>\n";
+  return x;
+}
+
+void expect_tetrahedron(const MeshData& d, const std::string& what) {
+  SCOPED_TRACE(what);
+  ASSERT_EQ(d.V.rows(), 4);
+  ASSERT_EQ(d.F.rows(), 4);
+  EXPECT_EQ(d.V(1, 0), 1.0);
+  EXPECT_EQ(d.V(3, 2), 1.0);
+  EXPECT_EQ(d.F(0, 1), 2);
+  EXPECT_EQ(d.F(3, 2), 3);
+  ASSERT_TRUE(d.vertex_scalars.count("temperature"));
+  EXPECT_EQ(d.vertex_scalars.at("temperature")(2), 3.5);
+  EXPECT_EQ(d.scalar_types.at("temperature"), "Float32");
+  ASSERT_TRUE(d.cell_arrays.count("label"));
+  EXPECT_EQ(d.cell_arrays.at("label").values(3, 0), 10.0);
+  EXPECT_EQ(d.cell_arrays.at("label").type, "Int32");
+}
+
+}  // namespace
+
+TEST(Vtp, EveryEncodingOfTheFormatReads) {
+  for (int appended = 0; appended < 2; ++appended)
+    for (int b64 = 0; b64 < 2; ++b64)
+      for (int compress = 0; compress < 2; ++compress)
+        for (int u64 = 0; u64 < 2; ++u64)
+          for (int wide = 0; wide < 2; ++wide) {
+            if (!appended && !b64) continue;  // inline binary data is always base64
+            VtpOptions o{static_cast<bool>(appended), static_cast<bool>(b64),  static_cast<bool>(compress),
+                         static_cast<bool>(u64),      static_cast<bool>(wide), static_cast<bool>(wide)};
+            const std::string text = u64 ? make_vtp<std::uint64_t>(o) : make_vtp<std::uint32_t>(o);
+            const std::string what =
+                fmt::format("appended {} base64 {} zlib {} UInt64 {} 64-bit {}", appended, b64, compress, u64, wide);
+            expect_tetrahedron(read_vtk_mesh_from_memory(text, "vtp", "tet.vtp"), what);
+          }
+}
+
+TEST(Vtp, RealFilesReadWithTheirArraysAndQuadsTriangulated) {
+  if (!test::have_data("aorta-closed-6k.vtp") || !test::have_data("carotid-ica-4k.vtp")) return;
+  const MeshData aorta = read_any_mesh(test::data_dir() / "aorta-closed-6k.vtp");
+  EXPECT_EQ(aorta.V.rows(), 6468);
+  EXPECT_EQ(aorta.F.rows(), 12932);
+  EXPECT_TRUE(aorta.vertex_scalars.count("Scalars_"));
+  EXPECT_TRUE(aorta.vertex_scalars.count("Normals__x") && aorta.vertex_scalars.count("Normals__z"));
+  const MeshData carotid = read_any_mesh(test::data_dir() / "carotid-ica-4k.vtp");
+  EXPECT_EQ(carotid.V.rows(), 3862);
+  EXPECT_EQ(carotid.F.rows(), 7329 + 2 * 78);
+  ASSERT_FALSE(carotid.warnings.empty());
+  EXPECT_NE(carotid.warnings[0].find("triangulated 78"), std::string::npos);
+}
+
+TEST(Vtp, RoundTripKeepsPointsTrianglesAndArraysWithTheirTypes) {
+  VtpOptions o;
+  MeshData d = read_vtk_mesh_from_memory(make_vtp<std::uint32_t>(o), "vtp", "tet.vtp");
+  d.vertex_scalars["flow_x"] = Eigen::Vector4d(1, 2, 3, 4);
+  d.vertex_scalars["flow_y"] = Eigen::Vector4d(5, 6, 7, 8);
+  d.vertex_scalars["flow_z"] = Eigen::Vector4d(9, 10, 11, 12);
+  d.point_arrays["tensor2"] = DataArray{Eigen::MatrixXd::Constant(4, 2, 0.25), "Float64"};
+  d.V(2, 1) = 1.0 / 3.0;  // not representable in float: the writer must keep doubles
+  for (const char* ext : {".vtp", ".vtk"}) {
+    SCOPED_TRACE(ext);
+    const fs::path p = scratch(std::string("roundtrip") + ext);
+    write_any_mesh(p, d);
+    const MeshData r = read_any_mesh(p);
+    EXPECT_EQ(r.V, d.V);
+    EXPECT_EQ(r.F, d.F);
+    EXPECT_EQ(r.vertex_scalars.at("temperature"), d.vertex_scalars.at("temperature"));
+    EXPECT_EQ(r.scalar_types.at("temperature"), "Float32");
+    EXPECT_EQ(r.vertex_scalars.at("flow_y"), d.vertex_scalars.at("flow_y"));
+    EXPECT_EQ(r.point_arrays.at("tensor2").values, d.point_arrays.at("tensor2").values);
+    EXPECT_EQ(r.cell_arrays.at("label").values, d.cell_arrays.at("label").values);
+    EXPECT_EQ(r.cell_arrays.at("label").type, "Int32");
+  }
+}
+
+TEST(Vtp, LegacyAsciiWithSlicerSpaceHeader) {
+  const std::string text =
+      "# vtk DataFile Version 4.2\n3D Slicer output. SPACE=RAS\nASCII\nDATASET POLYDATA\n"
+      "POINTS 4 float\n0 0 0 1 0 0 0 1 0 0 0 1\nPOLYGONS 2 9\n3 0 1 2\n4 0 1 3 2\n"
+      "POINT_DATA 4\nSCALARS thickness float 1\nLOOKUP_TABLE default\n0.5 1 1.5 2\n";
+  const MeshData d = read_vtk_mesh_from_memory(text, "vtk", "slicer.vtk");
+  EXPECT_EQ(d.space, "RAS");
+  EXPECT_EQ(d.F.rows(), 3);  // the quad became two triangles
+  EXPECT_EQ(d.vertex_scalars.at("thickness")(3), 2.0);
+}
+
+TEST(Vtp, BadInputIsAnErrorNamingTheFile) {
+  const std::string good = make_vtp<std::uint32_t>({});
+  auto expect_error = [](const std::string& text, const std::string& kind, const std::string& needle) {
+    try {
+      read_vtk_mesh_from_memory(text, kind, "broken.vtp");
+      ADD_FAILURE() << "no error for " << needle;
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("broken.vtp"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();
+    }
+  };
+  expect_error(good.substr(0, good.size() / 2), "vtp", "broken.vtp");
+  expect_error("hello", "vtp", "not a VTK XML file");
+  expect_error(
+      "# vtk DataFile Version 4.2\nx\nASCII\nDATASET POLYDATA\nPOINTS 3 float\n0 0 0 1 0 0 0 1 0\n"
+      "POLYGONS 1 4\n3 0 1 7\n",
+      "vtk", "refers to point 7");
+  if (test::have_data("aorta-centerlines.vtp")) {
+    try {
+      read_any_mesh(test::data_dir() / "aorta-centerlines.vtp");
+      ADD_FAILURE() << "centerlines read as a surface";
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("no polygons"), std::string::npos) << e.what();
+    }
+  }
+}
+
+// ---------------------------------------------------------------- volumes
+
+namespace {
+
+// The test pattern: value = i + 10 j + 100 k, linear, so trilinear sampling is exact.
+std::vector<float> ramp(int nx, int ny, int nz) {
+  std::vector<float> v;
+  for (int k = 0; k < nz; ++k)
+    for (int j = 0; j < ny; ++j)
+      for (int i = 0; i < nx; ++i) v.push_back(static_cast<float>(i + 10 * j + 100 * k));
+  return v;
+}
+
+// A rotation of 30 degrees about z, spacing (0.5, 0.7, 1.2), in the given world frame.
+const double kTheta = M_PI / 6;
+Eigen::Matrix3d rotation() {
+  Eigen::Matrix3d R;
+  R << std::cos(kTheta), -std::sin(kTheta), 0, std::sin(kTheta), std::cos(kTheta), 0, 0, 0, 1;
+  return R;
+}
+const Eigen::Vector3d kSpacing(0.5, 0.7, 1.2);
+const Eigen::Vector3d kOffset(10, -20, 5);
+
+// Checks the volume maps index ijk to world_of(ijk) (given in `space`) with value f(ijk).
+void expect_geometry(const Volume& v, Space space, const std::function<Eigen::Vector3d(Eigen::Vector3d)>& world_of,
+                     double slope, double inter) {
+  ASSERT_EQ(v.dims[0], 4);
+  ASSERT_EQ(v.dims[1], 5);
+  ASSERT_EQ(v.dims[2], 6);
+  for (const Eigen::Vector3d& ijk :
+       {Eigen::Vector3d(1.5, 2.25, 3.5), Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(3, 4, 5)}) {
+    const auto value = v.sample(world_of(ijk), space);
+    ASSERT_TRUE(value.has_value()) << ijk.transpose();
+    EXPECT_NEAR(*value, slope * (ijk[0] + 10 * ijk[1] + 100 * ijk[2]) + inter, 1e-3) << ijk.transpose();
+  }
+  EXPECT_FALSE(v.sample(world_of(Eigen::Vector3d(-1, 0, 0)), space).has_value());
+}
+
+std::string gzip(const std::string& data) {
+  z_stream s{};
+  EXPECT_EQ(deflateInit2(&s, 6, Z_DEFLATED, 15 + 16, 8, Z_DEFAULT_STRATEGY), Z_OK);
+  std::string out(deflateBound(&s, data.size()) + 32, '\0');
+  s.next_in = reinterpret_cast<Bytef*>(const_cast<char*>(data.data()));
+  s.avail_in = static_cast<uInt>(data.size());
+  s.next_out = reinterpret_cast<Bytef*>(out.data());
+  s.avail_out = static_cast<uInt>(out.size());
+  EXPECT_EQ(deflate(&s, Z_FINISH), Z_STREAM_END);
+  out.resize(s.total_out);
+  deflateEnd(&s);
+  return out;
+}
+
+// NIfTI-1 single file: 348-byte header, 4 bytes of extension flag, float32 data.
+std::string nifti(bool use_sform, double slope, double inter) {
+  std::string h(352, '\0');
+  auto put = [&](std::size_t at, auto value) { std::memcpy(h.data() + at, &value, sizeof(value)); };
+  put(0, std::int32_t{348});
+  const std::int16_t dim[8] = {3, 4, 5, 6, 1, 1, 1, 1};
+  for (int i = 0; i < 8; ++i) put(40 + 2 * i, dim[i]);
+  put(70, std::int16_t{16});  // DT_FLOAT32
+  put(72, std::int16_t{32});
+  const float pixdim[8] = {1, float(kSpacing[0]), float(kSpacing[1]), float(kSpacing[2]), 1, 1, 1, 1};
+  for (int i = 0; i < 8; ++i) put(76 + 4 * i, pixdim[i]);
+  put(108, float{352});
+  put(112, static_cast<float>(slope));
+  put(116, static_cast<float>(inter));
+  put(123, std::uint8_t{10});  // xyzt_units: mm, s
+  const Eigen::Matrix3d A = rotation() * kSpacing.asDiagonal();
+  if (use_sform) {
+    put(254, std::int16_t{1});
+    for (int r = 0; r < 3; ++r) {
+      for (int c = 0; c < 3; ++c) put(280 + 16 * r + 4 * c, static_cast<float>(A(r, c)));
+      put(280 + 16 * r + 12, static_cast<float>(kOffset[r]));
+    }
+  } else {
+    put(252, std::int16_t{1});
+    put(264, static_cast<float>(std::sin(kTheta / 2)));  // quatern_d; b = c = 0
+    for (int r = 0; r < 3; ++r) put(268 + 4 * r, static_cast<float>(kOffset[r]));
+  }
+  std::memcpy(h.data() + 344, "n+1\0", 4);
+  return h + bytes_of(ramp(4, 5, 6));
+}
+
+}  // namespace
+
+TEST(Volume, AortaMeshLiesOnTheZeroLevelOfItsSegmentation) {
+  if (!test::have_data("aorta-levelset.mha") || !test::have_data("aorta-closed-6k.vtp")) return;
+  const Volume phi = read_volume(test::data_dir() / "aorta-levelset.mha");
+  EXPECT_EQ(phi.dims[0], 157);
+  EXPECT_EQ(phi.dims[2], 34);
+  EXPECT_EQ(phi.direction(0, 0), -1.0);
+  const MeshData aorta = read_any_mesh(test::data_dir() / "aorta-closed-6k.vtp");
+  double worst = 0;
+  int outside_lps = 0;
+  for (Eigen::Index i = 0; i < aorta.V.rows(); ++i) {
+    const Eigen::Vector3d p = aorta.V.row(i).transpose();
+    const auto value = phi.sample(p, Space::RAS);
+    ASSERT_TRUE(value.has_value()) << "vertex " << i << " outside the image";
+    worst = std::max(worst, std::abs(*value));
+    if (!phi.sample(p, Space::LPS)) ++outside_lps;
+  }
+  EXPECT_LT(worst, 1e-3);
+  // Reading the RAS mesh as LPS puts it outside the image: the option matters.
+  EXPECT_EQ(outside_lps, aorta.V.rows());
+}
+
+TEST(Volume, MetaImageWithRotatedDirectionAndDetachedData) {
+  const fs::path raw = scratch("ramp.raw"), mhd = scratch("ramp.mhd");
+  write_bytes(raw, bytes_of(ramp(4, 5, 6)));
+  const Eigen::Matrix3d R = rotation();
+  // Columns of the direction matrix, written one after the other (ITK's order).
+  write_bytes(mhd, fmt::format("ObjectType = Image\nNDims = 3\nBinaryData = True\nBinaryDataByteOrderMSB = False\n"
+                               "CompressedData = False\nTransformMatrix = {} {} {} {} {} {} {} {} {}\n"
+                               "Offset = {} {} {}\nElementSpacing = {} {} {}\nDimSize = 4 5 6\n"
+                               "ElementType = MET_FLOAT\nElementDataFile = ramp.raw\n",
+                               R(0, 0), R(1, 0), R(2, 0), R(0, 1), R(1, 1), R(2, 1), R(0, 2), R(1, 2), R(2, 2),
+                               kOffset[0], kOffset[1], kOffset[2], kSpacing[0], kSpacing[1], kSpacing[2]));
+  const Volume v = read_volume(mhd);
+  expect_geometry(
+      v, Space::LPS,
+      [&](const Eigen::Vector3d& ijk) -> Eigen::Vector3d { return kOffset + R * kSpacing.cwiseProduct(ijk); }, 1, 0);
+}
+
+TEST(Volume, NiftiSformQformScalingAndGzip) {
+  const Eigen::Matrix3d R = rotation();
+  // NIfTI's world is RAS: the same numbers as the MetaImage case, read in RAS.
+  auto world = [&](const Eigen::Vector3d& ijk) -> Eigen::Vector3d { return kOffset + R * kSpacing.cwiseProduct(ijk); };
+  for (int sform = 0; sform < 2; ++sform) {
+    SCOPED_TRACE(sform ? "sform" : "qform");
+    const std::string bytes = nifti(sform, 2.0, 3.0);
+    const fs::path nii = scratch("ramp.nii"), gz = scratch("ramp.nii.gz");
+    write_bytes(nii, bytes);
+    write_bytes(gz, gzip(bytes));
+    expect_geometry(read_volume(nii), Space::RAS, world, 2.0, 3.0);
+    expect_geometry(read_volume(gz), Space::RAS, world, 2.0, 3.0);
+  }
+}
+
+TEST(Volume, NrrdRasSpaceRawAndGzip) {
+  const Eigen::Matrix3d A = rotation() * kSpacing.asDiagonal();
+  auto world = [&](const Eigen::Vector3d& ijk) -> Eigen::Vector3d { return kOffset + A * ijk; };
+  for (int compressed = 0; compressed < 2; ++compressed) {
+    SCOPED_TRACE(compressed ? "gzip" : "raw");
+    const std::string header = fmt::format(
+        "NRRD0004\ntype: float\ndimension: 3\nspace: right-anterior-superior\nsizes: 4 5 6\n"
+        "space directions: ({},{},{}) ({},{},{}) ({},{},{})\nkinds: domain domain domain\nendian: little\n"
+        "encoding: {}\nspace origin: ({},{},{})\n\n",
+        A(0, 0), A(1, 0), A(2, 0), A(0, 1), A(1, 1), A(2, 1), A(0, 2), A(1, 2), A(2, 2), compressed ? "gzip" : "raw",
+        kOffset[0], kOffset[1], kOffset[2]);
+    const std::string data = bytes_of(ramp(4, 5, 6));
+    const fs::path p = scratch(compressed ? "ramp_gz.nrrd" : "ramp.nrrd");
+    write_bytes(p, header + (compressed ? gzip(data) : data));
+    expect_geometry(read_volume(p), Space::RAS, world, 1, 0);
+  }
+}
+
+TEST(Volume, GradientMagnitudeOfALinearRampIsItsSlopePerMillimetre) {
+  const fs::path raw = scratch("ramp2.raw"), mhd = scratch("ramp2.mhd");
+  write_bytes(raw, bytes_of(ramp(4, 5, 6)));
+  write_bytes(mhd,
+              "ObjectType = Image\nNDims = 3\nBinaryData = True\nCompressedData = False\n"
+              "ElementSpacing = 0.5 0.7 1.2\nDimSize = 4 5 6\nElementType = MET_FLOAT\nElementDataFile = ramp2.raw\n");
+  const Volume v = read_volume(mhd);
+  const Volume g = gradient_magnitude(v, 0.0);
+  const double expected = Eigen::Vector3d(1 / 0.5, 10 / 0.7, 100 / 1.2).norm();
+  EXPECT_NEAR(g.at(2, 2, 2), expected, 1e-3 * expected);
+  EXPECT_NEAR(g.at(0, 0, 0), expected, 1e-3 * expected);  // one-sided at the border
+  // Smoothing a linear field leaves it linear inside (clamped edges aside).
+  const Volume gs = gradient_magnitude(v, 0.3);
+  EXPECT_NEAR(gs.at(2, 2, 3), expected, 2e-2 * expected);
+}
+
+TEST(Volume, BadVolumesAreErrorsNamingTheFile) {
+  const fs::path mhd = scratch("short.mhd"), raw = scratch("short.raw");
+  write_bytes(raw, std::string(10, '\0'));
+  write_bytes(mhd,
+              "ObjectType = Image\nNDims = 3\nBinaryData = True\nElementSpacing = 1 1 1\nDimSize = 4 5 6\n"
+              "ElementType = MET_FLOAT\nElementDataFile = short.raw\n");
+  EXPECT_THROW(read_volume(mhd), InputError);
+  EXPECT_THROW(read_volume(scratch("absent.nii")), InputError);
+  const fs::path txt = scratch("x.nrrd");
+  write_bytes(txt, "hello\n");
+  try {
+    read_volume(txt);
+    ADD_FAILURE();
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("x.nrrd"), std::string::npos);
+  }
+}
