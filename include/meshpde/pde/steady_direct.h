@@ -37,8 +37,16 @@ class SteadyDirectSolver {
   Eigen::MatrixXd solve_free(const Field& u, const Field* f = nullptr) const;
   const std::vector<int>& free_vertices() const { return free_; }
 
-  /// Relative residual |b - Kt_FF x| / |b| of the last solve (worst column).
+  /// Relative residual |b - Kt_FF x| / |b| of the last solve (worst column), after
+  /// iterative refinement.
   double last_relative_residual() const { return residual_; }
+  /// Refinement steps the last solve took (0 when the first solve met refine_tolerance).
+  int last_refinements() const { return refinements_; }
+
+  /// Iterative refinement runs while the relative residual exceeds this (at most
+  /// max_refinements steps, stopping early if the residual stops falling).
+  double refine_tolerance = 1e-12;
+  int max_refinements = 5;
   const SparseCholesky& factor() const { return chol_; }
   int num_free() const { return static_cast<int>(free_.size()); }
 
@@ -55,6 +63,7 @@ class SteadyDirectSolver {
   Eigen::SparseMatrix<double> A_;
   SparseCholesky chol_;
   mutable double residual_ = 0;
+  mutable int refinements_ = 0;
 };
 
 }  // namespace meshpde
