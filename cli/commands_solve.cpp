@@ -7,6 +7,13 @@
 
 #include "commands.h"
 #include "meshpde/apps/local_drag.h"
+#include "meshpde/apps/vessel_correction.h"
+#include "meshpde/image/volume.h"
+#include "meshpde/mesh/self_intersections.h"
+#include "meshpde/operators/intrinsic_delaunay.h"
+#ifdef MESHPDE_HAVE_MEDICAL
+#include "meshpde/io/medical_io.h"
+#endif
 #include "meshpde/core/errors.h"
 #include "meshpde/mesh/generators.h"
 #include "meshpde/mesh/topology.h"
@@ -81,56 +88,210 @@ std::map<std::string, Eigen::VectorXd> displacement_fields(const DragResult& r) 
   return {{"displacement", r.displacement.rowwise().norm()}};
 }
 
+struct CorrectArgs {
+  std::string mesh, out, method = "fem", laplacian = "auto", stiffness, image, space, solver = "direct";
+  std::vector<std::string> vertices, moves, brushes;
+  int rings = 0, steps = 50, cube = 0, passes = 4;
+  double radius = 0, g1 = 0, g2 = 1, tol = 1e-10, image_weight = 1.0, image_sigma = 1.0, search = 5.0;
+  double mass = 0.1, elasticity = 0.9, viscosity = 0.6;
+  bool json = false, dynamic = false, allow_intersections = false;
+};
+
+Eigen::VectorXd stiffness_field(const Mesh& mesh, const MeshData& d, const CorrectArgs& a) {
+  if (a.stiffness.empty() && a.brushes.empty()) return {};
+  Eigen::VectorXd w = Eigen::VectorXd::Ones(mesh.num_vertices());
+  if (!a.stiffness.empty()) {
+    const auto it = d.vertex_scalars.find(a.stiffness);
+    if (it == d.vertex_scalars.end()) {
+      std::string names;
+      for (const auto& [k, v] : d.vertex_scalars) names += (names.empty() ? "" : ", ") + k;
+      throw InputError(fmt::format("{}: no vertex field '{}' for --stiffness (fields: {})", a.mesh, a.stiffness,
+                                   names.empty() ? "none" : names));
+    }
+    w = it->second;
+  }
+  for (const auto& b : a.brushes) {
+    const auto last = b.rfind(':'), mid = last == std::string::npos ? last : b.rfind(':', last - 1);
+    if (mid == std::string::npos) throw InputError(fmt::format("--brush '{}' must be V:RADIUS:VALUE", b));
+    const int v = parse_vertex(mesh, b.substr(0, mid), "--brush");
+    double radius = 0, value = 0;
+    try {
+      radius = std::stod(b.substr(mid + 1, last - mid - 1));
+      value = std::stod(b.substr(last + 1));
+    } catch (const std::exception&) {
+      throw InputError(fmt::format("--brush '{}': radius and value must be numbers", b));
+    }
+    if (!(radius > 0) || !(value > 0)) throw InputError(fmt::format("--brush '{}': radius and value must be > 0", b));
+    for (int u : geodesic_ball(mesh, v, radius)) w[u] = value;
+  }
+  return w;
+}
+
+void run_correct(const CorrectArgs& a) {
+  if (a.radius <= 0 && a.rings <= 0) throw InputError("give --radius MM or --rings K");
+  if (a.vertices.size() != a.moves.size())
+    throw InputError(
+        fmt::format("{} --vertex but {} --move: give one displacement per handle", a.vertices.size(), a.moves.size()));
+  MeshData data;
+  const Mesh mesh = load_mesh(a.mesh, &data);
+  warn_about_shape(mesh, a.mesh);
+  CorrectionParams p;
+  for (std::size_t k = 0; k < a.vertices.size(); ++k)
+    p.handles.push_back({parse_vertex(mesh, a.vertices[k], "--vertex"), parse_vector(a.moves[k], "--move")});
+  p.radius = a.radius;
+  p.rings = a.rings;
+  p.method = parse_correction_method(a.method);
+  p.g1 = a.g1;
+  p.g2 = a.g2;
+  p.laplacian = parse_laplacian_kind(a.laplacian);
+  p.stiffness = stiffness_field(mesh, data, a);
+  p.dynamic = a.dynamic;
+  p.steps = a.steps;
+  p.tissue = {a.mass, a.elasticity, a.viscosity};
+  p.prevent_intersections = !a.allow_intersections;
+  const Space space = !a.space.empty() ? parse_space(a.space) : data.space == "RAS" ? Space::RAS : Space::LPS;
+  if (!a.image.empty()) {
+#ifdef MESHPDE_HAVE_MEDICAL
+    const Volume volume = read_volume(a.image);
+    p.image.edges = std::make_shared<const Volume>(gradient_magnitude(volume, a.image_sigma));
+#else
+    throw InputError("--image needs meshpde built with meshpde::medical (VTK)");
+#endif
+    p.image.space = space;
+    p.image.weight = a.image_weight;
+    p.image.search_radius = a.search;
+    p.image.cube_size = a.cube;
+    p.image.passes = a.passes;
+  }
+
+  nlohmann::json j;
+  Positions V;
+  Field disp;
+  if (a.solver == "iterative") {
+    if (p.handles.size() != 1 || p.method != CorrectionMethod::Fem || a.dynamic || !a.image.empty() ||
+        p.stiffness.size())
+      throw InputError("--solver iterative supports one handle with the static fem method only");
+    DragParams dp{.vertex = p.handles[0].vertex,
+                  .displacement = p.handles[0].displacement,
+                  .radius = a.radius,
+                  .rings = a.rings,
+                  .g1 = a.g1,
+                  .g2 = a.g2};
+    dp.cg.tolerance = a.tol;
+    dp.solver = SteadySolver::Iterative;
+    const DragReport r = run_drag(mesh, dp);
+    if (!r.result.cg.converged()) fmt::print(stderr, "warning: {}\n", r.result.cg.message);
+    j = drag_json(r);
+    j["new_self_intersections"] = SelfIntersectionChecker(mesh).count_new(r.result.V, r.result.region);
+    V = r.result.V;
+    disp = r.result.displacement;
+    if (!r.result.cg.converged()) {
+      print_json(j);
+      throw SolverError("the solve did not converge; nothing written");
+    }
+  } else {
+    const CorrectionResult r = correct_vessel(mesh, p);
+    V = r.V;
+    disp = r.displacement;
+    j = {{"moved_vertices", r.moved_vertices},
+         {"max_displacement", r.max_displacement},
+         {"region_vertices", r.region.size()},
+         {"new_self_intersections", r.new_self_intersections},
+         {"time_ms", r.time_ms},
+         {"method", a.method},
+         {"dynamic", a.dynamic},
+         {"laplacian", to_string(r.laplacian)},
+         {"laplacian_reason", r.laplacian_reason},
+         {"relative_residual", r.relative_residual},
+         {"applied_fraction", r.applied_fraction},
+         {"substeps", r.substeps},
+         {"intersection_action", r.intersection_action},
+         {"handles", p.handles.size()}};
+    if (p.image.edges) {
+      j["image"] = {{"pulled_vertices", r.pulled_vertices},
+                    {"mean_edge_before", r.image_mean_edge_before},
+                    {"mean_edge_after", r.image_mean_edge_after},
+                    {"space", to_string(space)}};
+    }
+  }
+  // Keep everything the input carried; add the displacement (vector and length).
+  data.V = V;
+  const char* comp[3] = {"displacement_x", "displacement_y", "displacement_z"};
+  for (int c = 0; c < 3; ++c) data.vertex_scalars[comp[c]] = disp.col(c);
+  data.vertex_scalars["displacement_magnitude"] = disp.rowwise().norm();
+  for (const auto& w : write_mesh_file(a.out, data)) fmt::print(stderr, "warning: {}\n", w);
+  if (a.json) {
+    print_json(j);
+    return;
+  }
+  fmt::print("moved {} vertices (region of {} vertices), largest displacement {:.4g} mm, {} new self-intersections\n",
+             j["moved_vertices"].get<int>(), j["region_vertices"].get<std::size_t>(),
+             j["max_displacement"].get<double>(), j["new_self_intersections"].get<int>());
+  if (j.contains("intersection_action") && j["intersection_action"] != "none")
+    fmt::print("to avoid self-intersections: {}\n", j["intersection_action"].get<std::string>());
+  fmt::print("time {:.1f} ms, relative residual {:.2g}\n", j["time_ms"].get<double>(),
+             j["relative_residual"].get<double>());
+  fmt::print("wrote {}\n", a.out);
+}
+
 }  // namespace
 
 void add_solve_commands(CLI::App& app) {
   {
     auto* cmd = app.add_subcommand(
-        "correct", "Drag one vertex by a displacement; the region around it follows (bi-Laplacian, static)");
-    struct Args {
-      std::string mesh, move, out, solver = "direct";
-      int vertex = -1, rings = 0;
-      double radius = 0, g1 = 0, g2 = 1, tol = 1e-10;
-      bool json = false;
-    };
-    auto a = std::make_shared<Args>();
-    cmd->add_option("MESH", a->mesh, "Mesh file")->required();
-    cmd->add_option("--vertex", a->vertex, "Handle vertex index (0-based)")->required();
-    cmd->add_option("--move", a->move, "Displacement DX,DY,DZ in mesh units (mm)")->required();
-    auto* radius = cmd->add_option("--radius", a->radius, "Region of influence: edge-path distance in mesh units");
-    auto* rings = cmd->add_option("--rings", a->rings, "Region of influence in rings of neighbours");
+        "correct",
+        "Vessel-wall correction: move handle vertices by displacements (mm); the wall around them follows like tissue "
+        "(bi-Laplacian on the region of influence), never folding through itself");
+    auto a = std::make_shared<CorrectArgs>();
+    cmd->add_option("MESH", a->mesh, "Mesh file (.obj .off .ply .stl .vtp .vtk)")->required();
+    cmd->add_option("--vertex", a->vertices, "Handle vertex: index (0-based) or @X,Y,Z (nearest); repeat for several")
+        ->required();
+    cmd->add_option("--move", a->moves, "Displacement DX,DY,DZ in mm, one per --vertex")->required();
+    auto* radius = cmd->add_option("--radius", a->radius, "Region of influence: distance in mm from a handle");
+    auto* rings =
+        cmd->add_option("--rings", a->rings, "Region of influence in rings (the thesis's level of influence)");
     radius->excludes(rings);
+    cmd->add_option("--method", a->method, "fem (bi-Laplacian, ours) | springs (the thesis's mass-spring baseline)")
+        ->check(CLI::IsMember({"fem", "springs"}))
+        ->capture_default_str();
+    cmd->add_flag("--dynamic", a->dynamic,
+                  "Settle like tissue (mass, viscosity, elasticity) instead of a static solve");
+    cmd->add_option("--steps", a->steps, "Time steps of --dynamic")->capture_default_str();
+    cmd->add_option("--mass", a->mass, "Tissue mass in [0, 1] (thesis default 0.1)")->capture_default_str();
+    cmd->add_option("--elasticity", a->elasticity, "Tissue elasticity in [0, 1]")->capture_default_str();
+    cmd->add_option("--viscosity", a->viscosity, "Tissue viscosity in [0, 1] (1: critical damping)")
+        ->capture_default_str();
+    cmd->add_option("--stiffness", a->stiffness, "Per-vertex stiffness multiplier: name of a vertex field in MESH");
+    cmd->add_option("--brush", a->brushes,
+                    "Stiffness brush V:RADIUS:VALUE (vertex index or @X,Y,Z; radius in mm), applied after --stiffness; "
+                    "repeatable");
     cmd->add_option("--g1", a->g1, "Membrane (Laplacian) stiffness")->capture_default_str();
     cmd->add_option("--g2", a->g2, "Plate (bi-Laplacian) stiffness")->capture_default_str();
-    cmd->add_option("--solver", a->solver, "direct (sparse Cholesky of the region) | iterative (Jacobi-CG)")
+    cmd->add_option("--laplacian", a->laplacian,
+                    "auto (intrinsic Delaunay on badly shaped or non-manifold meshes) | cotan | intrinsic")
+        ->check(CLI::IsMember({"auto", "cotan", "intrinsic"}))
+        ->capture_default_str();
+    cmd->add_flag("--allow-intersections", a->allow_intersections,
+                  "Do not split or limit a correction that would make the surface intersect itself");
+    cmd->add_option("--image", a->image, "Volume (.mha .mhd .nii .nii.gz .nrrd .nhdr): pull the wall onto image edges");
+    cmd->add_option("--space", a->space,
+                    "Frame of the mesh coordinates: lps | ras (default: the file's SPACE= header, else lps)");
+    cmd->add_option("--image-weight", a->image_weight, "Strength of the pull towards edges")->capture_default_str();
+    cmd->add_option("--image-sigma", a->image_sigma, "Gaussian scale (mm) of the edge map")->capture_default_str();
+    cmd->add_option("--search-radius", a->search, "Distance (mm) searched for an edge, and from a handle pulled")
+        ->capture_default_str();
+    cmd->add_option("--cube", a->cube, "Thesis direction cube (odd, >= 3) instead of the search along the normal");
+    cmd->add_option("--passes", a->passes, "Image fixed-point passes")->capture_default_str();
+    cmd->add_option("--solver", a->solver,
+                    "direct (default) | iterative (Jacobi-CG, plain operator, one handle; for comparison)")
         ->check(CLI::IsMember({"direct", "iterative"}))
         ->capture_default_str();
     cmd->add_option("--tolerance", a->tol, "CG relative residual tolerance (iterative)")->capture_default_str();
-    cmd->add_option("-o,--output", a->out, "Corrected mesh (.ply keeps a 'displacement' magnitude field)")->required();
+    cmd->add_option("-o,--output", a->out,
+                    "Corrected mesh; its fields and data arrays are kept, a displacement field is added")
+        ->required();
     cmd->add_flag("--json", a->json, "Print a JSON report");
-    cmd->callback([=] {
-      if (a->radius <= 0 && a->rings <= 0) throw InputError("give --radius MM or --rings K");
-      const Mesh mesh = load_mesh(a->mesh);
-      warn_about_shape(mesh, a->mesh);
-      DragParams p{.vertex = a->vertex,
-                   .displacement = parse_vector(a->move, "--move"),
-                   .radius = a->radius,
-                   .rings = a->rings,
-                   .g1 = a->g1,
-                   .g2 = a->g2};
-      p.cg.tolerance = a->tol;
-      p.solver = a->solver == "direct" ? SteadySolver::Direct : SteadySolver::Iterative;
-      const DragReport r = run_drag(mesh, p);
-      if (!r.result.cg.converged()) fmt::print(stderr, "warning: {}\n", r.result.cg.message);
-      save_mesh(a->out, r.result.V, mesh.triangles(),
-                format_from_path(a->out) == MeshFormat::Ply ? displacement_fields(r.result)
-                                                            : std::map<std::string, Eigen::VectorXd>{});
-      if (a->json)
-        print_json(drag_json(r));
-      else
-        print_drag(r, a->out);
-      if (!r.result.cg.converged()) throw SolverError("the solve did not converge; the output is approximate");
-    });
+    cmd->callback([=] { run_correct(*a); });
   }
   {
     auto* cmd = app.add_subcommand(

@@ -9,9 +9,15 @@
 namespace meshpde {
 
 SteadyDirectSolver::SteadyDirectSolver(const Mesh& mesh, const FemOperators& ops, const PdeCoefficients& c,
-                                       std::vector<int> free, SparseCholesky::Backend backend)
+                                       std::vector<int> free, SparseCholesky::Backend backend,
+                                       const Eigen::VectorXd& extra_diagonal)
     : mesh_(mesh), ops_(ops), c_(c), free_(std::move(free)), chol_(backend) {
   const int nv = mesh.num_vertices(), n = static_cast<int>(free_.size());
+  const bool extra = extra_diagonal.size() > 0;
+  if (extra && extra_diagonal.size() != nv)
+    throw InputError(fmt::format("extra diagonal has {} values for {} vertices", extra_diagonal.size(), nv));
+  if (extra && !(extra_diagonal.minCoeff() >= 0 && extra_diagonal.allFinite()))
+    throw InputError("extra diagonal entries must be finite and non-negative");
   local_.reserve(2 * static_cast<std::size_t>(n));
   for (int k = 0; k < n; ++k) {
     const int v = free_[k];
@@ -32,6 +38,7 @@ SteadyDirectSolver::SteadyDirectSolver(const Mesh& mesh, const FemOperators& ops
         const int k = stack.back();
         stack.pop_back();
         members.push_back(free_[k]);
+        if (extra && extra_diagonal[free_[k]] > 0) anchored = true;
         for (int t = off[free_[k]]; t < off[free_[k] + 1]; ++t) {
           const int j = local_index(nbr[t]);
           if (j < 0)
@@ -63,7 +70,7 @@ SteadyDirectSolver::SteadyDirectSolver(const Mesh& mesh, const FemOperators& ops
   }
   for (int k = 0; k < n; ++k) {
     const int v = free_[k];
-    t.emplace_back(k, k, c.g0 * ops.mass[v] + c.g1 * ops.Kii[v]);
+    t.emplace_back(k, k, c.g0 * ops.mass[v] + c.g1 * ops.Kii[v] + (extra ? extra_diagonal[v] : 0.0));
     if (c.g1 != 0)
       for (int q = off[v]; q < off[v + 1]; ++q)
         if (const int j = local_index(nbr[q]); j >= 0) t.emplace_back(k, j, c.g1 * ops.Kij[q]);

@@ -23,11 +23,14 @@ enum class SteadySolver { Direct, Iterative };
 
 class SteadyDirectSolver {
  public:
-  /// Assembles and factors Kt_FF. Keeps references to mesh and ops.
+  /// Assembles and factors Kt_FF (+ diag(extra_diagonal) on the free rows, when
+  /// given: #V non-negative values, e.g. a per-vertex foundation or the inertia of
+  /// an implicit time step). Keeps references to mesh and ops.
   /// \throw InputError for a bad vertex; SolverError if a connected part of the free
   ///        set touches no held vertex (and g0 = 0): its values would be undetermined.
   SteadyDirectSolver(const Mesh& mesh, const FemOperators& ops, const PdeCoefficients& coefficients,
-                     std::vector<int> free, SparseCholesky::Backend backend = SparseCholesky::Backend::Auto);
+                     std::vector<int> free, SparseCholesky::Backend backend = SparseCholesky::Backend::Auto,
+                     const Eigen::VectorXd& extra_diagonal = Eigen::VectorXd());
 
   /// Returns u with the free rows solved; the other rows of u are the held values.
   /// `f` (optional) is the load, #V x m like u.

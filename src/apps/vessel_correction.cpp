@@ -1,0 +1,452 @@
+#include "meshpde/apps/vessel_correction.h"
+
+#include <fmt/format.h>
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <optional>
+#include <set>
+#include <unordered_map>
+
+#include "meshpde/apps/local_drag.h"
+#include "meshpde/core/errors.h"
+#include "meshpde/mesh/topology.h"
+#include "meshpde/pde/steady_direct.h"
+
+namespace meshpde {
+
+CorrectionMethod parse_correction_method(const std::string& text) {
+  if (text == "fem") return CorrectionMethod::Fem;
+  if (text == "springs") return CorrectionMethod::Springs;
+  throw InputError(fmt::format("unknown correction method '{}' (expected fem or springs)", text));
+}
+
+namespace {
+
+void validate(const Mesh& mesh, const CorrectionParams& p) {
+  const int nv = mesh.num_vertices();
+  if (p.handles.empty()) throw InputError("a correction needs at least one handle (vertex and displacement)");
+  for (const auto& h : p.handles) {
+    if (h.vertex < 0 || h.vertex >= nv)
+      throw InputError(fmt::format("handle vertex {} does not exist (the mesh has {} vertices)", h.vertex, nv));
+    if (!h.displacement.allFinite()) throw InputError(fmt::format("displacement of vertex {} is not finite", h.vertex));
+  }
+  if (p.radius <= 0 && p.rings <= 0)
+    throw InputError("give a region of influence: a radius in mm or a number of rings");
+  if (!(p.radius >= 0) || !std::isfinite(p.radius)) throw InputError("the region radius must be a finite number >= 0");
+  if (p.stiffness.size() != 0) {
+    if (p.stiffness.size() != nv)
+      throw InputError(fmt::format("stiffness field has {} values for {} vertices", p.stiffness.size(), nv));
+    for (int i = 0; i < nv; ++i)
+      if (!(p.stiffness[i] > 0) || !std::isfinite(p.stiffness[i]))
+        throw InputError(fmt::format("stiffness {} at vertex {} must be a finite positive number", p.stiffness[i], i));
+  }
+  for (double t : {p.tissue.mass, p.tissue.elasticity, p.tissue.viscosity})
+    if (!(t >= 0 && t <= 1)) throw InputError(fmt::format("tissue parameter {} is outside [0, 1]", t));
+  if (p.dynamic && p.steps < 1) throw InputError("a dynamic correction needs steps >= 1");
+  if (p.image.edges && p.method == CorrectionMethod::Springs)
+    throw InputError("image guidance is available with the fem method only");
+  if (p.image.cube_size != 0 && (p.image.cube_size < 3 || p.image.cube_size % 2 == 0))
+    throw InputError(fmt::format("direction cube size {} must be odd and at least 3", p.image.cube_size));
+}
+
+// Mean length of the mesh edges among `vertices`.
+double local_edge_length(const Mesh& mesh, const std::vector<int>& vertices) {
+  std::unordered_map<int, char> in;
+  for (int v : vertices) in.emplace(v, 1);
+  double sum = 0;
+  int n = 0;
+  for (int v : vertices)
+    for (int w : mesh.neighbors(v))
+      if (w > v && in.count(w)) {
+        sum += (mesh.positions().row(v) - mesh.positions().row(w)).norm();
+        ++n;
+      }
+  return n ? sum / n : 0.0;
+}
+
+// Union of the handles' regions, handles first, in breadth-first (ring) order.
+// A radius in mm is made resolution independent for the Fem method: the frozen
+// rings clamp the solution about one edge length h outside the last free vertex,
+// so the free set is taken within radius - h, which puts the clamp at the radius
+// whatever the mesh resolution (measured on tubes of 32, 64 and 128 segments: the
+// Hausdorff distance between the results halves).
+std::vector<int> region_of(const Mesh& mesh, const CorrectionParams& p) {
+  std::vector<int> out;
+  std::vector<char> seen(static_cast<std::size_t>(mesh.num_vertices()), 0);
+  for (const auto& h : p.handles)
+    if (!seen[static_cast<std::size_t>(h.vertex)]++) out.push_back(h.vertex);
+  for (const auto& h : p.handles) {
+    std::vector<int> ball;
+    if (p.radius > 0) {
+      ball = geodesic_ball(mesh, h.vertex, p.radius);
+      const double edge = local_edge_length(mesh, ball);
+      if (p.method == CorrectionMethod::Fem && edge > 0 && p.radius > 2 * edge)
+        ball = geodesic_ball(mesh, h.vertex, p.radius - edge);
+    } else {
+      ball = ring_ball(mesh, h.vertex, p.rings);
+    }
+    for (int v : ball)
+      if (!seen[static_cast<std::size_t>(v)]++) out.push_back(v);
+  }
+  return out;
+}
+
+Eigen::MatrixX3d vertex_normals(const Mesh& mesh) {
+  const auto& V = mesh.positions();
+  const auto& F = mesh.triangles();
+  Eigen::MatrixX3d N = Eigen::MatrixX3d::Zero(mesh.num_vertices(), 3);
+  for (int f = 0; f < mesh.num_faces(); ++f) {
+    const Eigen::Vector3d a = V.row(F(f, 0)), b = V.row(F(f, 1)), c = V.row(F(f, 2));
+    const Eigen::RowVector3d n = (b - a).cross(c - a).transpose();  // area-weighted
+    for (int k = 0; k < 3; ++k) N.row(F(f, k)) += n;
+  }
+  for (int i = 0; i < N.rows(); ++i) {
+    const double l = N.row(i).norm();
+    if (l > 0) N.row(i) /= l;
+  }
+  return N;
+}
+
+// Image guidance: where along its normal (or, with a cube, at which voxel nearby)
+// the edge map is strongest, for each pulled vertex at its current position q.
+struct ImageTargets {
+  std::vector<int> vertices;  // pulled vertices (inside the image)
+  std::vector<Eigen::Vector3d> target;
+};
+
+ImageTargets find_targets(const ImageGuidance& g, const std::vector<int>& pulled, const Positions& Q,
+                          const Eigen::MatrixX3d& normals) {
+  ImageTargets t;
+  const Volume& E = *g.edges;
+  const double step = 0.25 * E.spacing.minCoeff();
+  for (const int i : pulled) {
+    const Eigen::Vector3d q = Q.row(i).transpose();
+    if (!E.sample(q, g.space)) continue;
+    Eigen::Vector3d best = q;
+    if (g.cube_size >= 3) {
+      const Eigen::Vector3d idx = E.lps_to_index(to_lps(q, g.space));
+      const int h = g.cube_size / 2;
+      double best_value = -1;
+      for (int dk = -h; dk <= h; ++dk)
+        for (int dj = -h; dj <= h; ++dj)
+          for (int di = -h; di <= h; ++di) {
+            const int ii = static_cast<int>(std::lround(idx[0])) + di, jj = static_cast<int>(std::lround(idx[1])) + dj,
+                      kk = static_cast<int>(std::lround(idx[2])) + dk;
+            if (ii < 0 || jj < 0 || kk < 0 || ii >= E.dims[0] || jj >= E.dims[1] || kk >= E.dims[2]) continue;
+            if (E.at(ii, jj, kk) > best_value) {
+              best_value = E.at(ii, jj, kk);
+              best = to_lps(E.index_to_lps(Eigen::Vector3d(ii, jj, kk)), g.space);  // LPS <-> RAS is an involution
+            }
+          }
+    } else {
+      const Eigen::Vector3d n = normals.row(i).transpose();
+      double best_value = -1;
+      for (double s = -g.search_radius; s <= g.search_radius + 1e-12; s += step) {
+        const auto e = E.sample(q + s * n, g.space);
+        // Ties go to the nearer point, so a flat edge map leaves the vertex where it is.
+        if (e && (*e > best_value + 1e-12 || (std::abs(*e - best_value) <= 1e-12 && std::abs(s) < (best - q).norm()))) {
+          best_value = *e;
+          best = q + s * n;
+        }
+      }
+    }
+    t.vertices.push_back(i);
+    t.target.push_back(best);
+  }
+  return t;
+}
+
+double mean_edge_strength(const ImageGuidance& g, const std::vector<int>& vertices, const Positions& Q) {
+  double sum = 0;
+  int n = 0;
+  for (int i : vertices)
+    if (const auto e = g.edges->sample(Q.row(i).transpose(), g.space)) {
+      sum += *e;
+      ++n;
+    }
+  return n ? sum / n : 0.0;
+}
+
+// The thesis's method (see the header): ring by ring, each vertex moved once to
+// where its springs to already-placed neighbours are relaxed down to the
+// stability threshold.
+Field springs(const Mesh& mesh, const CorrectionParams& p, const std::vector<int>& region) {
+  const auto& V = mesh.positions();
+  Field d = Field::Zero(mesh.num_vertices(), 3);
+  std::vector<char> placed(static_cast<std::size_t>(mesh.num_vertices()), 0);
+  for (const auto& h : p.handles) {
+    d.row(h.vertex) = h.displacement.transpose();
+    placed[static_cast<std::size_t>(h.vertex)] = 1;
+  }
+  double scale = 0;
+  for (const auto& h : p.handles) scale = std::max(scale, h.displacement.norm());
+  const double c = std::max(p.tissue.elasticity, 1e-3);
+  for (const int j : region) {
+    if (placed[static_cast<std::size_t>(j)]) continue;
+    const Eigen::Vector3d p0 = V.row(j).transpose();
+    std::vector<Eigen::Vector3d> q;
+    std::vector<double> rest;
+    double mean_rest = 0;
+    for (const int i : mesh.neighbors(j))
+      if (placed[static_cast<std::size_t>(i)]) {
+        q.push_back(V.row(i).transpose() + d.row(i).transpose());
+        rest.push_back((V.row(i) - V.row(j)).norm());
+        mean_rest += rest.back();
+      }
+    placed[static_cast<std::size_t>(j)] = 1;
+    if (q.empty()) continue;
+    mean_rest /= static_cast<double>(q.size());
+    // "Stable" when the net spring force is below c * tol: each ring is left that
+    // much stretched, so the displacement decays ring by ring (faster with more
+    // viscosity), as the thesis reports.
+    const double tol = std::max(1e-4 * scale, 0.1 * p.tissue.viscosity * mean_rest);
+    Eigen::Vector3d x = p0;
+    const double eta = 0.5 / (c * static_cast<double>(q.size()));  // overdamped step, stable for unit springs
+    for (int it = 0; it < 2000; ++it) {
+      Eigen::Vector3d f = Eigen::Vector3d::Zero();
+      for (std::size_t k = 0; k < q.size(); ++k) {
+        const Eigen::Vector3d r = q[k] - x;
+        const double len = r.norm();
+        if (len > 0) f += c * (len - rest[k]) / len * r;
+      }
+      if (f.norm() <= c * tol) break;
+      x += eta * f;
+    }
+    d.row(j) = (x - p0).transpose();
+  }
+  return d;
+}
+
+struct FemSetup {
+  MeshOperators mo;
+  std::vector<int> free;
+  double length_scale = 1;  // region size in mm, for the dynamic and image scalings
+};
+
+FemSetup fem_setup(const Mesh& mesh, const CorrectionParams& p, const std::vector<int>& region) {
+  FemSetup s;
+  s.mo = build_mesh_operators(mesh, p.laplacian, p.stiffness);
+  std::set<int> handles;
+  for (const auto& h : p.handles) handles.insert(h.vertex);
+  for (int v : region)
+    if (!handles.count(v) && s.mo.ops.mass[v] > 0) s.free.push_back(v);
+  s.length_scale = p.radius > 0 ? p.radius : std::max(1e-12, p.rings * mean_edge_length(mesh));
+  return s;
+}
+
+// One Fem solve on `mesh` for the handles scaled by `fraction`; returns d.
+Field fem_solve(const Mesh& mesh, const CorrectionParams& p, const std::vector<int>& region, double fraction,
+                CorrectionResult& r) {
+  FemSetup s = fem_setup(mesh, p, region);
+  r.laplacian = s.mo.kind;
+  r.laplacian_reason = s.mo.reason;
+  const int nv = mesh.num_vertices();
+  Field held = Field::Zero(nv, 3);
+  for (const auto& h : p.handles) held.row(h.vertex) = fraction * h.displacement.transpose();
+  const bool guided = p.image.edges != nullptr;
+  const double L = s.length_scale;
+  const double stiff = std::max(p.g2 / std::pow(L, 4) + p.g1 / (L * L), 1e-300);
+  Eigen::VectorXd extra = Eigen::VectorXd::Zero(nv);
+  // Image guidance: a spring of strength lambda M_i towards each target.
+  std::vector<int> pulled;
+  const double lambda = p.image.weight * stiff;
+  if (guided) {
+    const auto& V = mesh.positions();
+    for (int v : s.free)
+      for (const auto& h : p.handles)
+        if ((V.row(v) - V.row(h.vertex)).norm() <= p.image.search_radius) {
+          pulled.push_back(v);
+          extra[v] += lambda * s.mo.ops.mass[v];
+          break;
+        }
+  }
+  // Dynamic: implicit steps of alpha M d'' + b1 M d' + Kt d = f with the thesis's
+  // parameters (see the header); c M joins the diagonal.
+  const double e = p.tissue.elasticity;
+  const double alpha = std::max(p.tissue.mass, 1e-6);
+  const double k_eff = std::max(e, 1e-6) * stiff * std::pow(M_PI, 4);
+  const double omega = std::sqrt(k_eff / alpha);
+  // A quarter of 1/omega a step: backward Euler's own damping stays small against
+  // the tissue's (so viscosity matters), and the default 50 steps span 12.5 / omega.
+  const double dt = 0.25 / omega;
+  const double b1 = 2 * p.tissue.viscosity * std::sqrt(alpha * k_eff);
+  const double c_inertia = alpha / (dt * dt) + b1 / dt;
+  const PdeCoefficients coef{.g0 = 0, .g1 = p.dynamic ? e * p.g1 : p.g1, .g2 = p.dynamic ? e * p.g2 : p.g2};
+  if (p.dynamic)
+    for (int v : s.free) extra[v] += c_inertia * s.mo.ops.mass[v];
+  const SteadyDirectSolver solver(s.mo.mesh, s.mo.ops, coef, s.free, SparseCholesky::Backend::Auto,
+                                  extra.maxCoeff() > 0 ? extra : Eigen::VectorXd());
+  const Eigen::MatrixX3d normals = guided ? vertex_normals(mesh) : Eigen::MatrixX3d();
+  const auto& V = mesh.positions();
+  auto image_load = [&](const Field& d, Field& f) {
+    if (!guided) return;
+    Positions Q = V + d;
+    const ImageTargets t = find_targets(p.image, pulled, Q, normals);
+    for (std::size_t k = 0; k < t.vertices.size(); ++k) {
+      const int i = t.vertices[k];
+      // lambda M_i (target - p_i): the spring's rest point, relative to the original position.
+      f.row(i) += lambda * s.mo.ops.mass[i] * (t.target[k] - V.row(i).transpose()).transpose();
+    }
+  };
+  Field d = held;
+  double worst = 0;
+  if (!p.dynamic) {
+    const int passes = guided ? std::max(1, p.image.passes) : 1;
+    for (int pass = 0; pass < passes; ++pass) {
+      Field f = Field::Zero(nv, 3);
+      image_load(d, f);
+      d = solver.solve(held, guided ? &f : nullptr);
+      worst = std::max(worst, solver.last_relative_residual());
+    }
+  } else {
+    Field prev = Field::Zero(nv, 3), cur = Field::Zero(nv, 3);
+    for (const auto& h : p.handles) cur.row(h.vertex) = prev.row(h.vertex) = held.row(h.vertex);
+    for (int step = 0; step < p.steps; ++step) {
+      Field f = Field::Zero(nv, 3);
+      for (int v : s.free)
+        f.row(v) = s.mo.ops.mass[v] * (alpha / (dt * dt) * (2 * cur.row(v) - prev.row(v)) + b1 / dt * cur.row(v));
+      image_load(cur, f);
+      Field next = solver.solve(held, &f);
+      worst = std::max(worst, solver.last_relative_residual());
+      prev = cur;
+      cur = next;
+    }
+    d = cur;
+  }
+  r.relative_residual = std::max(r.relative_residual, worst);
+  if (guided) {
+    r.pulled_vertices = static_cast<int>(pulled.size());
+    r.image_mean_edge_before = mean_edge_strength(p.image, pulled, V);
+    r.image_mean_edge_after = mean_edge_strength(p.image, pulled, V + d);
+  }
+  return d;
+}
+
+CorrectionResult correct_vessel_impl(const Mesh& mesh, const CorrectionParams& p,
+                                     const SelfIntersectionChecker* checker, std::span<const int> already_moved) {
+  const auto t0 = std::chrono::steady_clock::now();
+  validate(mesh, p);
+  CorrectionResult r;
+  r.region = region_of(mesh, p);
+  const auto& V0 = mesh.positions();
+
+  std::unique_ptr<SelfIntersectionChecker> own;
+  if (p.prevent_intersections && !checker) {
+    own = std::make_unique<SelfIntersectionChecker>(mesh);
+    checker = own.get();
+  }
+  std::vector<int> check_set(r.region);
+  check_set.insert(check_set.end(), already_moved.begin(), already_moved.end());
+  std::optional<std::set<std::pair<int, int>>> before;  // pairs at the starting positions, found once
+  auto count_new = [&](const Positions& V) {
+    if (!checker) return 0;
+    if (!before) {
+      const auto b = checker->intersecting_pairs(V0, check_set);
+      before.emplace(b.begin(), b.end());
+    }
+    int n = 0;
+    for (const auto& pr : checker->intersecting_pairs(V, check_set)) n += !before->count(pr);
+    return n;
+  };
+
+  Field d;
+  if (p.method == CorrectionMethod::Springs) {
+    d = springs(mesh, p, r.region);
+    r.laplacian_reason = "springs: no operator";
+    r.new_self_intersections = count_new(V0 + d);  // the thesis method does not prevent them
+  } else {
+    d = fem_solve(mesh, p, r.region, 1.0, r);
+    r.new_self_intersections = count_new(V0 + d);
+    if (r.new_self_intersections > 0 && p.prevent_intersections) {
+      // 1. Smaller steps, the operators rebuilt on the deformed surface each time.
+      bool solved = false;
+      for (int n = 2; n <= p.max_substeps && !solved; n *= 2) {
+        Mesh cur = mesh;
+        Field total = Field::Zero(mesh.num_vertices(), 3);
+        CorrectionParams step = p;
+        for (auto& h : step.handles) h.displacement /= n;
+        for (int k = 0; k < n; ++k) {
+          total += fem_solve(cur, step, r.region, 1.0, r);
+          cur.set_positions(V0 + total);
+        }
+        if (count_new(V0 + total) == 0) {
+          d = total;
+          r.substeps = n;
+          r.intersection_action = fmt::format("split into {} steps", n);
+          r.new_self_intersections = 0;
+          solved = true;
+        }
+      }
+      // 2. Otherwise limit the step: the largest fraction of the one-shot field
+      //    that creates none (bisection; the static field is linear in the handles).
+      if (!solved) {
+        double lo = 0, hi = 1;
+        for (int it = 0; it < 12; ++it) {
+          const double mid = 0.5 * (lo + hi);
+          (count_new(V0 + mid * d) == 0 ? lo : hi) = mid;
+        }
+        d *= lo;
+        r.applied_fraction = lo;
+        r.intersection_action = fmt::format("limited to {:.3f} of the displacement", lo);
+        r.new_self_intersections = count_new(V0 + d);
+      }
+    }
+  }
+  r.displacement = d;
+  r.V = V0 + d;
+  double scale = 0;
+  for (const auto& h : p.handles) scale = std::max(scale, h.displacement.norm());
+  for (int v : r.region) {
+    const double len = d.row(v).norm();
+    r.max_displacement = std::max(r.max_displacement, len);
+    r.moved_vertices += len > 1e-6 * scale;
+  }
+  r.time_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  return r;
+}
+
+}  // namespace
+
+CorrectionResult correct_vessel(const Mesh& mesh, const CorrectionParams& params,
+                                const SelfIntersectionChecker* checker) {
+  return correct_vessel_impl(mesh, params, checker, {});
+}
+
+CorrectionSession::CorrectionSession(Mesh mesh)
+    : mesh_(std::move(mesh)), history_{mesh_.positions()}, original_checker_(mesh_) {}
+
+CorrectionResult CorrectionSession::apply(const CorrectionParams& params) {
+  // The checker keeps the original positions; every vertex moved so far is checked
+  // at its current position along with this correction's region.
+  CorrectionResult r = correct_vessel_impl(mesh_, params, &original_checker_, touched_);
+  std::set<int> t(touched_.begin(), touched_.end());
+  for (int v : r.region)
+    if (r.displacement.row(v).squaredNorm() > 0) t.insert(v);
+  touched_.assign(t.begin(), t.end());
+  history_.resize(current_ + 1);
+  history_.push_back(r.V);
+  ++current_;
+  mesh_.set_positions(r.V);
+  return r;
+}
+
+void CorrectionSession::undo() {
+  if (!can_undo()) throw InputError("nothing to undo");
+  --current_;
+  mesh_.set_positions(history_[current_]);
+}
+
+void CorrectionSession::redo() {
+  if (!can_redo()) throw InputError("nothing to redo");
+  ++current_;
+  mesh_.set_positions(history_[current_]);
+}
+
+int CorrectionSession::new_self_intersections() const {
+  return original_checker_.count_new(mesh_.positions(), touched_);
+}
+
+}  // namespace meshpde

@@ -1,0 +1,133 @@
+// Internal: axis-aligned bounding boxes and a bounding-volume hierarchy over
+// triangles (median split on the longest axis, four triangles a leaf), shared by
+// the self-intersection checker and the surface distance.
+#pragma once
+
+#include <Eigen/Core>
+#include <algorithm>
+#include <limits>
+#include <numeric>
+#include <vector>
+
+namespace meshpde::detail {
+
+using Vec = Eigen::Vector3d;
+
+struct Box {
+  Vec lo = Vec::Constant(std::numeric_limits<double>::infinity());
+  Vec hi = Vec::Constant(-std::numeric_limits<double>::infinity());
+  void add(const Vec& p) {
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  void add(const Box& b) {
+    lo = lo.cwiseMin(b.lo);
+    hi = hi.cwiseMax(b.hi);
+  }
+  double distance(const Vec& p) const { return (lo - p).cwiseMax(p - hi).cwiseMax(0.0).norm(); }
+  bool overlaps(const Box& b) const { return (lo.array() <= b.hi.array()).all() && (b.lo.array() <= hi.array()).all(); }
+};
+
+// AABB tree over a list of triangles (ids into F), median split on the longest axis.
+struct Tree {
+  struct Node {
+    Box box;
+    int left = -1, right = -1;  // children, or -1 for a leaf
+    int begin = 0, end = 0;     // leaf: range in items
+  };
+  std::vector<Node> nodes;
+  std::vector<int> items;
+
+  template <class BoxOf>
+  void build(std::vector<int> ids, BoxOf&& box_of) {
+    items = std::move(ids);
+    nodes.clear();
+    if (items.empty()) return;
+    std::vector<Box> boxes(items.size());
+    std::vector<Vec> centre(items.size());
+    for (std::size_t k = 0; k < items.size(); ++k) {
+      boxes[k] = box_of(items[k]);
+      centre[k] = 0.5 * (boxes[k].lo + boxes[k].hi);
+    }
+    std::vector<int> order(items.size());
+    std::iota(order.begin(), order.end(), 0);
+    nodes.reserve(2 * items.size() / 4 + 2);
+    build_node(order, 0, static_cast<int>(order.size()), boxes, centre);
+    std::vector<int> permuted(items.size());
+    for (std::size_t k = 0; k < order.size(); ++k) permuted[k] = items[static_cast<std::size_t>(order[k])];
+    items = std::move(permuted);
+  }
+
+  int build_node(std::vector<int>& order, int begin, int end, const std::vector<Box>& boxes,
+                 const std::vector<Vec>& centre) {
+    const int id = static_cast<int>(nodes.size());
+    nodes.emplace_back();
+    Box box, cbox;
+    for (int k = begin; k < end; ++k) {
+      box.add(boxes[static_cast<std::size_t>(order[k])]);
+      cbox.add(centre[static_cast<std::size_t>(order[k])]);
+    }
+    nodes[id].box = box;
+    if (end - begin <= 4) {
+      nodes[id].begin = begin;
+      nodes[id].end = end;
+      return id;
+    }
+    int axis = 0;
+    (cbox.hi - cbox.lo).maxCoeff(&axis);
+    const int mid = (begin + end) / 2;
+    std::nth_element(order.begin() + begin, order.begin() + mid, order.begin() + end, [&](int a, int b) {
+      return centre[static_cast<std::size_t>(a)][axis] < centre[static_cast<std::size_t>(b)][axis];
+    });
+    const int l = build_node(order, begin, mid, boxes, centre);
+    const int r = build_node(order, mid, end, boxes, centre);
+    nodes[id].left = l;
+    nodes[id].right = r;
+    return id;
+  }
+
+  template <class Visit>
+  void query(const Box& b, Visit&& visit) const {
+    if (nodes.empty()) return;
+    int stack[128];
+    int top = 0;
+    stack[top++] = 0;
+    while (top) {
+      const Node& n = nodes[static_cast<std::size_t>(stack[--top])];
+      if (!n.box.overlaps(b)) continue;
+      if (n.left < 0) {
+        for (int k = n.begin; k < n.end; ++k) visit(items[static_cast<std::size_t>(k)]);
+      } else {
+        stack[top++] = n.left;
+        stack[top++] = n.right;
+      }
+    }
+  }
+
+  /// Smallest dist(item) over all items, skipping boxes farther from p than the
+  /// best so far (dist(item) must be >= the distance from p to the item's box).
+  template <class Dist>
+  double nearest(const Vec& p, Dist&& dist) const {
+    double best = std::numeric_limits<double>::infinity();
+    if (nodes.empty()) return best;
+    int stack[128];
+    int top = 0;
+    stack[top++] = 0;
+    while (top) {
+      const Node& n = nodes[static_cast<std::size_t>(stack[--top])];
+      if (n.box.distance(p) >= best) continue;
+      if (n.left < 0) {
+        for (int k = n.begin; k < n.end; ++k) best = std::min(best, dist(items[static_cast<std::size_t>(k)]));
+      } else {
+        // Visit the nearer child first (pushed last).
+        const bool left_first = nodes[static_cast<std::size_t>(n.left)].box.distance(p) <=
+                                nodes[static_cast<std::size_t>(n.right)].box.distance(p);
+        stack[top++] = left_first ? n.right : n.left;
+        stack[top++] = left_first ? n.left : n.right;
+      }
+    }
+    return best;
+  }
+};
+
+}  // namespace meshpde::detail
