@@ -92,7 +92,7 @@ struct CorrectArgs {
   std::string mesh, out, method = "fem", laplacian = "auto", stiffness, image, space, solver = "direct";
   std::vector<std::string> vertices, moves, brushes;
   int rings = 0, steps = 50, cube = 0, passes = 4;
-  double radius = 0, g1 = 0, g2 = 1, tol = 1e-10, image_weight = 1.0, image_sigma = 1.0, search = 5.0;
+  double radius = 0, g1 = 0, g2 = 1, tol = 1e-10, image_weight = 30.0, image_sigma = 1.0, search = 3.0;
   double mass = 0.1, elasticity = 0.9, viscosity = 0.6;
   bool json = false, dynamic = false, allow_intersections = false;
 };
@@ -278,7 +278,8 @@ void add_solve_commands(CLI::App& app) {
                     "Frame of the mesh coordinates: lps | ras (default: the file's SPACE= header, else lps)");
     cmd->add_option("--image-weight", a->image_weight, "Strength of the pull towards edges")->capture_default_str();
     cmd->add_option("--image-sigma", a->image_sigma, "Gaussian scale (mm) of the edge map")->capture_default_str();
-    cmd->add_option("--search-radius", a->search, "Distance (mm) searched for an edge, and from a handle pulled")
+    cmd->add_option("--search-radius", a->search,
+                    "Distance (mm) searched for an edge along each vertex normal, both ways")
         ->capture_default_str();
     cmd->add_option("--cube", a->cube, "Thesis direction cube (odd, >= 3) instead of the search along the normal");
     cmd->add_option("--passes", a->passes, "Image fixed-point passes")->capture_default_str();

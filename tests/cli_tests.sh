@@ -56,6 +56,22 @@ if [ -f "$DATA/aorta-closed-6k.vtp" ]; then
   check "ply keeps the Scalars_ array" grep -q "property double Scalars_" "$T/a.ply"
   "$M" convert "$T/a.ply" "$T/a.vtk" >/dev/null && "$M" convert "$T/a.vtk" "$T/a2.vtp" >/dev/null || bad "convert ply -> vtk -> vtp"
   check "vtp written with Normals_ as one 3-component array" grep -q 'Name="Normals_" NumberOfComponents="3"' "$T/a2.vtp"
+  # vessel correction on the real aorta: arrays kept, displacement added, image guidance
+  "$M" correct "$DATA/aorta-closed-6k.vtp" --vertex 3178 --move 0,10,0 --radius 12 -o "$T/ac.vtp" --json >"$T/ac.json" ||
+    bad "correct on the aorta"
+  check "aorta carina drag: no new self-intersections" [ "$(json "$T/ac.json" "d['new_self_intersections']")" = 0 ]
+  check "aorta: intrinsic Laplacian chosen" [ "$(json "$T/ac.json" "d['laplacian']")" = intrinsic ]
+  check "corrected vtp keeps Scalars_" grep -q 'Name="Scalars_"' "$T/ac.vtp"
+  check "corrected vtp has the displacement" grep -q 'Name="displacement" NumberOfComponents="3"' "$T/ac.vtp"
+  if [ -f "$DATA/aorta-mra.mha" ]; then
+    "$M" correct "$DATA/aorta-closed-6k.vtp" --vertex 500 --move 1,0,0 --radius 9 --image "$DATA/aorta-mra.mha" \
+      --space ras -o "$T/ai.vtp" --json >"$T/ai.json" || bad "correct --image"
+    check "image guidance pulled vertices" [ "$(json "$T/ai.json" "d['image']['pulled_vertices'] > 0")" = True ]
+    "$M" correct "$DATA/aorta-closed-6k.vtp" --vertex 500 --move 1,0,0 --radius 9 --image "$DATA/absent.mha" \
+      -o "$T/x.vtp" 2>"$T/err" >/dev/null
+    check "missing volume exits 1" [ $? -eq 1 ]
+    check "missing volume named" grep -q "absent.mha" "$T/err"
+  fi
   "$M" info "$DATA/aorta-centerlines.vtp" 2>"$T/err" >/dev/null
   check "centerlines (lines only) exit 1" [ $? -eq 1 ]
   check "centerlines message" grep -q "aorta-centerlines.vtp: contains no polygons" "$T/err"
@@ -92,9 +108,27 @@ check "absurd count explained" grep -q "claims" "$T/err"
 # correct: JSON report, handle moved, outside untouched, bad arguments refused
 "$M" generate icosphere --level 3 --radius 10 -o "$T/s.ply" >/dev/null
 "$M" correct "$T/s.ply" --vertex 0 --move 0,0,1 --radius 4 -o "$T/s2.ply" --json >"$T/k.json" || bad "correct"
-for key in moved_vertices max_displacement region_vertices time_ms; do
+for key in moved_vertices max_displacement region_vertices new_self_intersections time_ms; do
   check "correct key $key" [ "$(json "$T/k.json" "'$key' in d")" = True ]
 done
+check "correct writes the displacement vector" grep -q "property double displacement_x" "$T/s2.ply"
+"$M" correct "$T/s.ply" --vertex 0 --move 0,0,1 --vertex @0,0,-10 --move 0,0,-1 --radius 4 -o "$T/two.ply" --json \
+  >"$T/two.json" || bad "correct with two handles"
+check "two handles reported" [ "$(json "$T/two.json" "d['handles']")" = 2 ]
+"$M" correct "$T/s.ply" --vertex 0 --move 0,0,1 --rings 3 --method springs -o "$T/sp.ply" --json >"$T/sp.json" ||
+  bad "correct --method springs"
+check "springs method reported" [ "$(json "$T/sp.json" "d['method']")" = springs ]
+"$M" correct "$T/s.ply" --vertex 0 --move 0,0,1 --radius 4 --dynamic --steps 20 -o "$T/dy.ply" --json >"$T/dy.json" ||
+  bad "correct --dynamic"
+check "dynamic reported" [ "$(json "$T/dy.json" "d['dynamic']")" = True ]
+"$M" correct "$T/s.ply" --vertex 0 --move 0,0,1 --radius 4 --brush @0,0,10:2:5 -o "$T/br.ply" >/dev/null ||
+  bad "correct --brush"
+"$M" correct "$T/s.ply" --vertex 0 --move 0,0,1 --radius 4 --stiffness nothing -o "$T/x.ply" 2>"$T/err" >/dev/null
+check "missing stiffness field exits 1" [ $? -eq 1 ]
+check "missing stiffness field named" grep -q "no vertex field 'nothing'" "$T/err"
+"$M" correct "$T/s.ply" --vertex 0 --vertex 1 --move 0,0,1 --radius 4 -o "$T/x.ply" 2>"$T/err" >/dev/null
+check "handle/move count mismatch exits 1" [ $? -eq 1 ]
+check "handle/move count mismatch explained" grep -q "one displacement per handle" "$T/err"
 check "correct max displacement" [ "$(json "$T/k.json" "round(d['max_displacement'], 9)")" = 1.0 ]
 cp "$T/s2.ply" "$T/keep.ply"
 "$M" correct "$T/s.ply" --vertex 0 --move 0,zero,1 --radius 4 -o "$T/s2.ply" 2>"$T/err" >/dev/null

@@ -121,7 +121,7 @@ ImageTargets find_targets(const ImageGuidance& g, const std::vector<int>& pulled
                           const Eigen::MatrixX3d& normals) {
   ImageTargets t;
   const Volume& E = *g.edges;
-  const double step = 0.25 * E.spacing.minCoeff();
+  const double step = std::min(0.1, 0.25 * E.spacing.minCoeff());
   for (const int i : pulled) {
     const Eigen::Vector3d q = Q.row(i).transpose();
     if (!E.sample(q, g.space)) continue;
@@ -142,16 +142,28 @@ ImageTargets find_targets(const ImageGuidance& g, const std::vector<int>& pulled
             }
           }
     } else {
+      // The nearest ridge of E along the normal: interior local maxima only (a
+      // maximum at the end of the window belongs to something farther away), the
+      // nearest of those at least half as strong as the strongest.
       const Eigen::Vector3d n = normals.row(i).transpose();
-      double best_value = -1;
-      for (double s = -g.search_radius; s <= g.search_radius + 1e-12; s += step) {
-        const auto e = E.sample(q + s * n, g.space);
-        // Ties go to the nearer point, so a flat edge map leaves the vertex where it is.
-        if (e && (*e > best_value + 1e-12 || (std::abs(*e - best_value) <= 1e-12 && std::abs(s) < (best - q).norm()))) {
-          best_value = *e;
-          best = q + s * n;
+      const int half = static_cast<int>(std::ceil(g.search_radius / step));
+      std::vector<double> e(static_cast<std::size_t>(2 * half + 1), -1.0);
+      for (int k = -half; k <= half; ++k)
+        if (const auto v = E.sample(q + k * step * n, g.space)) e[static_cast<std::size_t>(k + half)] = *v;
+      double strongest = -1;
+      std::vector<int> ridges;
+      for (int k = 1; k + 1 < static_cast<int>(e.size()); ++k)
+        if (e[k] > 0 && e[k] >= e[k - 1] && e[k] >= e[k + 1]) {
+          ridges.push_back(k);
+          strongest = std::max(strongest, e[static_cast<std::size_t>(k)]);
         }
-      }
+      int chosen = -1;
+      for (const int k : ridges)
+        if (e[static_cast<std::size_t>(k)] >= 0.5 * strongest &&
+            (chosen < 0 || std::abs(k - half) < std::abs(chosen - half)))
+          chosen = k;
+      if (chosen < 0) continue;  // no edge in reach: the vertex is not pulled
+      best = q + (chosen - half) * step * n;
     }
     t.vertices.push_back(i);
     t.target.push_back(best);
@@ -248,26 +260,24 @@ Field fem_solve(const Mesh& mesh, const CorrectionParams& p, const std::vector<i
   for (const auto& h : p.handles) held.row(h.vertex) = fraction * h.displacement.transpose();
   const bool guided = p.image.edges != nullptr;
   const double L = s.length_scale;
-  const double stiff = std::max(p.g2 / std::pow(L, 4) + p.g1 / (L * L), 1e-300);
+  // Stiffness of the region's slowest mode (wavelength about 2 L), per unit area.
+  const double stiff = std::max(p.g2 * std::pow(M_PI / L, 4) + p.g1 * std::pow(M_PI / L, 2), 1e-300);
   Eigen::VectorXd extra = Eigen::VectorXd::Zero(nv);
-  // Image guidance: a spring of strength lambda M_i towards each target.
+  // Image guidance: every free vertex of the region is tied to its target by a
+  // spring lambda M_i; weight 1 makes the pull as strong as the region's slowest
+  // bending mode, so edges win over smoothness at that scale and above.
   std::vector<int> pulled;
   const double lambda = p.image.weight * stiff;
-  if (guided) {
-    const auto& V = mesh.positions();
-    for (int v : s.free)
-      for (const auto& h : p.handles)
-        if ((V.row(v) - V.row(h.vertex)).norm() <= p.image.search_radius) {
-          pulled.push_back(v);
-          extra[v] += lambda * s.mo.ops.mass[v];
-          break;
-        }
-  }
+  if (guided)
+    for (int v : s.free) {
+      pulled.push_back(v);
+      extra[v] += lambda * s.mo.ops.mass[v];
+    }
   // Dynamic: implicit steps of alpha M d'' + b1 M d' + Kt d = f with the thesis's
   // parameters (see the header); c M joins the diagonal.
   const double e = p.tissue.elasticity;
   const double alpha = std::max(p.tissue.mass, 1e-6);
-  const double k_eff = std::max(e, 1e-6) * stiff * std::pow(M_PI, 4);
+  const double k_eff = std::max(e, 1e-6) * stiff;
   const double omega = std::sqrt(k_eff / alpha);
   // A quarter of 1/omega a step: backward Euler's own damping stays small against
   // the tissue's (so viscosity matters), and the default 50 steps span 12.5 / omega.
@@ -333,8 +343,10 @@ CorrectionResult correct_vessel_impl(const Mesh& mesh, const CorrectionParams& p
   r.region = region_of(mesh, p);
   const auto& V0 = mesh.positions();
 
+  // Intersections are always counted (and reported); prevent_intersections only
+  // decides whether a correction that creates some is redone.
   std::unique_ptr<SelfIntersectionChecker> own;
-  if (p.prevent_intersections && !checker) {
+  if (!checker) {
     own = std::make_unique<SelfIntersectionChecker>(mesh);
     checker = own.get();
   }
