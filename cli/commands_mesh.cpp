@@ -1,10 +1,15 @@
 // meshpde info | generate | curvature
 #include <fmt/format.h>
 
+#include <limits>
 #include <memory>
 
 #include "commands.h"
 #include "meshpde/core/errors.h"
+#include "meshpde/image/volume.h"
+#ifdef MESHPDE_HAVE_MEDICAL
+#include "meshpde/io/medical_io.h"
+#endif
 #include "meshpde/mesh/generators.h"
 #include "meshpde/mesh/topology.h"
 #include "meshpde/operators/curvature.h"
@@ -104,6 +109,67 @@ void add_mesh_commands(CLI::App& app) {
                  d.vertex_scalars.size() + d.point_arrays.size());
     });
   }
+#ifdef MESHPDE_HAVE_MEDICAL
+  {
+    auto* cmd =
+        app.add_subcommand("sample",
+                           "Sample a volume (CT/MR image, level set) at the mesh vertices: checks that mesh and "
+                           "image are registered, and writes the values as a vertex field");
+    struct Args {
+      std::string mesh, image, space, field = "image", out;
+      double sigma = -1;
+      bool json = false;
+    };
+    auto a = std::make_shared<Args>();
+    cmd->add_option("MESH", a->mesh, "Mesh file (.obj .off .ply .stl .vtp .vtk)")->required();
+    cmd->add_option("--image", a->image, "Volume (.mha .mhd .nii .nii.gz .nrrd .nhdr)")->required();
+    cmd->add_option("--space", a->space,
+                    "Frame of the mesh coordinates: lps | ras (default: the file's SPACE= header, "
+                    "else lps)");
+    cmd->add_option("--edges", a->sigma, "Sample the edge strength |grad(G_sigma * I)| at this sigma (mm) instead");
+    cmd->add_option("--field", a->field, "Name of the written field")->capture_default_str();
+    cmd->add_option("-o,--output", a->out, "Mesh with the sampled field (NaN where a vertex is outside the image)");
+    cmd->add_flag("--json", a->json, "Print a JSON report");
+    cmd->callback([=] {
+      MeshData d;
+      const Mesh mesh = load_mesh(a->mesh, &d);
+      const Space space = !a->space.empty() ? parse_space(a->space) : d.space == "RAS" ? Space::RAS : Space::LPS;
+      Volume v = read_volume(a->image);
+      if (a->sigma >= 0) v = gradient_magnitude(v, a->sigma);
+      Eigen::VectorXd values(mesh.num_vertices());
+      int outside = 0;
+      double lo = std::numeric_limits<double>::infinity(), hi = -lo, mean_abs = 0;
+      for (int i = 0; i < mesh.num_vertices(); ++i) {
+        const auto s = v.sample(mesh.positions().row(i).transpose(), space);
+        values[i] = s ? *s : std::numeric_limits<double>::quiet_NaN();
+        if (!s) {
+          ++outside;
+          continue;
+        }
+        lo = std::min(lo, *s);
+        hi = std::max(hi, *s);
+        mean_abs += std::abs(*s);
+      }
+      const int inside = mesh.num_vertices() - outside;
+      if (inside) mean_abs /= inside;
+      if (!a->out.empty()) {
+        d.vertex_scalars[a->field] = values;
+        for (const auto& w : write_mesh_file(a->out, d)) fmt::print(stderr, "warning: {}\n", w);
+      }
+      nlohmann::json j = {{"vertices", mesh.num_vertices()}, {"outside", outside},       {"space", to_string(space)},
+                          {"min", inside ? lo : 0.0},        {"max", inside ? hi : 0.0}, {"mean_abs", mean_abs}};
+      if (a->json) {
+        print_json(j);
+      } else {
+        fmt::print("{} vertices sampled in {} ({}): {} outside the image\n", mesh.num_vertices(), a->image,
+                   to_string(space), outside);
+        if (inside) fmt::print("values {:.4g} .. {:.4g}, mean |value| {:.4g}\n", lo, hi, mean_abs);
+      }
+      if (outside == mesh.num_vertices())
+        throw InputError(fmt::format("every vertex lies outside {}: wrong --space (lps/ras)?", a->image));
+    });
+  }
+#endif
   {
     auto* cmd = app.add_subcommand("generate", "Generate a test mesh");
     auto a = std::make_shared<GenerateArgs>();

@@ -45,12 +45,12 @@ void apply_view_options(RenderOptions& r, const std::string& view, const std::st
 void add_render_command(CLI::App& app) {
   auto* cmd = app.add_subcommand("render", "Render a mesh to PNG (headless): shading, field colours, arrows");
   struct Args {
-    std::string mesh, out, field, vectors, title, colormap = "viridis", range;
+    std::string mesh, out, field, vectors, title, colormap = "viridis", range, center;
     std::string view = "30,20", up = "y", size = "960x720";
     RenderOptions r;
   };
   auto a = std::make_shared<Args>();
-  cmd->add_option("MESH", a->mesh, "Mesh file (.ply keeps vertex fields)")->required();
+  cmd->add_option("MESH", a->mesh, "Mesh file (.ply, .vtp and .vtk keep vertex fields)")->required();
   cmd->add_option("-o,--output", a->out, "Output .png")->required();
   cmd->add_option("--field", a->field, "Vertex property to colour");
   cmd->add_option("--vectors", a->vectors, "Vector field NAME (vertex properties NAME_x, NAME_y, NAME_z) as arrows");
@@ -60,10 +60,12 @@ void add_render_command(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--range", a->range, "Colour range MIN,MAX (default: the field's)");
   add_view_options(cmd, a->r, a->view, a->up, a->size);
+  cmd->add_option("--center", a->center, "Point at the middle of the picture: a vertex (index or @X,Y,Z)");
   cmd->callback([=] {
     MeshData d;
-    load_mesh(a->mesh, &d);
+    const Mesh mesh = load_mesh(a->mesh, &d);
     RenderOptions r = a->r;
+    if (!a->center.empty()) r.center = mesh.positions().row(parse_vertex(mesh, a->center, "--center")).transpose();
     apply_view_options(r, a->view, a->up, a->size);
     r.title = a->title;
     r.colormap = a->colormap == "coolwarm" ? Colormap::Coolwarm : Colormap::Viridis;

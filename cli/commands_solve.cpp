@@ -97,6 +97,34 @@ struct CorrectArgs {
   bool json = false, dynamic = false, allow_intersections = false;
 };
 
+// --move DX,DY,DZ, or normal:D for D mm along the outward normal at the handle
+// (outward: the side the enclosed volume is not on, for closed meshes of either
+// orientation; for open meshes the normal as the triangles orient it).
+Eigen::Vector3d parse_move(const Mesh& mesh, int vertex, const std::string& text) {
+  if (text.rfind("normal:", 0) != 0) return parse_vector(text, "--move");
+  double dist = 0;
+  try {
+    std::size_t used = 0;
+    dist = std::stod(text.substr(7), &used);
+    if (used != text.size() - 7 || !std::isfinite(dist)) throw std::invalid_argument(text);
+  } catch (const std::exception&) {
+    throw InputError(fmt::format("--move '{}': expected normal:DISTANCE in mm, e.g. normal:2.5", text));
+  }
+  const MeshReport r = analyze(mesh);
+  const double sign = (r.boundary_loops == 0 && r.signed_volume < 0) ? -1.0 : 1.0;
+  Eigen::Vector3d n = Eigen::Vector3d::Zero();
+  const auto& V = mesh.positions();
+  const auto& F = mesh.triangles();
+  for (int f = 0; f < mesh.num_faces(); ++f)
+    for (int c = 0; c < 3; ++c)
+      if (F(f, c) == vertex) {
+        const Eigen::Vector3d a = V.row(F(f, 0)), b = V.row(F(f, 1)), d = V.row(F(f, 2));
+        n += (b - a).cross(d - a);
+      }
+  if (!(n.norm() > 0)) throw InputError(fmt::format("vertex {} has no normal (no incident area)", vertex));
+  return sign * dist * n.normalized();
+}
+
 Eigen::VectorXd stiffness_field(const Mesh& mesh, const MeshData& d, const CorrectArgs& a) {
   if (a.stiffness.empty() && a.brushes.empty()) return {};
   Eigen::VectorXd w = Eigen::VectorXd::Ones(mesh.num_vertices());
@@ -136,8 +164,10 @@ void run_correct(const CorrectArgs& a) {
   const Mesh mesh = load_mesh(a.mesh, &data);
   warn_about_shape(mesh, a.mesh);
   CorrectionParams p;
-  for (std::size_t k = 0; k < a.vertices.size(); ++k)
-    p.handles.push_back({parse_vertex(mesh, a.vertices[k], "--vertex"), parse_vector(a.moves[k], "--move")});
+  for (std::size_t k = 0; k < a.vertices.size(); ++k) {
+    const int v = parse_vertex(mesh, a.vertices[k], "--vertex");
+    p.handles.push_back({v, parse_move(mesh, v, a.moves[k])});
+  }
   p.radius = a.radius;
   p.rings = a.rings;
   p.method = parse_correction_method(a.method);
@@ -246,7 +276,9 @@ void add_solve_commands(CLI::App& app) {
     cmd->add_option("MESH", a->mesh, "Mesh file (.obj .off .ply .stl .vtp .vtk)")->required();
     cmd->add_option("--vertex", a->vertices, "Handle vertex: index (0-based) or @X,Y,Z (nearest); repeat for several")
         ->required();
-    cmd->add_option("--move", a->moves, "Displacement DX,DY,DZ in mm, one per --vertex")->required();
+    cmd->add_option("--move", a->moves,
+                    "Displacement DX,DY,DZ in mm, or normal:D (D mm along the outward normal), one per --vertex")
+        ->required();
     auto* radius = cmd->add_option("--radius", a->radius, "Region of influence: distance in mm from a handle");
     auto* rings =
         cmd->add_option("--rings", a->rings, "Region of influence in rings (the thesis's level of influence)");

@@ -63,6 +63,20 @@ if [ -f "$DATA/aorta-closed-6k.vtp" ]; then
   check "aorta: intrinsic Laplacian chosen" [ "$(json "$T/ac.json" "d['laplacian']")" = intrinsic ]
   check "corrected vtp keeps Scalars_" grep -q 'Name="Scalars_"' "$T/ac.vtp"
   check "corrected vtp has the displacement" grep -q 'Name="displacement" NumberOfComponents="3"' "$T/ac.vtp"
+  if [ -f "$DATA/aorta-levelset.mha" ]; then
+    "$M" sample "$DATA/aorta-closed-6k.vtp" --image "$DATA/aorta-levelset.mha" --space ras --json -o "$T/phi.vtp" \
+      >"$T/phi.json" || bad "sample"
+    check "aorta on its zero level set" [ "$(json "$T/phi.json" "d['outside'] == 0 and d['mean_abs'] < 1e-3")" = True ]
+    check "sampled field written" grep -q 'Name="image"' "$T/phi.vtp"
+    "$M" sample "$DATA/aorta-closed-6k.vtp" --image "$DATA/aorta-levelset.mha" --space lps 2>"$T/err" >/dev/null
+    check "wrong frame exits 1" [ $? -eq 1 ]
+    check "wrong frame explained" grep -q "wrong --space" "$T/err"
+    # normal:D moves along the outward normal even on this inward-oriented mesh
+    "$M" correct "$DATA/aorta-closed-6k.vtp" --vertex 500 --move normal:2 --radius 8 -o "$T/an.vtp" >/dev/null ||
+      bad "correct --move normal:2"
+    "$M" sample "$T/an.vtp" --image "$DATA/aorta-levelset.mha" --space ras --json >"$T/an.json"
+    check "pushed outwards: phi grows" [ "$(json "$T/an.json" "d['max'] > 1.5")" = True ]
+  fi
   if [ -f "$DATA/aorta-mra.mha" ]; then
     "$M" correct "$DATA/aorta-closed-6k.vtp" --vertex 500 --move 1,0,0 --radius 9 --image "$DATA/aorta-mra.mha" \
       --space ras -o "$T/ai.vtp" --json >"$T/ai.json" || bad "correct --image"

@@ -119,10 +119,11 @@ Image render(const Positions& V, const Triangles& F, const RenderOptions& o) {
       (std::cos(el) * (std::cos(az) * w0 + std::sin(az) * up.cross(w0)) + std::sin(el) * up).normalized();
   const Eigen::Vector3d xs = up.cross(eye).normalized(), ys = eye.cross(xs);
   const Eigen::Vector3d lo = V.colwise().minCoeff().transpose(), hi = V.colwise().maxCoeff().transpose();
-  const Eigen::Vector3d centre = 0.5 * (lo + hi);
+  const Eigen::Vector3d box_centre = 0.5 * (lo + hi);
+  const Eigen::Vector3d centre = o.center ? *o.center : box_centre;
   double extent_x = 1e-30, extent_y = 1e-30;
   for (Eigen::Index i = 0; i < nv; ++i) {
-    const Eigen::Vector3d d = V.row(i).transpose() - centre;
+    const Eigen::Vector3d d = V.row(i).transpose() - box_centre;
     extent_x = std::max(extent_x, std::abs(d.dot(xs)));
     extent_y = std::max(extent_y, std::abs(d.dot(ys)));
   }

@@ -17,7 +17,11 @@
 // damping of the region's slowest mode, k its stiffness), g = elasticity * (g1, g2);
 // a step is a quarter of 1/omega, omega = sqrt(k / alpha), so `steps` counts time
 // in the region's own units (the default 50 settles it to about exp(-7.5)).
-// With a region given in mm the result does not depend on the mesh resolution.
+// With a region given in mm the result does not depend on the mesh resolution: the
+// frozen rings clamp the field about one edge length h beyond the last free vertex,
+// so the free set is taken within radius - h (h the region's mean edge length). The
+// solve runs on a copy of the region and six rings around it: its cost follows the
+// region, not the mesh.
 //
 // Method Springs (the thesis's, as a baseline). Rings of neighbours are visited
 // breadth first from the handle up to the level of influence; each vertex is moved

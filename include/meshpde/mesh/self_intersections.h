@@ -9,6 +9,7 @@
 // Triangles that share a corner are never counted as intersecting (they touch by
 // construction); a fold of two neighbours onto each other is therefore not
 // reported. Coplanar overlaps are not reported either (measure-zero in practice).
+// A checker is not thread-safe (queries share scratch space); use one per thread.
 #pragma once
 
 #include <Eigen/Core>

@@ -25,10 +25,11 @@ enum class Colormap { Viridis, Coolwarm };
 struct RenderOptions {
   int width = 960;
   int height = 720;
-  double azimuth_deg = 30;    ///< camera rotation about the up axis
-  double elevation_deg = 20;  ///< camera tilt towards the up axis
-  int up_axis = 1;            ///< 0: x, 1: y (Stanford models), 2: z (medical RAS/LPS)
-  double zoom = 1.0;          ///< > 1 magnifies around the centre
+  double azimuth_deg = 30;                  ///< camera rotation about the up axis
+  double elevation_deg = 20;                ///< camera tilt towards the up axis
+  int up_axis = 1;                          ///< 0: x, 1: y (Stanford models), 2: z (medical RAS/LPS)
+  double zoom = 1.0;                        ///< > 1 magnifies around the centre
+  std::optional<Eigen::Vector3d> center{};  ///< point at the middle of the picture (default: the bounding-box centre)
   bool wireframe = false;
   Eigen::VectorXd field{};  ///< per-vertex values to colour (empty: plain grey-blue surface)
   std::string field_name{};
