@@ -34,6 +34,9 @@ std::pair<int, double> parse_vertex_value(const Mesh& mesh, const std::string& s
 /// Reads the vector field NAME stored as vertex properties NAME_x, NAME_y, NAME_z.
 Eigen::MatrixX3d vector_field(const MeshData& d, const std::string& name, const std::string& file);
 
+/// meshpde serve (the browser editor), when built with websocketpp.
+void add_serve_command(CLI::App& app);
+
 /// Reads any supported mesh format (.obj .off .ply .stl, and .vtp .vtk when built
 /// with meshpde::medical); writes likewise, returning the writer's warnings.
 MeshData read_mesh_file(const std::filesystem::path& path);

@@ -76,6 +76,9 @@ int main(int argc, char** argv) {
   meshpde::cli::add_bench_command(app);
   meshpde::cli::add_render_command(app);
   meshpde::cli::add_app_commands(app);
+#ifdef MESHPDE_HAVE_SERVER
+  meshpde::cli::add_serve_command(app);
+#endif
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -102,6 +102,8 @@ Eigen::Vector3d HapticSession::step_locked(double dt, std::chrono::steady_clock:
   s.cg_iterations = r.cg.iterations;
   s.missed = r.cg.status == CgStatus::Deadline || s.latency_us > 1e6 * dt;
   if (s.missed) ++misses_;
+  if (log_.size() >= params_.max_log)
+    log_.erase(log_.begin(), log_.begin() + static_cast<std::ptrdiff_t>(log_.size() / 2));
   log_.push_back(s);
   return force_;
 }
@@ -139,6 +141,12 @@ void HapticSession::servo_loop() {
 Eigen::Vector3d HapticSession::latest_force() const {
   std::lock_guard lock(mutex_);
   return force_;
+}
+
+Field HapticSession::displacement(int* active_vertices) const {
+  std::lock_guard lock(mutex_);
+  if (active_vertices) *active_vertices = static_cast<int>(session_->domain().free_vertices().size());
+  return session_->values();
 }
 
 std::vector<HapticSample> HapticSession::log() const {

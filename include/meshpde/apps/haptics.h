@@ -44,6 +44,9 @@ struct HapticParams {
   /// Per step, relative to the step's right-hand side. 5e-4 keeps the force trajectory of a
   /// moving probe within 1 % of a 1e-10 solve (tested; measured 0.65 %; 1e-3 gives 1.2 %).
   CgOptions cg{.tolerance = 5e-4, .max_iterations = 500};
+  /// The servo loop keeps at most this many samples in log() (the oldest half is
+  /// dropped when it fills), so a session can run for hours.
+  std::size_t max_log = 200000;
 };
 
 /// One servo step, as logged by the session.
@@ -86,6 +89,9 @@ class HapticSession {
   bool running() const { return running_; }
 
   Eigen::Vector3d latest_force() const;
+  /// The surface's displacement (#V x 3, mesh units) and the active domain's size,
+  /// copied under the session's lock (safe while the servo thread runs).
+  Field displacement(int* active_vertices = nullptr) const;
   std::vector<HapticSample> log() const;
   int misses() const { return misses_; }
   const PdeSession& pde() const { return *session_; }

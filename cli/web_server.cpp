@@ -1,0 +1,143 @@
+// websocketpp behind web_server.h. Built as C++17 (see the header).
+#define ASIO_STANDALONE
+#include "web_server.h"
+
+#include <asio/signal_set.hpp>
+#include <csignal>
+#include <map>
+#include <stdexcept>
+#include <websocketpp/config/asio_no_tls.hpp>
+#include <websocketpp/server.hpp>
+
+namespace meshpde::net {
+
+using Server = websocketpp::server<websocketpp::config::asio>;
+using Hdl = websocketpp::connection_hdl;
+
+struct WebServer::Impl {
+  WebHandlers handlers;
+  Server server;
+  int tick_ms = 16;
+  bool stopping = false;
+  int next_id = 0;
+  std::map<Hdl, int, std::owner_less<Hdl>> ids;
+  std::map<int, Hdl> hdls;
+  std::unique_ptr<asio::signal_set> signals;
+
+  void schedule_tick() {
+    if (stopping) return;
+    server.set_timer(tick_ms, [this](const websocketpp::lib::error_code& ec) {
+      if (ec || stopping) return;
+      if (handlers.on_tick) handlers.on_tick();
+      schedule_tick();
+    });
+  }
+
+  void send(int client, const std::string& data, websocketpp::frame::opcode::value op) {
+    const auto it = hdls.find(client);
+    if (it == hdls.end()) return;
+    websocketpp::lib::error_code ec;
+    server.send(it->second, data, op, ec);  // a closing connection just drops the frame
+  }
+};
+
+WebServer::WebServer(WebHandlers handlers, std::size_t max_body, std::size_t max_message, int tick_ms)
+    : impl_(std::make_unique<Impl>()) {
+  Impl& m = *impl_;
+  m.handlers = std::move(handlers);
+  m.tick_ms = tick_ms;
+  m.server.clear_access_channels(websocketpp::log::alevel::all);
+  m.server.clear_error_channels(websocketpp::log::elevel::all);
+  m.server.init_asio();
+  m.server.set_reuse_addr(true);
+  m.server.set_max_http_body_size(max_body);
+  m.server.set_max_message_size(max_message);
+  m.server.set_open_handler([this](Hdl h) {
+    Impl& s = *impl_;
+    const int id = ++s.next_id;
+    s.ids[h] = id;
+    s.hdls[id] = h;
+    if (s.handlers.on_open) s.handlers.on_open(id);
+  });
+  m.server.set_close_handler([this](Hdl h) {
+    Impl& s = *impl_;
+    const auto it = s.ids.find(h);
+    if (it == s.ids.end()) return;
+    const int id = it->second;
+    s.ids.erase(it);
+    s.hdls.erase(id);
+    if (s.handlers.on_close) s.handlers.on_close(id);
+  });
+  m.server.set_message_handler([this](Hdl h, Server::message_ptr msg) {
+    Impl& s = *impl_;
+    const auto it = s.ids.find(h);
+    if (it == s.ids.end() || !s.handlers.on_message) return;
+    s.handlers.on_message(it->second, msg->get_payload(), msg->get_opcode() == websocketpp::frame::opcode::binary);
+  });
+  m.server.set_http_handler([this](Hdl h) {
+    Impl& s = *impl_;
+    auto con = s.server.get_con_from_hdl(h);
+    HttpRequest req{con->get_request().get_method(), con->get_resource(), con->get_request_body()};
+    HttpResponse res;
+    if (s.handlers.on_http) {
+      try {
+        res = s.handlers.on_http(req);
+      } catch (const std::exception& e) {
+        res = HttpResponse{500, e.what(), "text/plain; charset=utf-8", {}};
+      }
+    } else {
+      res.status = 404;
+    }
+    con->set_status(static_cast<websocketpp::http::status_code::value>(res.status));
+    con->replace_header("Content-Type", res.content_type);
+    con->replace_header("Cache-Control", "no-store");
+    for (const auto& [k, v] : res.headers) con->replace_header(k, v);
+    con->set_body(res.body);
+  });
+}
+
+WebServer::~WebServer() = default;
+
+int WebServer::listen(const std::string& host, int port) {
+  Impl& m = *impl_;
+  asio::error_code aec;
+  const auto address = asio::ip::make_address(host, aec);
+  if (aec) throw std::runtime_error("'" + host + "' is not an IP address");
+  websocketpp::lib::error_code ec;
+  m.server.listen(asio::ip::tcp::endpoint(address, static_cast<unsigned short>(port)), ec);
+  if (ec) throw std::runtime_error("cannot listen on " + host + ":" + std::to_string(port) + ": " + ec.message());
+  m.server.start_accept(ec);
+  if (ec) throw std::runtime_error("cannot accept on " + host + ":" + std::to_string(port) + ": " + ec.message());
+  return m.server.get_local_endpoint(aec).port();
+}
+
+void WebServer::run() {
+  Impl& m = *impl_;
+  m.signals = std::make_unique<asio::signal_set>(m.server.get_io_service(), SIGINT, SIGTERM);
+  m.signals->async_wait([this](const asio::error_code& ec, int) {
+    if (!ec) stop();
+  });
+  m.schedule_tick();
+  m.server.run();
+}
+
+void WebServer::stop() {
+  Impl& m = *impl_;
+  if (m.stopping) return;
+  m.stopping = true;
+  websocketpp::lib::error_code ec;
+  m.server.stop_listening(ec);
+  for (const auto& [id, h] : m.hdls) m.server.close(h, websocketpp::close::status::going_away, "server stopping", ec);
+  if (m.signals) m.signals->cancel();
+  // Give the close handshakes a moment, then end run() whatever is left.
+  m.server.set_timer(500, [this](const websocketpp::lib::error_code&) { impl_->server.stop(); });
+}
+
+void WebServer::send_text(int client, const std::string& text) {
+  impl_->send(client, text, websocketpp::frame::opcode::text);
+}
+void WebServer::send_binary(int client, const std::string& bytes) {
+  impl_->send(client, bytes, websocketpp::frame::opcode::binary);
+}
+
+}  // namespace meshpde::net

@@ -1,0 +1,115 @@
+// One interactive editing session on one mesh: what the browser editor's server
+// (`meshpde serve`) runs for each connected page. Poke (a haptic probe at 1 kHz on
+// its own thread), correct (vessel correction with undo and redo), paint (scalar
+// values interpolated by g1/g2), heat and wave (sources, play and pause). The
+// session only computes; the server turns requests into calls and the state into
+// frames.
+//
+// Positions are in mesh units (mm for vessels). What a page shows is
+// display_positions() (the corrected surface plus the probe's transient
+// displacement) and field() (the painted, heat or wave values, or empty).
+// Thread safety: one thread calls the methods; the poke's servo thread is internal.
+#pragma once
+
+#include <Eigen/Core>
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "meshpde/apps/haptics.h"
+#include "meshpde/apps/vessel_correction.h"
+#include "meshpde/io/mesh_io.h"
+#include "meshpde/pde/pde_session.h"
+
+namespace meshpde {
+
+class EditorSession {
+ public:
+  /// The mesh with its fields (kept for saving). \throw InputError for an unusable mesh.
+  explicit EditorSession(MeshData data, std::shared_ptr<const Volume> edges = nullptr, Space space = Space::LPS);
+  ~EditorSession();
+  EditorSession(const EditorSession&) = delete;
+  EditorSession& operator=(const EditorSession&) = delete;
+
+  const Mesh& mesh() const { return correction_.mesh(); }  ///< the corrected surface
+  /// Corrected positions plus the probe's displacement while poking or relaxing.
+  Positions display_positions() const;
+  /// The field on show (#V values) and its name ("" when none).
+  const Eigen::VectorXd& field() const { return field_; }
+  const std::string& field_name() const { return field_name_; }
+  double mean_edge_length() const { return mean_edge_; }
+
+  // Poke: grab a vertex, move the probe (offset from the vertex's rest position),
+  // let go (the surface relaxes; the servo keeps running until it has).
+  void poke_begin(int vertex);
+  void poke_move(const Eigen::Vector3d& offset);
+  void poke_end();
+  bool poking() const;
+  Eigen::Vector3d poke_force() const;
+  int poke_contact() const;
+  int poke_active_vertices() const;
+  int poke_misses() const;
+  double poke_p99_us() const;  ///< over the last second of steps
+
+  // Correct.
+  CorrectionResult correct(CorrectionParams params);  ///< image guidance is filled in when a volume was given
+  bool can_undo() const { return correction_.can_undo(); }
+  bool can_redo() const { return correction_.can_redo(); }
+  void undo();
+  void redo();
+  int self_intersections() const { return correction_.new_self_intersections(); }
+  bool has_image() const { return edges_ != nullptr; }
+
+  // Paint: values at vertices, interpolated over the mesh.
+  void paint(int vertex, double value, double g1, double g2);
+  void clear_paint();
+  const std::map<int, double>& painted() const { return painted_; }
+
+  // Heat and wave: sources (value 1 held at the vertex for heat, an impulse for
+  // wave), then advance() steps the PDE while playing.
+  void add_source(int vertex);
+  void clear_sources();
+  void play(const std::string& kind);  ///< "heat" or "wave"
+  void pause();
+  bool playing() const { return playing_; }
+  /// Advances heat or wave by `steps` steps (the server calls it once a frame).
+  void advance(int steps);
+
+  /// The mesh as it is now, with its original fields plus the painted or simulated
+  /// field, for saving.
+  MeshData snapshot() const;
+  const std::string& last_solve_info() const { return info_; }
+  double last_solve_ms() const { return last_ms_; }
+
+ private:
+  void stop_poke();
+  void check_vertex(int v) const;
+
+  MeshData data_;
+  CorrectionSession correction_;
+  std::shared_ptr<const Volume> edges_;
+  Space space_;
+  double mean_edge_ = 1;
+  // Poke state: its own copy of the mesh and operators, rebuilt when the surface changed.
+  std::unique_ptr<Mesh> poke_mesh_;
+  std::unique_ptr<FemOperators> poke_ops_;
+  std::unique_ptr<HapticSession> haptic_;
+  std::size_t poke_version_ = static_cast<std::size_t>(-1);
+  std::size_t version_ = 0;  // bumped by every change of the corrected surface
+  // Fields.
+  Eigen::VectorXd field_;
+  std::string field_name_;
+  std::map<int, double> painted_;
+  std::vector<int> sources_;
+  std::unique_ptr<Mesh> pde_mesh_;
+  std::unique_ptr<FemOperators> pde_ops_;
+  std::unique_ptr<PdeSession> pde_;
+  std::string pde_kind_;
+  bool playing_ = false;
+  std::string info_;
+  double last_ms_ = 0;
+};
+
+}  // namespace meshpde

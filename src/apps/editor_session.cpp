@@ -1,0 +1,226 @@
+#include "meshpde/apps/editor_session.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <chrono>
+
+#include "meshpde/apps/interpolation.h"
+#include "meshpde/core/errors.h"
+#include "meshpde/mesh/topology.h"
+#include "meshpde/operators/intrinsic_delaunay.h"
+
+namespace meshpde {
+
+namespace {
+
+Mesh checked_mesh(const MeshData& d) {
+  if (d.V.rows() == 0 || d.F.rows() == 0) throw InputError("the mesh has no triangles");
+  return Mesh(d.V, d.F);
+}
+
+}  // namespace
+
+EditorSession::EditorSession(MeshData data, std::shared_ptr<const Volume> edges, Space space)
+    : data_(std::move(data)), correction_(checked_mesh(data_)), edges_(std::move(edges)), space_(space) {
+  mean_edge_ = std::max(meshpde::mean_edge_length(correction_.mesh()), 1e-12);
+}
+
+EditorSession::~EditorSession() {
+  stop_poke();
+}
+
+void EditorSession::check_vertex(int v) const {
+  if (v < 0 || v >= mesh().num_vertices())
+    throw InputError(fmt::format("vertex {} does not exist (the mesh has {} vertices)", v, mesh().num_vertices()));
+}
+
+Positions EditorSession::display_positions() const {
+  Positions V = mesh().positions();
+  if (haptic_) V += haptic_->displacement();
+  return V;
+}
+
+void EditorSession::stop_poke() {
+  if (haptic_) haptic_->stop();
+  haptic_.reset();
+}
+
+void EditorSession::poke_begin(int vertex) {
+  check_vertex(vertex);
+  pause();
+  if (!haptic_ || poke_version_ != version_) {
+    stop_poke();
+    // The probe runs on the operators of the surface as it is now (intrinsic ones on
+    // badly shaped meshes, so the servo's CG stays well conditioned).
+    MeshOperators mo = build_mesh_operators(mesh(), LaplacianKind::Auto);
+    poke_mesh_ = std::make_unique<Mesh>(std::move(mo.mesh));
+    poke_ops_ = std::make_unique<FemOperators>(std::move(mo.ops));
+    haptic_ = std::make_unique<HapticSession>(*poke_mesh_, *poke_ops_);
+    poke_version_ = version_;
+    haptic_->start();
+  }
+  haptic_->touch(vertex);
+}
+
+void EditorSession::poke_move(const Eigen::Vector3d& offset) {
+  if (!haptic_ || !haptic_->touching()) throw InputError("poke_move without poke_begin");
+  if (!offset.allFinite()) throw InputError("probe offset is not finite");
+  haptic_->move_probe(offset);
+}
+
+void EditorSession::poke_end() {
+  if (haptic_) haptic_->release();
+}
+
+bool EditorSession::poking() const {
+  return haptic_ && haptic_->touching();
+}
+Eigen::Vector3d EditorSession::poke_force() const {
+  return haptic_ ? haptic_->latest_force() : Eigen::Vector3d::Zero();
+}
+int EditorSession::poke_contact() const {
+  return haptic_ ? haptic_->contact_vertex() : -1;
+}
+int EditorSession::poke_active_vertices() const {
+  int active = 0;
+  if (haptic_) haptic_->displacement(&active);
+  return active;
+}
+int EditorSession::poke_misses() const {
+  return haptic_ ? haptic_->misses() : 0;
+}
+double EditorSession::poke_p99_us() const {
+  if (!haptic_) return 0;
+  const auto log = haptic_->log();
+  const std::size_t n = std::min<std::size_t>(log.size(), 1000);
+  if (n == 0) return 0;
+  std::vector<double> us;
+  us.reserve(n);
+  for (std::size_t k = log.size() - n; k < log.size(); ++k) us.push_back(log[k].latency_us);
+  std::sort(us.begin(), us.end());
+  return us[std::min(us.size() - 1, static_cast<std::size_t>(0.99 * static_cast<double>(us.size())))];
+}
+
+CorrectionResult EditorSession::correct(CorrectionParams params) {
+  stop_poke();
+  pause();
+  if (edges_ && !params.image.edges && params.image.weight > 0) {
+    params.image.edges = edges_;
+    params.image.space = space_;
+  }
+  const auto t0 = std::chrono::steady_clock::now();
+  CorrectionResult r = correction_.apply(params);
+  last_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  ++version_;
+  info_ = fmt::format("correct: {} vertices moved, {} new self-intersections, {}", r.moved_vertices,
+                      r.new_self_intersections, r.intersection_action);
+  return r;
+}
+
+void EditorSession::undo() {
+  stop_poke();
+  correction_.undo();
+  ++version_;
+}
+
+void EditorSession::redo() {
+  stop_poke();
+  correction_.redo();
+  ++version_;
+}
+
+void EditorSession::paint(int vertex, double value, double g1, double g2) {
+  check_vertex(vertex);
+  if (!std::isfinite(value)) throw InputError("painted value is not finite");
+  if (!(g1 >= 0 && g2 >= 0) || g1 + g2 <= 0) throw InputError("g1 and g2 must be >= 0 and not both 0");
+  stop_poke();
+  pause();
+  painted_[vertex] = value;
+  std::vector<InterpolationConstraint> c;
+  for (const auto& [v, x] : painted_) c.push_back({v, Eigen::VectorXd::Constant(1, x)});
+  const auto t0 = std::chrono::steady_clock::now();
+  const MeshOperators mo = build_mesh_operators(mesh(), LaplacianKind::Auto);
+  InterpolationParams ip;
+  ip.g1 = g1;
+  ip.g2 = g2;
+  const InterpolationResult r = interpolate(mo.mesh, mo.ops, FieldKind::Scalar, c, ip);
+  last_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  field_ = r.values.col(0);
+  field_name_ = "paint";
+  info_ = fmt::format("paint: {} values interpolated (g1 {}, g2 {}), residual {:.1e}", painted_.size(), g1, g2,
+                      r.cg.relative_residual);
+}
+
+void EditorSession::clear_paint() {
+  painted_.clear();
+  if (field_name_ == "paint") {
+    field_.resize(0);
+    field_name_.clear();
+  }
+}
+
+void EditorSession::add_source(int vertex) {
+  check_vertex(vertex);
+  if (std::find(sources_.begin(), sources_.end(), vertex) == sources_.end()) sources_.push_back(vertex);
+}
+
+void EditorSession::clear_sources() {
+  pause();
+  sources_.clear();
+  pde_.reset();
+}
+
+void EditorSession::play(const std::string& kind) {
+  if (kind != "heat" && kind != "wave") throw InputError(fmt::format("unknown simulation '{}' (heat or wave)", kind));
+  if (sources_.empty()) throw InputError("click a source vertex first");
+  stop_poke();
+  if (!pde_ || pde_kind_ != kind) {
+    MeshOperators mo = build_mesh_operators(mesh(), LaplacianKind::Auto);
+    pde_mesh_ = std::make_unique<Mesh>(std::move(mo.mesh));
+    pde_ops_ = std::make_unique<FemOperators>(std::move(mo.ops));
+    // Heat: u_t = lap u, sources held at 1. Wave: u_tt = lap u, sources plucked to 1
+    // and released, lightly damped.
+    const PdeCoefficients c = kind == "heat" ? PdeCoefficients{.alpha = 0, .b1 = 1, .g1 = 1}
+                                             : PdeCoefficients{.alpha = 1, .b1 = 0.05, .g1 = 1};
+    pde_ = std::make_unique<PdeSession>(*pde_mesh_, *pde_ops_, 1, c);
+    pde_->activate_all();
+    Field u = Field::Zero(pde_mesh_->num_vertices(), 1);
+    for (int v : sources_) u(v, 0) = 1;
+    if (kind == "heat") {
+      for (int v : sources_) {
+        const double one = 1;
+        pde_->constrain(v, std::span<const double>(&one, 1));
+      }
+    } else {
+      pde_->set_values(u, false);
+    }
+    pde_kind_ = kind;
+  }
+  playing_ = true;
+  field_name_ = kind;
+}
+
+void EditorSession::pause() {
+  playing_ = false;
+}
+
+void EditorSession::advance(int steps) {
+  if (!playing_ || !pde_) return;
+  const auto t0 = std::chrono::steady_clock::now();
+  // A step moves heat by about an edge, a wave by half an edge.
+  const double dt = pde_kind_ == "heat" ? mean_edge_ * mean_edge_ : 0.5 * mean_edge_;
+  for (int k = 0; k < steps; ++k) pde_->step(dt);
+  last_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  field_ = pde_->values().col(0);
+}
+
+MeshData EditorSession::snapshot() const {
+  MeshData d = data_;
+  d.V = mesh().positions();
+  if (field_.size() == d.V.rows() && !field_name_.empty()) d.vertex_scalars[field_name_] = field_;
+  d.warnings.clear();
+  return d;
+}
+
+}  // namespace meshpde

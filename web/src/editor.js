@@ -1,0 +1,347 @@
+// The meshpde browser editor. Draws what the server sends (see cli/serve.cpp for
+// the wire format) and turns mouse gestures into requests; all numerics run on the
+// server. window.meshpde exposes the state for tests and for the curious.
+import * as THREE from 'three';
+import { OrbitControls } from 'three/addons/OrbitControls.js';
+
+const $ = (id) => document.getElementById(id);
+const state = {
+  ready: false, client: 0, name: '', vertexCount: 0, faceCount: 0, meanEdge: 1,
+  positions: null, rest: null, field: null, fieldName: '', fieldRange: [0, 1],
+  force: [0, 0, 0], forceVisible: false, contact: -1, intersections: 0,
+  canUndo: false, canRedo: false, lastError: '', lastOk: '', oks: 0, errors: 0, frames: 0,
+};
+window.meshpde = state;
+
+// ---------------------------------------------------------------- scene
+const viewport = $('viewport');
+const renderer = new THREE.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true });
+renderer.setPixelRatio(window.devicePixelRatio);
+viewport.appendChild(renderer.domElement);
+const scene = new THREE.Scene();
+scene.background = new THREE.Color(0xfafafa);
+const camera = new THREE.PerspectiveCamera(40, 1, 0.01, 1e5);
+scene.add(new THREE.HemisphereLight(0xffffff, 0x667788, 1.6));
+const sun = new THREE.DirectionalLight(0xffffff, 1.6);
+camera.add(sun);
+sun.position.set(0.5, 1, 1);
+scene.add(camera);
+const controls = new OrbitControls(camera, renderer.domElement);
+controls.enableDamping = false;
+
+const material = new THREE.MeshStandardMaterial({
+  vertexColors: true, side: THREE.DoubleSide, roughness: 0.65, metalness: 0.0, flatShading: false,
+});
+const wireMaterial = new THREE.MeshBasicMaterial({ color: 0x222222, wireframe: true, transparent: true, opacity: 0.25 });
+let mesh = null, wire = null, geometry = null;
+const arrow = new THREE.ArrowHelper(new THREE.Vector3(0, 1, 0), new THREE.Vector3(), 1, 0xd62728);
+arrow.visible = false;
+scene.add(arrow);
+const dragLine = new THREE.Line(new THREE.BufferGeometry().setFromPoints([new THREE.Vector3(), new THREE.Vector3()]),
+  new THREE.LineBasicMaterial({ color: 0x1f77b4 }));
+dragLine.visible = false;
+scene.add(dragLine);
+
+function resize() {
+  const w = viewport.clientWidth, h = viewport.clientHeight;
+  renderer.setSize(w, h);
+  camera.aspect = w / Math.max(h, 1);
+  camera.updateProjectionMatrix();
+}
+window.addEventListener('resize', resize);
+
+// Viridis, as the server's renderer draws it.
+const VIRIDIS = [[68, 1, 84], [59, 82, 139], [33, 144, 141], [93, 201, 99], [253, 231, 37]];
+function viridis(t) {
+  t = Math.min(1, Math.max(0, t)) * (VIRIDIS.length - 1);
+  const i = Math.min(Math.floor(t), VIRIDIS.length - 2), f = t - i;
+  return VIRIDIS[i].map((c, k) => (c + f * (VIRIDIS[i + 1][k] - c)) / 255);
+}
+const BASE = [0.72, 0.78, 0.88], MOVING = [1.0, 0.55, 0.15];
+
+function paintColors() {
+  if (!geometry) return;
+  const col = geometry.getAttribute('color');
+  const n = state.vertexCount, P = state.positions, R = state.rest;
+  const [lo, hi] = state.fieldRange;
+  // Highlight what the probe moves noticeably: 2 % of the largest motion.
+  let largest = 0;
+  if (R && !state.field)
+    for (let i = 0; i < 3 * n; ++i) largest = Math.max(largest, Math.abs(P[i] - R[i]));
+  const tol = Math.max(1e-3 * state.meanEdge, 0.02 * largest);
+  for (let i = 0; i < n; ++i) {
+    let c = BASE;
+    if (state.field) c = viridis(hi > lo ? (state.field[i] - lo) / (hi - lo) : 0.5);
+    else if (R) {
+      const dx = P[3 * i] - R[3 * i], dy = P[3 * i + 1] - R[3 * i + 1], dz = P[3 * i + 2] - R[3 * i + 2];
+      if (dx * dx + dy * dy + dz * dz > tol * tol) c = MOVING;  // the part the probe moves: its active domain
+    }
+    col.setXYZ(i, c[0], c[1], c[2]);
+  }
+  col.needsUpdate = true;
+}
+
+function buildMesh(buf) {
+  const dv = new DataView(buf);
+  const nv = dv.getUint32(4, true), nf = dv.getUint32(8, true);
+  const pos = new Float32Array(buf.slice(12, 12 + 12 * nv));
+  const idx = new Uint32Array(buf.slice(12 + 12 * nv, 12 + 12 * nv + 12 * nf));
+  if (mesh) { scene.remove(mesh); scene.remove(wire); geometry.dispose(); }
+  geometry = new THREE.BufferGeometry();
+  geometry.setAttribute('position', new THREE.BufferAttribute(pos, 3).setUsage(THREE.DynamicDrawUsage));
+  geometry.setAttribute('color', new THREE.BufferAttribute(new Float32Array(3 * nv), 3));
+  geometry.setIndex(new THREE.BufferAttribute(idx, 1));
+  geometry.computeVertexNormals();
+  geometry.computeBoundingSphere();
+  mesh = new THREE.Mesh(geometry, material);
+  wire = new THREE.Mesh(geometry, wireMaterial);
+  wire.visible = $('wireframe').checked;
+  scene.add(mesh, wire);
+  state.vertexCount = nv; state.faceCount = nf;
+  state.positions = pos; state.rest = pos.slice(); state.field = null; state.fieldName = '';
+  $('legend').hidden = true;
+  paintColors();
+  const s = geometry.boundingSphere;
+  controls.target.copy(s.center);
+  // Far enough for the whole bounding sphere to fit the (vertical) field of view.
+  const distance = 1.15 * s.radius / Math.sin(THREE.MathUtils.degToRad(camera.fov / 2));
+  camera.position.copy(s.center).add(new THREE.Vector3(0.3, 0.4, 1).normalize().multiplyScalar(distance));
+  camera.near = s.radius / 100; camera.far = s.radius * 100;
+  camera.updateProjectionMatrix();
+  controls.update();
+  state.ready = true;
+}
+
+function applyPositions(buf) {
+  const dv = new DataView(buf);
+  const n = dv.getUint32(4, true);
+  const ids = new Uint32Array(buf.slice(8, 8 + 4 * n));
+  const xyz = new Float32Array(buf.slice(8 + 4 * n, 8 + 16 * n));
+  const P = state.positions;
+  for (let k = 0; k < n; ++k) {
+    const i = ids[k];
+    P[3 * i] = xyz[3 * k]; P[3 * i + 1] = xyz[3 * k + 1]; P[3 * i + 2] = xyz[3 * k + 2];
+  }
+  geometry.getAttribute('position').needsUpdate = true;
+  geometry.computeVertexNormals();
+  if (!state.poking) state.rest = P.slice();  // a correction, undo or redo: the new rest shape
+  paintColors();
+}
+
+function applyField(buf) {
+  const n = new DataView(buf).getUint32(4, true);
+  state.field = new Float32Array(buf.slice(8, 8 + 4 * n));
+  paintColors();
+}
+
+// ---------------------------------------------------------------- connection
+const status = (text, error = false) => { $('status').textContent = text; $('status').className = error ? 'error' : ''; };
+const ws = new WebSocket(`ws://${location.host}/`);
+ws.binaryType = 'arraybuffer';
+const send = (obj) => { if (ws.readyState === 1) ws.send(JSON.stringify(obj)); };
+window.meshpde.send = send;
+window.meshpde.socket = ws;
+ws.onclose = () => status('disconnected from the server', true);
+ws.onmessage = (ev) => {
+  if (typeof ev.data !== 'string') {
+    const tag = new TextDecoder().decode(new Uint8Array(ev.data, 0, 4));
+    if (tag === 'MESH') buildMesh(ev.data);
+    else if (tag === 'POS ') applyPositions(ev.data);
+    else if (tag === 'FLD ') applyField(ev.data);
+    return;
+  }
+  const m = JSON.parse(ev.data);
+  if (m.type === 'hello') state.client = m.client;
+  else if (m.type === 'mesh') {
+    state.ready = false; state.name = m.name; state.meanEdge = m.mean_edge;
+    $('mesh-name').textContent = `${m.name}: ${m.vertices.toLocaleString()} vertices`;
+    $('image').disabled = !m.has_image;
+    if (!m.has_image) $('image').checked = false;
+  } else if (m.type === 'field') {
+    state.fieldName = m.name;
+    if (!m.name) { state.field = null; $('legend').hidden = true; paintColors(); return; }
+    state.fieldRange = [m.min, m.max];
+    $('legend').hidden = false;
+    $('legend-name').textContent = m.name;
+    $('legend-min').textContent = (+m.min).toPrecision(3);
+    $('legend-max').textContent = (+m.max).toPrecision(3);
+  } else if (m.type === 'stats') updateStats(m);
+  else if (m.type === 'ok') {
+    state.lastOk = m.request; state.oks += 1;
+    if (m.request === 'correct')
+      status(`corrected: ${m.moved_vertices} vertices moved in ${m.time_ms.toFixed(1)} ms, ` +
+             `${m.new_self_intersections} new self-intersections (${m.intersection_action})`);
+  } else if (m.type === 'error') {
+    state.lastError = m.message; state.errors += 1;
+    status(m.message, true);
+  }
+};
+
+let fpsCount = 0;
+setInterval(() => { $('stat-fps').textContent = fpsCount; fpsCount = 0; }, 1000);
+
+function updateStats(s) {
+  state.force = s.force; state.contact = s.contact; state.intersections = s.intersections;
+  state.canUndo = s.can_undo; state.canRedo = s.can_redo;
+  $('stat-solve').textContent = s.solve_ms.toFixed(1);
+  $('stat-frame').textContent = s.frame_ms.toFixed(2);
+  $('stat-domain').textContent = s.active;
+  $('stat-p99').textContent = s.p99_us ? s.p99_us.toFixed(0) : '-';
+  $('stat-misses').textContent = s.misses;
+  $('stat-intersections').textContent = s.intersections;
+  $('undo').disabled = !s.can_undo;
+  $('redo').disabled = !s.can_redo;
+  const f = new THREE.Vector3(...s.force);
+  $('stat-force').textContent = f.length().toPrecision(3);
+  const show = s.poking && s.contact >= 0 && f.length() > 0 && state.positions;
+  arrow.visible = !!show;
+  state.forceVisible = !!show;
+  if (show) {
+    const P = state.positions, i = s.contact;
+    arrow.position.set(P[3 * i], P[3 * i + 1], P[3 * i + 2]);
+    arrow.setDirection(f.clone().normalize());
+    const r = geometry.boundingSphere.radius;
+    arrow.setLength(0.05 * r + 0.25 * r * Math.min(1, f.length() / (forceScale = Math.max(forceScale, f.length()))));
+  }
+}
+let forceScale = 1e-30;
+
+// ---------------------------------------------------------------- gestures
+const raycaster = new THREE.Raycaster();
+const tool = () => document.querySelector('input[name=tool]:checked').value;
+function pick(ev) {
+  if (!mesh) return null;
+  const r = renderer.domElement.getBoundingClientRect();
+  const ndc = new THREE.Vector2(((ev.clientX - r.left) / r.width) * 2 - 1, -((ev.clientY - r.top) / r.height) * 2 + 1);
+  raycaster.setFromCamera(ndc, camera);
+  const hit = raycaster.intersectObject(mesh, false)[0];
+  if (!hit) return null;
+  // The corner of the hit triangle nearest the hit point.
+  let best = -1, bestD = Infinity;
+  for (const i of [hit.face.a, hit.face.b, hit.face.c]) {
+    const P = state.positions;
+    const d = hit.point.distanceToSquared(new THREE.Vector3(P[3 * i], P[3 * i + 1], P[3 * i + 2]));
+    if (d < bestD) { bestD = d; best = i; }
+  }
+  return { vertex: best, point: hit.point.clone() };
+}
+let drag = null;  // {vertex, start, plane}
+function planePoint(ev) {
+  const r = renderer.domElement.getBoundingClientRect();
+  const ndc = new THREE.Vector2(((ev.clientX - r.left) / r.width) * 2 - 1, -((ev.clientY - r.top) / r.height) * 2 + 1);
+  raycaster.setFromCamera(ndc, camera);
+  const p = new THREE.Vector3();
+  return raycaster.ray.intersectPlane(drag.plane, p) ? p : null;
+}
+let lastMove = 0;
+renderer.domElement.addEventListener('pointerdown', (ev) => {
+  if (ev.button !== 0) return;
+  const hit = pick(ev);
+  if (!hit) return;
+  const t = tool();
+  if (t === 'paint') {
+    send({ type: 'paint', vertex: hit.vertex, value: +$('paint-value').value, g1: +$('g1').value, g2: +$('g2').value });
+    return;
+  }
+  if (t === 'brush') {
+    send({ type: 'brush', vertex: hit.vertex, radius: +$('brush-radius').value, value: +$('brush-value').value });
+    return;
+  }
+  if (t === 'heat' || t === 'wave') { send({ type: 'source', vertex: hit.vertex }); return; }
+  controls.enabled = false;
+  const normal = camera.getWorldDirection(new THREE.Vector3());
+  drag = { vertex: hit.vertex, start: hit.point, plane: new THREE.Plane().setFromNormalAndCoplanarPoint(normal, hit.point) };
+  renderer.domElement.setPointerCapture(ev.pointerId);
+  if (t === 'poke') { state.poking = true; send({ type: 'poke_begin', vertex: hit.vertex }); }
+});
+renderer.domElement.addEventListener('pointermove', (ev) => {
+  if (!drag) return;
+  const p = planePoint(ev);
+  if (!p) return;
+  const offset = p.clone().sub(drag.start);
+  if (tool() === 'poke') {
+    const now = performance.now();
+    if (now - lastMove < 8) return;  // at most about 120 probe updates a second
+    lastMove = now;
+    send({ type: 'poke_move', offset: offset.toArray() });
+  } else {
+    dragLine.geometry.setFromPoints([drag.start, p]);
+    dragLine.visible = true;
+  }
+});
+function endDrag(ev) {
+  if (!drag) return;
+  const p = planePoint(ev) || drag.start;
+  const offset = p.clone().sub(drag.start);
+  if (tool() === 'poke') send({ type: 'poke_end' });
+  else if (tool() === 'correct' && offset.length() > 0)
+    send({ type: 'correct', vertex: drag.vertex, move: offset.toArray(), radius: +$('radius').value,
+          method: $('method').value, image: $('image').checked });
+  state.poking = false;
+  drag = null;
+  dragLine.visible = false;
+  controls.enabled = true;
+}
+renderer.domElement.addEventListener('pointerup', endDrag);
+renderer.domElement.addEventListener('pointercancel', endDrag);
+
+// ---------------------------------------------------------------- buttons, files
+$('load-generated').onclick = () => send({ type: 'generate', kind: $('generate').value });
+$('undo').onclick = () => send({ type: 'undo' });
+$('redo').onclick = () => send({ type: 'redo' });
+$('clear-paint').onclick = () => send({ type: 'clear_paint' });
+$('play').onclick = () => send({ type: 'play', kind: tool() === 'wave' ? 'wave' : 'heat' });
+$('pause').onclick = () => send({ type: 'pause' });
+$('clear-sources').onclick = () => send({ type: 'clear_sources' });
+$('wireframe').onchange = () => { if (wire) wire.visible = $('wireframe').checked; };
+for (const id of ['g1', 'g2']) $(id).oninput = () => { $(`${id}-value`).textContent = $(id).value; };
+
+async function upload(file) {
+  status(`uploading ${file.name} (${(file.size / 1e6).toFixed(1)} MB)…`);
+  const r = await fetch(`/api/upload?client=${state.client}&name=${encodeURIComponent(file.name)}`,
+    { method: 'POST', body: file });
+  if (!r.ok) {
+    let msg = `${r.status} ${r.statusText}`;
+    try { msg = (await r.json()).error || msg; } catch { /* not JSON: keep the status */ }
+    status(`upload refused: ${msg}`, true);
+    state.lastError = msg; state.errors += 1;
+  } else status(`opened ${file.name}`);
+}
+$('file').onchange = () => { if ($('file').files[0]) upload($('file').files[0]); };
+viewport.addEventListener('dragover', (ev) => { ev.preventDefault(); viewport.classList.add('drop'); });
+viewport.addEventListener('dragleave', () => viewport.classList.remove('drop'));
+viewport.addEventListener('drop', (ev) => {
+  ev.preventDefault();
+  viewport.classList.remove('drop');
+  if (ev.dataTransfer.files[0]) upload(ev.dataTransfer.files[0]);
+});
+$('save').onclick = async () => {
+  const r = await fetch(`/api/save?client=${state.client}`);
+  if (!r.ok) { status(`save failed: ${r.status}`, true); return; }
+  const name = /filename="([^"]+)"/.exec(r.headers.get('Content-Disposition') || '')?.[1] || 'mesh';
+  const a = document.createElement('a');
+  a.href = URL.createObjectURL(await r.blob());
+  a.download = name;
+  document.body.appendChild(a);
+  a.click();
+  a.remove();
+  status(`saved ${name}`);
+};
+
+// Screen position of a vertex (for tests and scripted demos).
+window.meshpde.screenOf = (i) => {
+  const P = state.positions;
+  const v = new THREE.Vector3(P[3 * i], P[3 * i + 1], P[3 * i + 2]).project(camera);
+  const r = renderer.domElement.getBoundingClientRect();
+  return { x: r.left + (v.x + 1) / 2 * r.width, y: r.top + (1 - v.y) / 2 * r.height };
+};
+
+function loop() {
+  requestAnimationFrame(loop);
+  controls.update();
+  renderer.render(scene, camera);
+  fpsCount += 1;
+  state.frames += 1;
+}
+resize();
+loop();

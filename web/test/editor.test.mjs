@@ -1,0 +1,269 @@
+// The editor in a real browser (Debian's chromium, driven by playwright-core) and
+// the server's safety checks. Starts its own `meshpde serve` on a free port.
+//
+//   node web/test/editor.test.mjs MESHPDE_BINARY [SCREENSHOT_DIR]
+//
+// Exit 0: all passed; 1: a check failed; 77: skipped (no chromium or node modules,
+// and not under CI=true, where a missing piece is a failure).
+import { spawn } from 'node:child_process';
+import { existsSync, readFileSync, mkdirSync } from 'node:fs';
+import net from 'node:net';
+import os from 'node:os';
+import { join, dirname } from 'node:path';
+import { fileURLToPath } from 'node:url';
+
+const here = dirname(fileURLToPath(import.meta.url));
+const binary = process.argv[2];
+const shots = process.argv[3] || join(os.tmpdir(), 'meshpde-editor-shots');
+const ci = process.env.CI === 'true';
+const chromiumPath = process.env.CHROMIUM || '/usr/bin/chromium';
+
+function skip(why) {
+  if (ci) { console.error(`FAIL: ${why} (CI=true: the browser test must run)`); process.exit(1); }
+  console.log(`SKIP: ${why}`);
+  process.exit(77);
+}
+if (!binary || !existsSync(binary)) skip(`no meshpde binary at '${binary}'`);
+if (!existsSync(chromiumPath)) skip(`no chromium at ${chromiumPath} (Debian package chromium)`);
+if (!existsSync(join(here, '..', 'dist', 'index.html'))) skip('web/dist is not built (npm --prefix web run build)');
+let chromium;
+try {
+  ({ chromium } = await import('playwright-core'));
+} catch {
+  skip('playwright-core is not installed (npm --prefix web ci)');
+}
+mkdirSync(shots, { recursive: true });
+
+let passed = 0, failed = 0;
+const t0 = Date.now();
+function check(what, ok, detail = "") {
+  if (process.env.VERBOSE) console.log(`${((Date.now() - t0) / 1000).toFixed(1)}s ${what}`);
+  if (ok) passed += 1;
+  else { failed += 1; console.log(`FAIL: ${what}${detail ? ': ' + detail : ''}`); }
+}
+
+// ------------------------------------------------------------------ server
+function startServer(extra = []) {
+  return new Promise((resolve, reject) => {
+    const p = spawn(binary, ['serve', '--port', '0', ...extra], { stdio: ['ignore', 'pipe', 'pipe'] });
+    let out = '';
+    const timer = setTimeout(() => reject(new Error(`server did not start: ${out}`)), 15000);
+    p.stdout.on('data', (d) => {
+      out += d;
+      const m = /http:\/\/([\d.]+):(\d+)\//.exec(out);
+      if (m) { clearTimeout(timer); resolve({ proc: p, host: m[1], port: +m[2], url: m[0] }); }
+    });
+    p.stderr.on('data', (d) => { out += d; });
+    p.on('exit', (code) => { clearTimeout(timer); reject(new Error(`server exited (${code}): ${out}`)); });
+  });
+}
+function stopServer(s) {
+  return new Promise((resolve) => {
+    s.proc.removeAllListeners('exit');
+    s.proc.on('exit', (code, signal) => resolve({ code, signal }));
+    s.proc.kill('SIGINT');
+    setTimeout(() => s.proc.kill('SIGKILL'), 5000);
+  });
+}
+// A raw HTTP request line, so nothing normalizes the path on the way.
+function rawGet(port, path) {
+  return new Promise((resolve) => {
+    const sock = net.connect(port, '127.0.0.1', () => sock.write(`GET ${path} HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n`));
+    let data = '';
+    sock.on('data', (d) => { data += d; });
+    sock.on('end', () => resolve(data));
+    sock.on('error', () => resolve(''));
+  });
+}
+const status = (response) => +(/^HTTP\/1\.[01] (\d+)/.exec(response)?.[1] || 0);
+
+const server = await startServer(['--max-upload-mb', '1']);
+const url = server.url;
+const browser = await chromium.launch({
+  executablePath: chromiumPath,
+  args: ['--no-sandbox', '--disable-gpu', '--enable-unsafe-swiftshader', '--disable-background-networking',
+         '--disable-dev-shm-usage'],
+});
+
+async function openPage(context) {
+  const page = await context.newPage();
+  page.on('pageerror', (e) => check('no page errors', false, e.message));
+  await page.goto(url);
+  await page.waitForFunction(() => window.meshpde?.ready && window.meshpde.client > 0, null, { timeout: 30000 });
+  return page;
+}
+async function loadGenerated(page, kind) {
+  await page.selectOption('#generate', kind);
+  const before = await page.evaluate(() => meshpde.name);
+  await page.click('#load-generated');
+  await page.waitForFunction((b) => meshpde.ready && meshpde.name !== b, before, { timeout: 30000 });
+}
+const positions = (page) => page.evaluate(() => Array.from(meshpde.positions));
+const maxDiff = (a, b) => a.reduce((m, x, i) => Math.max(m, Math.abs(x - b[i])), 0);
+async function canvasCentre(page) {
+  const box = await page.locator('#viewport canvas').boundingBox();
+  return { x: box.x + box.width / 2, y: box.y + box.height / 2 };
+}
+async function dragBy(page, from, dx, dy, steps = 12) {
+  await page.mouse.move(from.x, from.y);
+  await page.mouse.down();
+  for (let k = 1; k <= steps; ++k) {
+    await page.mouse.move(from.x + (dx * k) / steps, from.y + (dy * k) / steps);
+    await page.waitForTimeout(25);
+  }
+}
+
+try {
+  // ---------------------------------------------------------------- default bind
+  check('binds to loopback by default', server.host === '127.0.0.1', server.host);
+  const external = Object.values(os.networkInterfaces()).flat().find((i) => i && i.family === 'IPv4' && !i.internal);
+  if (external) {
+    const reachable = await new Promise((resolve) => {
+      const s = net.connect(server.port, external.address, () => { s.destroy(); resolve(true); });
+      s.on('error', () => resolve(false));
+    });
+    check(`not reachable on ${external.address}`, !reachable);
+  } else {
+    console.log('note: no non-loopback IPv4 interface to test the bind against');
+  }
+
+  // ---------------------------------------------------------------- path safety
+  for (const p of ['/../CMakeLists.txt', '/%2e%2e/package.json', '/..%2fpackage.json', '/%2E%2E%2Fpackage.json',
+                   '//etc/passwd', '/%2Fetc%2Fpasswd', '/vendor/../../package.json', '/..\\package.json',
+                   '/%00index.html', '/vendor/%2e%2e/%2e%2e/build.mjs']) {
+    const r = await rawGet(server.port, p);
+    check(`request for ${p} refused`, status(r) !== 200 && !r.includes('"name": "meshpde-editor"') && !r.includes('root:'),
+          `status ${status(r)}`);
+  }
+  check('the page itself is served', status(await rawGet(server.port, '/')) === 200);
+
+  // ---------------------------------------------------------------- page, poke
+  const contextA = await browser.newContext({ viewport: { width: 1280, height: 800 }, acceptDownloads: true });
+  const page = await openPage(contextA);
+  await loadGenerated(page, 'sphere');
+  check('generated sphere loaded', (await page.evaluate(() => meshpde.vertexCount)) === 2562);
+  const rest = await positions(page);
+  const centre = await canvasCentre(page);
+  await dragBy(page, centre, 0, -70);
+  await page.waitForFunction(() => meshpde.forceVisible, null, { timeout: 10000 }).catch(() => {});
+  await page.waitForTimeout(300);
+  const poked = await positions(page);
+  check('poke moves vertices', maxDiff(poked, rest) > 0.05, `max move ${maxDiff(poked, rest)}`);
+  check('poke shows the force arrow', await page.evaluate(() => meshpde.forceVisible));
+  check('poke reports a force', await page.evaluate(() => Math.hypot(...meshpde.force) > 0));
+  await page.screenshot({ path: join(shots, 'editor-poke.png') });
+  await page.mouse.up();
+  await page.waitForFunction((r) => {
+    const P = meshpde.positions;
+    let m = 0;
+    for (let i = 0; i < P.length; ++i) m = Math.max(m, Math.abs(P[i] - r[i]));
+    return m < 1e-2;
+  }, rest, { timeout: 15000 }).catch(() => {});
+  check('released surface relaxes back', maxDiff(await positions(page), rest) < 1e-2);
+
+  // ---------------------------------------------------------------- correct, undo, redo
+  await page.check('input[name=tool][value=correct]');
+  await page.fill('#radius', '6');
+  const oks = await page.evaluate(() => meshpde.oks);
+  await dragBy(page, centre, 40, -30);
+  await page.mouse.up();
+  await page.waitForFunction((n) => meshpde.oks > n && meshpde.lastOk === 'correct', oks, { timeout: 20000 });
+  await page.waitForTimeout(300);
+  const corrected = await positions(page);
+  check('correct moves vertices', maxDiff(corrected, rest) > 0.5, `max move ${maxDiff(corrected, rest)}`);
+  check('no self-intersections after a correction', (await page.evaluate(() => meshpde.intersections)) === 0);
+  await page.screenshot({ path: join(shots, 'editor-correct.png') });
+  await page.click('#undo');
+  await page.waitForTimeout(500);
+  check('undo restores the positions', maxDiff(await positions(page), rest) < 1e-5);
+  await page.click('#redo');
+  await page.waitForTimeout(500);
+  check('redo brings the correction back', maxDiff(await positions(page), corrected) < 1e-5);
+
+  // ---------------------------------------------------------------- paint
+  await page.check('input[name=tool][value=paint]');
+  await page.fill('#paint-value', '1');
+  await page.mouse.click(centre.x, centre.y);
+  await page.fill('#paint-value', '0');
+  await page.mouse.click(centre.x + 120, centre.y + 60);
+  await page.waitForFunction(() => meshpde.field && meshpde.fieldName === 'paint', null, { timeout: 20000 });
+  await page.waitForTimeout(300);
+  const range = await page.evaluate(() => [Math.min(...meshpde.field), Math.max(...meshpde.field)]);
+  check('painted values spread over the mesh', range[1] - range[0] > 0.5, JSON.stringify(range));
+  await page.screenshot({ path: join(shots, 'editor-paint.png') });
+
+  // ---------------------------------------------------------------- save and reload
+  const [download] = await Promise.all([page.waitForEvent('download'), page.click('#save')]);
+  const saved = join(shots, download.suggestedFilename());
+  await download.saveAs(saved);
+  check('saved in the input format', saved.endsWith('.ply'), saved);
+  check('saved file holds the painted field', readFileSync(saved).includes('property double paint'));
+  await page.setInputFiles('#file', saved);
+  await page.waitForFunction((n) => meshpde.ready && meshpde.name.endsWith('-edited.ply'), null, { timeout: 20000 });
+  const reloaded = await positions(page);
+  check('reloaded mesh has the corrected positions', maxDiff(reloaded, corrected) < 1e-4);
+
+  // ---------------------------------------------------------------- heat
+  await page.check('input[name=tool][value=heat]');
+  await page.mouse.click(centre.x, centre.y);
+  await page.click('#play');
+  await page.waitForFunction(() => meshpde.fieldName === 'heat' && meshpde.field, null, { timeout: 20000 });
+  await page.waitForTimeout(400);
+  const h1 = await page.evaluate(() => meshpde.field.reduce((s, x) => s + x, 0));
+  await page.waitForTimeout(400);
+  const h2 = await page.evaluate(() => meshpde.field.reduce((s, x) => s + x, 0));
+  check('heat spreads while playing', h2 > h1 && h1 > 0, `${h1} -> ${h2}`);
+  await page.click('#pause');
+
+  // ---------------------------------------------------------------- malformed messages
+  const errors = await page.evaluate(() => meshpde.errors);
+  await page.evaluate(() => {
+    meshpde.socket.send('not json');
+    meshpde.socket.send('{"type":"nonsense"}');
+    meshpde.socket.send('{"type":"correct","vertex":-5,"move":[0,0,1]}');
+    meshpde.socket.send('{"type":"paint","vertex":"three"}');
+    meshpde.socket.send(new Uint8Array([1, 2, 3]));
+  });
+  await page.waitForFunction((n) => meshpde.errors >= n + 5, errors, { timeout: 10000 }).catch(() => {});
+  check('malformed messages get error replies', (await page.evaluate(() => meshpde.errors)) >= errors + 5);
+  const okBefore = await page.evaluate(() => meshpde.oks);
+  await page.evaluate(() => meshpde.send({ type: 'ping' }));
+  await page.waitForFunction((n) => meshpde.oks > n, okBefore, { timeout: 10000 }).catch(() => {});
+  check('the session stays usable after bad messages', (await page.evaluate(() => meshpde.lastOk)) === 'ping');
+
+  // ---------------------------------------------------------------- upload limit
+  const big = await page.evaluate(async () => {
+    const body = new Uint8Array(2 * 1024 * 1024);
+    try {
+      const r = await fetch(`/api/upload?client=${meshpde.client}&name=big.ply`, { method: 'POST', body });
+      return r.status;
+    } catch {
+      return -1;  // connection closed: refused too
+    }
+  });
+  check('uploads over the limit are refused', big === 413 || big === -1, `status ${big}`);
+  check('the page survives a refused upload', (await page.evaluate(() => meshpde.vertexCount)) === 2562);
+
+  // ---------------------------------------------------------------- two pages, two meshes
+  const contextB = await browser.newContext({ viewport: { width: 1000, height: 700 } });
+  const pageB = await openPage(contextB);
+  await loadGenerated(pageB, 'tube');
+  const aBefore = await positions(page);
+  const centreB = await canvasCentre(pageB);
+  await dragBy(pageB, centreB, 0, -50);
+  await pageB.waitForTimeout(400);
+  await pageB.mouse.up();
+  check('page B has its own mesh', (await pageB.evaluate(() => meshpde.vertexCount)) !== 2562);
+  check('editing B leaves A alone', maxDiff(await positions(page), aBefore) === 0 &&
+        (await page.evaluate(() => meshpde.vertexCount)) === 2562);
+  await contextB.close();
+  await contextA.close();
+} catch (e) {
+  check('test script ran to the end', false, e.stack || String(e));
+} finally {
+  await browser.close();
+  const exit = await stopServer(server);
+  check('Ctrl-C stops the server cleanly', exit.code === 0, JSON.stringify(exit));
+}
+console.log(`web: ${passed} passed, ${failed} failed (screenshots in ${shots})`);
+process.exit(failed ? 1 : 0);
