@@ -10,6 +10,7 @@
 //   "MESH" u32 nv, u32 nf, f32 positions[3 nv], u32 triangles[3 nf]
 //   "POS " u32 n, u32 ids[n], f32 positions[3 n]
 //   "FLD " u32 nv, f32 values[nv]
+//   "VEC " u32 n, u32 ids[n], f32 vectors[3 n]   (arrows; n = 0 clears them)
 // Text frames are JSON objects with a "type" (see docs/editor.md).
 #include <fmt/format.h>
 
@@ -184,8 +185,9 @@ struct Client {
   int id = 0;
   Loaded source;
   std::unique_ptr<EditorSession> session;
-  Positions sent;              // positions as the page has them
-  Eigen::VectorXd sent_field;  // field as the page has it
+  Positions sent;                 // positions as the page has them
+  Eigen::VectorXd sent_field;     // field as the page has it
+  Eigen::MatrixX3d sent_vectors;  // vector field as the page has it
   std::string sent_field_name;
   Eigen::VectorXd stiffness;  // the page's stiffness brush (empty: uniform)
   int intersections = 0;
@@ -277,6 +279,7 @@ class EditorServer {
       for (int k = 0; k < 3; ++k) put<std::uint32_t>(b, static_cast<std::uint32_t>(m.triangles()(f, k)));
     send_binary(h, b);
     c.sent = m.positions();
+    c.sent_vectors.resize(0, 3);
     c.sent_field.resize(0);
     c.sent_field_name.clear();
   }
@@ -341,7 +344,7 @@ class EditorServer {
         const std::string kind = j.value("kind", std::string("dented"));
         load(h, c, generated(kind));
       } else if (type == "poke_begin") {
-        s.poke_begin(vertex_of(j));
+        s.poke_begin(vertex_of(j), number(j, "influence", 0));
       } else if (type == "poke_move") {
         s.poke_move(vec3(j, "offset"));
         return;  // many a second: no acknowledgement
@@ -378,6 +381,8 @@ class EditorServer {
         c.intersections = s.self_intersections();
       } else if (type == "paint") {
         s.paint(vertex_of(j), number(j, "value", 1), number(j, "g1", 0), number(j, "g2", 1));
+      } else if (type == "paint_vector") {
+        s.paint_vector(vertex_of(j), vec3(j, "vector"), number(j, "g1", 0), number(j, "g2", 1));
       } else if (type == "clear_paint") {
         s.clear_paint();
       } else if (type == "source") {
@@ -458,6 +463,21 @@ class EditorServer {
       send_json(h, {{"type", "field"}, {"name", ""}});
       c.sent_field.resize(0);
       c.sent_field_name.clear();
+    }
+    // Vectors as arrows: at most about 600 of them, evenly spread over the vertex ids.
+    const Eigen::MatrixX3d& vec = s.vectors();
+    if (vec.rows() != c.sent_vectors.rows() || (vec.rows() && vec != c.sent_vectors)) {
+      std::string b = "VEC ";
+      const int n = static_cast<int>(vec.rows()), stride = std::max(1, n / 600);
+      std::vector<int> ids;
+      for (int i = 0; i < n; i += stride)
+        if (vec.row(i).squaredNorm() > 0) ids.push_back(i);
+      put<std::uint32_t>(b, static_cast<std::uint32_t>(ids.size()));
+      for (int i : ids) put<std::uint32_t>(b, static_cast<std::uint32_t>(i));
+      for (int i : ids)
+        for (int k = 0; k < 3; ++k) put<float>(b, static_cast<float>(vec(i, k)));
+      send_binary(h, b);
+      c.sent_vectors = vec;
     }
     c.frame_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     ++c.frames;

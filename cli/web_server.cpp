@@ -2,7 +2,9 @@
 #define ASIO_STANDALONE
 #include "web_server.h"
 
+#include <algorithm>
 #include <asio/signal_set.hpp>
+#include <chrono>
 #include <csignal>
 #include <map>
 #include <stdexcept>
@@ -24,9 +26,18 @@ struct WebServer::Impl {
   std::map<int, Hdl> hdls;
   std::unique_ptr<asio::signal_set> signals;
 
+  // Ticks on a fixed schedule (the handler's own time is taken off the wait), so a
+  // 16 ms tick really runs 62.5 times a second when the handler is quick.
+  std::chrono::steady_clock::time_point next_tick{};
   void schedule_tick() {
     if (stopping) return;
-    server.set_timer(tick_ms, [this](const websocketpp::lib::error_code& ec) {
+    const auto now = std::chrono::steady_clock::now();
+    if (next_tick.time_since_epoch().count() == 0 || next_tick < now - std::chrono::milliseconds(tick_ms))
+      next_tick = now;  // first tick, or fell behind: restart the schedule
+    next_tick += std::chrono::milliseconds(tick_ms);
+    const long wait = std::max<long>(
+        0, static_cast<long>(std::chrono::duration_cast<std::chrono::milliseconds>(next_tick - now).count()));
+    server.set_timer(wait, [this](const websocketpp::lib::error_code& ec) {
       if (ec || stopping) return;
       if (handlers.on_tick) handlers.on_tick();
       schedule_tick();

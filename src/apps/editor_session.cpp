@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 
 #include "meshpde/apps/interpolation.h"
 #include "meshpde/core/errors.h"
@@ -46,18 +47,22 @@ void EditorSession::stop_poke() {
   haptic_.reset();
 }
 
-void EditorSession::poke_begin(int vertex) {
+void EditorSession::poke_begin(int vertex, double influence) {
   check_vertex(vertex);
+  if (!(influence >= 0) || !std::isfinite(influence)) throw InputError("poke influence must be a length >= 0");
   pause();
-  if (!haptic_ || poke_version_ != version_) {
+  if (!haptic_ || poke_version_ != version_ || influence != poke_influence_) {
     stop_poke();
     // The probe runs on the operators of the surface as it is now (intrinsic ones on
     // badly shaped meshes, so the servo's CG stays well conditioned).
     MeshOperators mo = build_mesh_operators(mesh(), LaplacianKind::Auto);
     poke_mesh_ = std::make_unique<Mesh>(std::move(mo.mesh));
     poke_ops_ = std::make_unique<FemOperators>(std::move(mo.ops));
-    haptic_ = std::make_unique<HapticSession>(*poke_mesh_, *poke_ops_);
+    HapticParams hp;
+    hp.influence = influence;
+    haptic_ = std::make_unique<HapticSession>(*poke_mesh_, *poke_ops_, hp);
     poke_version_ = version_;
+    poke_influence_ = influence;
     haptic_->start();
   }
   haptic_->touch(vertex);
@@ -152,7 +157,38 @@ void EditorSession::paint(int vertex, double value, double g1, double g2) {
                       r.cg.relative_residual);
 }
 
+void EditorSession::paint_vector(int vertex, const Eigen::Vector3d& vector, double g1, double g2) {
+  check_vertex(vertex);
+  if (!vector.allFinite()) throw InputError("painted vector is not finite");
+  if (!(g1 >= 0 && g2 >= 0) || g1 + g2 <= 0) throw InputError("g1 and g2 must be >= 0 and not both 0");
+  stop_poke();
+  pause();
+  painted_vectors_[vertex] = vector;
+  std::vector<InterpolationConstraint> c;
+  for (const auto& [v, x] : painted_vectors_) c.push_back({v, Eigen::VectorXd(x)});
+  const auto t0 = std::chrono::steady_clock::now();
+  // The connection-aware method needs the mesh's own triangles (it transports
+  // vectors across them), so it runs on the cotangent operators.
+  const FemOperators ops = build_operators(mesh());
+  InterpolationParams ip;
+  ip.g1 = g1;
+  ip.g2 = g2;
+  ip.method = TangentMethod::Connection;
+  const InterpolationResult r = interpolate(mesh(), ops, FieldKind::Tangent, c, ip);
+  last_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  vectors_ = r.values;
+  field_ = vectors_.rowwise().norm();
+  field_name_ = "vector_length";
+  info_ = fmt::format("paint: {} vectors interpolated (connection, g1 {}, g2 {})", painted_vectors_.size(), g1, g2);
+}
+
 void EditorSession::clear_paint() {
+  painted_vectors_.clear();
+  vectors_.resize(0, 3);
+  if (field_name_ == "vector_length") {
+    field_.resize(0);
+    field_name_.clear();
+  }
   painted_.clear();
   if (field_name_ == "paint") {
     field_.resize(0);
@@ -219,6 +255,11 @@ MeshData EditorSession::snapshot() const {
   MeshData d = data_;
   d.V = mesh().positions();
   if (field_.size() == d.V.rows() && !field_name_.empty()) d.vertex_scalars[field_name_] = field_;
+  if (vectors_.rows() == d.V.rows()) {
+    d.vertex_scalars["paint_vector_x"] = vectors_.col(0);
+    d.vertex_scalars["paint_vector_y"] = vectors_.col(1);
+    d.vertex_scalars["paint_vector_z"] = vectors_.col(2);
+  }
   d.warnings.clear();
   return d;
 }

@@ -47,9 +47,14 @@ void HapticSession::touch(int vertex) {
   std::lock_guard lock(mutex_);
   if (contact_ >= 0) session_->release(contact_);
   contact_ = vertex;
+  contact_view_ = vertex;
   // The probe starts where the surface is now (it may still be moving from a past poke).
-  probe_ = session_->values().row(vertex).transpose();
-  session_->constrain(vertex, std::span<const double>(probe_.data(), 3));
+  const Eigen::Vector3d start = session_->values().row(vertex).transpose();
+  {
+    std::lock_guard io(io_mutex_);
+    probe_ = start;
+  }
+  session_->constrain(vertex, std::span<const double>(start.data(), 3));
 }
 
 void HapticSession::touch_point(const Eigen::Vector3d& point) {
@@ -60,7 +65,9 @@ void HapticSession::touch_point(const Eigen::Vector3d& point) {
 
 void HapticSession::move_probe(const Eigen::Vector3d& offset) {
   if (!offset.allFinite()) throw InputError("probe offset is not finite");
-  std::lock_guard lock(mutex_);
+  // Only the small I/O lock: the next step picks the probe up, and the caller (a UI
+  // thread) never waits for a step in progress.
+  std::lock_guard io(io_mutex_);
   probe_ = offset;
 }
 
@@ -68,17 +75,17 @@ void HapticSession::release() {
   std::lock_guard lock(mutex_);
   if (contact_ >= 0) session_->release(contact_);
   contact_ = -1;
+  contact_view_ = -1;
+  std::lock_guard io(io_mutex_);
   force_.setZero();
 }
 
 bool HapticSession::touching() const {
-  std::lock_guard lock(mutex_);
-  return contact_ >= 0;
+  return contact_view_ >= 0;
 }
 
 int HapticSession::contact_vertex() const {
-  std::lock_guard lock(mutex_);
-  return contact_;
+  return contact_view_;
 }
 
 Eigen::Vector3d HapticSession::step(double dt) {
@@ -88,15 +95,25 @@ Eigen::Vector3d HapticSession::step(double dt) {
 
 Eigen::Vector3d HapticSession::step_locked(double dt, std::chrono::steady_clock::time_point deadline) {
   const auto t0 = std::chrono::steady_clock::now();
-  if (contact_ >= 0) session_->constrain(contact_, std::span<const double>(probe_.data(), 3));
+  Eigen::Vector3d probe;
+  {
+    std::lock_guard io(io_mutex_);
+    probe = probe_;
+  }
+  if (contact_ >= 0) session_->constrain(contact_, std::span<const double>(probe.data(), 3));
   session_->cg_options.deadline = deadline;
   const StepResult r = session_->step(dt);
-  force_ = contact_ >= 0 ? Eigen::Vector3d(-session_->reaction_forces().row(0).transpose()) : Eigen::Vector3d::Zero();
+  const Eigen::Vector3d force =
+      contact_ >= 0 ? Eigen::Vector3d(-session_->reaction_forces().row(0).transpose()) : Eigen::Vector3d::Zero();
+  {
+    std::lock_guard io(io_mutex_);
+    force_ = force;
+  }
   time_ += dt;
   HapticSample s;
   s.time = time_;
-  s.probe = probe_;
-  s.force = force_;
+  s.probe = probe;
+  s.force = force;
   s.latency_us = std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count();
   s.free_vertices = r.free_vertices;
   s.cg_iterations = r.cg.iterations;
@@ -105,7 +122,22 @@ Eigen::Vector3d HapticSession::step_locked(double dt, std::chrono::steady_clock:
   if (log_.size() >= params_.max_log)
     log_.erase(log_.begin(), log_.begin() + static_cast<std::ptrdiff_t>(log_.size() / 2));
   log_.push_back(s);
-  return force_;
+  publish();
+  return force;
+}
+
+void HapticSession::publish() {
+  // Only rows that can have changed: the domain now and the domain at the last
+  // publication (vertices that just left it keep the values they left with).
+  const Field& u = session_->values();
+  const auto free = session_->domain().free_vertices();
+  std::lock_guard lock(snapshot_mutex_);
+  if (snapshot_.rows() != u.rows()) snapshot_ = u;
+  for (const int v : published_) snapshot_.row(v) = u.row(v);
+  for (const int v : free) snapshot_.row(v) = u.row(v);
+  for (const int v : session_->constrained_vertices()) snapshot_.row(v) = u.row(v);
+  published_.assign(free.begin(), free.end());
+  snapshot_active_ = static_cast<int>(free.size());
 }
 
 void HapticSession::start() {
@@ -131,22 +163,25 @@ void HapticSession::servo_loop() {
     }
     tick = next;
     const auto now = std::chrono::steady_clock::now();
-    if (now < tick)
+    if (now < tick) {
       std::this_thread::sleep_until(tick);
-    else
-      tick = now;  // overran: start the next period now rather than bursting to catch up
+    } else {
+      tick = now;                 // overran: start the next period now rather than bursting to catch up
+      std::this_thread::yield();  // and let touch/move_probe/latest_force take the lock
+    }
   }
 }
 
 Eigen::Vector3d HapticSession::latest_force() const {
-  std::lock_guard lock(mutex_);
+  std::lock_guard io(io_mutex_);
   return force_;
 }
 
 Field HapticSession::displacement(int* active_vertices) const {
-  std::lock_guard lock(mutex_);
-  if (active_vertices) *active_vertices = static_cast<int>(session_->domain().free_vertices().size());
-  return session_->values();
+  std::lock_guard lock(snapshot_mutex_);
+  if (active_vertices) *active_vertices = snapshot_active_;
+  if (snapshot_.rows() == 0) return Field::Zero(mesh_.num_vertices(), 3);
+  return snapshot_;
 }
 
 std::vector<HapticSample> HapticSession::log() const {

@@ -9,7 +9,7 @@ const state = {
   ready: false, client: 0, name: '', vertexCount: 0, faceCount: 0, meanEdge: 1,
   positions: null, rest: null, field: null, fieldName: '', fieldRange: [0, 1],
   force: [0, 0, 0], forceVisible: false, contact: -1, intersections: 0,
-  canUndo: false, canRedo: false, lastError: '', lastOk: '', oks: 0, errors: 0, frames: 0,
+  canUndo: false, canRedo: false, lastError: '', lastOk: '', oks: 0, errors: 0, frames: 0, updates: 0, arrowCount: 0,
 };
 window.meshpde = state;
 
@@ -37,6 +37,9 @@ let mesh = null, wire = null, geometry = null;
 const arrow = new THREE.ArrowHelper(new THREE.Vector3(0, 1, 0), new THREE.Vector3(), 1, 0xd62728);
 arrow.visible = false;
 scene.add(arrow);
+const arrows = new THREE.LineSegments(new THREE.BufferGeometry(), new THREE.LineBasicMaterial({ color: 0xd62728 }));
+arrows.visible = false;
+scene.add(arrows);
 const dragLine = new THREE.Line(new THREE.BufferGeometry().setFromPoints([new THREE.Vector3(), new THREE.Vector3()]),
   new THREE.LineBasicMaterial({ color: 0x1f77b4 }));
 dragLine.visible = false;
@@ -128,6 +131,34 @@ function applyPositions(buf) {
   paintColors();
 }
 
+// Arrows for a vector field: a shaft and two barbs each, longest = 8 % of the mesh size.
+function applyVectors(buf) {
+  const n = new DataView(buf).getUint32(4, true);
+  state.arrowCount = n;
+  if (n === 0) { arrows.visible = false; return; }
+  const ids = new Uint32Array(buf.slice(8, 8 + 4 * n));
+  const v = new Float32Array(buf.slice(8 + 4 * n, 8 + 16 * n));
+  let longest = 0;
+  for (let k = 0; k < n; ++k) longest = Math.max(longest, Math.hypot(v[3 * k], v[3 * k + 1], v[3 * k + 2]));
+  const scale = longest > 0 ? 0.08 * geometry.boundingSphere.radius / longest : 0;
+  const P = state.positions, seg = new Float32Array(18 * n);
+  const up = new THREE.Vector3(), side = new THREE.Vector3(), d = new THREE.Vector3(), p = new THREE.Vector3();
+  for (let k = 0; k < n; ++k) {
+    const i = ids[k];
+    p.set(P[3 * i], P[3 * i + 1], P[3 * i + 2]);
+    d.set(v[3 * k], v[3 * k + 1], v[3 * k + 2]).multiplyScalar(scale);
+    const tip = p.clone().add(d);
+    side.copy(d).cross(up.set(0.3, 0.7, 0.5)).normalize().multiplyScalar(0.25 * d.length());
+    const back = tip.clone().addScaledVector(d, -0.3);
+    const b1 = back.clone().add(side), b2 = back.clone().sub(side);
+    seg.set([p.x, p.y, p.z, tip.x, tip.y, tip.z, tip.x, tip.y, tip.z, b1.x, b1.y, b1.z,
+             tip.x, tip.y, tip.z, b2.x, b2.y, b2.z], 18 * k);
+  }
+  arrows.geometry.setAttribute('position', new THREE.BufferAttribute(seg, 3));
+  arrows.geometry.computeBoundingSphere();
+  arrows.visible = true;
+}
+
 function applyField(buf) {
   const n = new DataView(buf).getUint32(4, true);
   state.field = new Float32Array(buf.slice(8, 8 + 4 * n));
@@ -148,6 +179,8 @@ ws.onmessage = (ev) => {
     if (tag === 'MESH') buildMesh(ev.data);
     else if (tag === 'POS ') applyPositions(ev.data);
     else if (tag === 'FLD ') applyField(ev.data);
+    else if (tag === 'VEC ') applyVectors(ev.data);
+    state.updates += 1;
     return;
   }
   const m = JSON.parse(ev.data);
@@ -177,8 +210,13 @@ ws.onmessage = (ev) => {
   }
 };
 
-let fpsCount = 0;
-setInterval(() => { $('stat-fps').textContent = fpsCount; fpsCount = 0; }, 1000);
+let fpsCount = 0, lastUpdates = 0;
+setInterval(() => {
+  $('stat-fps').textContent = fpsCount;
+  $('stat-updates').textContent = state.updates - lastUpdates;
+  fpsCount = 0;
+  lastUpdates = state.updates;
+}, 1000);
 
 function updateStats(s) {
   state.force = s.force; state.contact = s.contact; state.intersections = s.intersections;
@@ -239,7 +277,8 @@ renderer.domElement.addEventListener('pointerdown', (ev) => {
   const hit = pick(ev);
   if (!hit) return;
   const t = tool();
-  if (t === 'paint') {
+  const vectorPaint = t === 'paint' && document.querySelector('input[name=paint-kind]:checked').value === 'vector';
+  if (t === 'paint' && !vectorPaint) {
     send({ type: 'paint', vertex: hit.vertex, value: +$('paint-value').value, g1: +$('g1').value, g2: +$('g2').value });
     return;
   }
@@ -252,7 +291,7 @@ renderer.domElement.addEventListener('pointerdown', (ev) => {
   const normal = camera.getWorldDirection(new THREE.Vector3());
   drag = { vertex: hit.vertex, start: hit.point, plane: new THREE.Plane().setFromNormalAndCoplanarPoint(normal, hit.point) };
   renderer.domElement.setPointerCapture(ev.pointerId);
-  if (t === 'poke') { state.poking = true; send({ type: 'poke_begin', vertex: hit.vertex }); }
+  if (t === 'poke') { state.poking = true; send({ type: 'poke_begin', vertex: hit.vertex, influence: +$('reach').value }); }
 });
 renderer.domElement.addEventListener('pointermove', (ev) => {
   if (!drag) return;
@@ -274,6 +313,8 @@ function endDrag(ev) {
   const p = planePoint(ev) || drag.start;
   const offset = p.clone().sub(drag.start);
   if (tool() === 'poke') send({ type: 'poke_end' });
+  else if (tool() === 'paint' && offset.length() > 0)
+    send({ type: 'paint_vector', vertex: drag.vertex, vector: offset.toArray(), g1: +$('g1').value, g2: +$('g2').value });
   else if (tool() === 'correct' && offset.length() > 0)
     send({ type: 'correct', vertex: drag.vertex, move: offset.toArray(), radius: +$('radius').value,
           method: $('method').value, image: $('image').checked });

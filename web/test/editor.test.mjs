@@ -191,13 +191,22 @@ try {
   const range = await page.evaluate(() => [Math.min(...meshpde.field), Math.max(...meshpde.field)]);
   check('painted values spread over the mesh', range[1] - range[0] > 0.5, JSON.stringify(range));
   await page.screenshot({ path: join(shots, 'editor-paint.png') });
+  // Vectors: drag from a vertex; the tangent field comes back as arrows.
+  await page.check('input[name=paint-kind][value=vector]');
+  await dragBy(page, centre, 60, -20);
+  await page.mouse.up();
+  await page.waitForFunction(() => meshpde.arrowCount > 0 && meshpde.fieldName === 'vector_length', null,
+                             { timeout: 20000 }).catch(() => {});
+  check('painted vectors come back as arrows', (await page.evaluate(() => meshpde.arrowCount)) > 50);
+  await page.screenshot({ path: join(shots, 'editor-vectors.png') });
+  await page.check('input[name=paint-kind][value=scalar]');
 
   // ---------------------------------------------------------------- save and reload
   const [download] = await Promise.all([page.waitForEvent('download'), page.click('#save')]);
   const saved = join(shots, download.suggestedFilename());
   await download.saveAs(saved);
   check('saved in the input format', saved.endsWith('.ply'), saved);
-  check('saved file holds the painted field', readFileSync(saved).includes('property double paint'));
+  check('saved file holds the painted vectors', readFileSync(saved).includes('property double paint_vector_x'));
   await page.setInputFiles('#file', saved);
   await page.waitForFunction((n) => meshpde.ready && meshpde.name.endsWith('-edited.ply'), null, { timeout: 20000 });
   const reloaded = await positions(page);

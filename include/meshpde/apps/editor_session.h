@@ -43,7 +43,9 @@ class EditorSession {
 
   // Poke: grab a vertex, move the probe (offset from the vertex's rest position),
   // let go (the surface relaxes; the servo keeps running until it has).
-  void poke_begin(int vertex);
+  /// influence: the poke's decay length in mesh units (HapticParams::influence;
+  /// 0: three mean edge lengths). A larger one moves a wider region.
+  void poke_begin(int vertex, double influence = 0);
   void poke_move(const Eigen::Vector3d& offset);
   void poke_end();
   bool poking() const;
@@ -66,6 +68,12 @@ class EditorSession {
   void paint(int vertex, double value, double g1, double g2);
   void clear_paint();
   const std::map<int, double>& painted() const { return painted_; }
+  /// A tangent vector at a vertex (projected onto the tangent plane), interpolated
+  /// over the mesh with the connection-aware method; shown as arrows, and its
+  /// length as the field.
+  void paint_vector(int vertex, const Eigen::Vector3d& vector, double g1, double g2);
+  /// The painted vector field (#V x 3), empty when none.
+  const Eigen::MatrixX3d& vectors() const { return vectors_; }
 
   // Heat and wave: sources (value 1 held at the vertex for heat, an impulse for
   // wave), then advance() steps the PDE while playing.
@@ -97,11 +105,14 @@ class EditorSession {
   std::unique_ptr<FemOperators> poke_ops_;
   std::unique_ptr<HapticSession> haptic_;
   std::size_t poke_version_ = static_cast<std::size_t>(-1);
+  double poke_influence_ = -1;
   std::size_t version_ = 0;  // bumped by every change of the corrected surface
   // Fields.
   Eigen::VectorXd field_;
   std::string field_name_;
   std::map<int, double> painted_;
+  std::map<int, Eigen::Vector3d> painted_vectors_;
+  Eigen::MatrixX3d vectors_;
   std::vector<int> sources_;
   std::unique_ptr<Mesh> pde_mesh_;
   std::unique_ptr<FemOperators> pde_ops_;

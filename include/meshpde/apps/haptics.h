@@ -89,8 +89,9 @@ class HapticSession {
   bool running() const { return running_; }
 
   Eigen::Vector3d latest_force() const;
-  /// The surface's displacement (#V x 3, mesh units) and the active domain's size,
-  /// copied under the session's lock (safe while the servo thread runs).
+  /// The surface's displacement (#V x 3, mesh units) after the last step and the
+  /// active domain's size, from a copy the servo publishes after each step (reading
+  /// it never waits for a step; safe while the servo thread runs).
   Field displacement(int* active_vertices = nullptr) const;
   std::vector<HapticSample> log() const;
   int misses() const { return misses_; }
@@ -98,6 +99,7 @@ class HapticSession {
 
  private:
   void servo_loop();
+  void publish();  // called under mutex_ after each step
   Eigen::Vector3d step_locked(double dt, std::chrono::steady_clock::time_point deadline);
 
   const Mesh& mesh_;
@@ -113,6 +115,12 @@ class HapticSession {
   std::atomic<bool> running_{false};
   std::atomic<int> misses_{0};
   std::thread thread_;
+  mutable std::mutex io_mutex_;        // probe_ and force_: never held across a step
+  std::atomic<int> contact_view_{-1};  // contact_ for readers that must not wait
+  mutable std::mutex snapshot_mutex_;
+  Field snapshot_;
+  std::vector<int> published_;
+  int snapshot_active_ = 0;
 };
 
 }  // namespace meshpde

@@ -1,0 +1,119 @@
+// How fast does `meshpde serve` stream a poke? A bare WebSocket client (no browser,
+// so page rendering does not limit it) pokes a mesh and counts the update frames it
+// receives, their sizes, the probe's active domain and the server's time per frame.
+//
+//   node web/test/throughput.mjs MESHPDE_BINARY MESH [--influence L] [--seconds S]
+//
+// Prints one JSON object. The server sends at most one update every 16 ms (62.5/s).
+import { spawn } from 'node:child_process';
+import { randomBytes } from 'node:crypto';
+import net from 'node:net';
+
+const [binary, meshPath, ...rest] = process.argv.slice(2);
+const opt = (name, fallback) => {
+  const i = rest.indexOf(name);
+  return i >= 0 ? +rest[i + 1] : fallback;
+};
+const influence = opt('--influence', 0), seconds = opt('--seconds', 4);
+if (!binary || !meshPath) {
+  console.error('usage: node web/test/throughput.mjs MESHPDE_BINARY MESH [--influence L] [--seconds S]');
+  process.exit(2);
+}
+
+const server = spawn(binary, ['serve', meshPath, '--port', '0'], { stdio: ['ignore', 'pipe', 'inherit'] });
+const port = await new Promise((resolve, reject) => {
+  let out = '';
+  server.stdout.on('data', (d) => {
+    out += d;
+    const m = /:(\d+)\//.exec(out);
+    if (m) resolve(+m[1]);
+  });
+  server.on('exit', (c) => reject(new Error(`server exited ${c}`)));
+});
+
+// A minimal RFC 6455 client: text frames out (masked), any frames in.
+const sock = net.connect(port, '127.0.0.1');
+await new Promise((r) => sock.once('connect', r));
+sock.write(`GET / HTTP/1.1\r\nHost: 127.0.0.1:${port}\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n` +
+           `Sec-WebSocket-Key: ${randomBytes(16).toString('base64')}\r\nSec-WebSocket-Version: 13\r\n\r\n`);
+function sendText(obj) {
+  const payload = Buffer.from(JSON.stringify(obj));
+  const mask = randomBytes(4);
+  const head = payload.length < 126 ? Buffer.from([0x81, 0x80 | payload.length])
+                                    : Buffer.from([0x81, 0x80 | 126, payload.length >> 8, payload.length & 255]);
+  const body = Buffer.from(payload.map((b, i) => b ^ mask[i % 4]));
+  sock.write(Buffer.concat([head, mask, body]));
+}
+let buf = Buffer.alloc(0), handshaken = false;
+const frames = [];
+let onFrame = () => {};
+sock.on('data', (d) => {
+  buf = Buffer.concat([buf, d]);
+  if (!handshaken) {
+    const end = buf.indexOf('\r\n\r\n');
+    if (end < 0) return;
+    buf = buf.subarray(end + 4);
+    handshaken = true;
+  }
+  for (;;) {
+    if (buf.length < 2) return;
+    const op = buf[0] & 15;
+    let len = buf[1] & 127, off = 2;
+    if (len === 126) { if (buf.length < 4) return; len = buf.readUInt16BE(2); off = 4; }
+    else if (len === 127) { if (buf.length < 10) return; len = Number(buf.readBigUInt64BE(2)); off = 10; }
+    if (buf.length < off + len) return;
+    const payload = buf.subarray(off, off + len);
+    buf = buf.subarray(off + len);
+    onFrame(op, payload);
+  }
+});
+
+let mesh = null, stats = [], updates = [], started = 0;
+onFrame = (op, p) => {
+  if (op === 1) {
+    const m = JSON.parse(p.toString());
+    if (m.type === 'mesh') mesh = m;
+    if (m.type === 'stats' && started) stats.push(m);
+    if (m.type === 'error') console.error('server error:', m.message);
+  } else if (op === 2 && started && p.subarray(0, 4).toString() === 'POS ') {
+    updates.push({ t: performance.now(), n: p.readUInt32LE(4), bytes: p.length });
+  }
+};
+while (!mesh) await new Promise((r) => setTimeout(r, 20));
+await new Promise((r) => setTimeout(r, 300));
+
+// Poke the middle vertex and move the probe in and out for the whole run.
+const vertex = Math.floor(mesh.vertices / 2);
+sendText({ type: 'poke_begin', vertex, influence });
+started = performance.now();
+const amplitude = 3 * mesh.mean_edge;
+while (performance.now() - started < seconds * 1000) {
+  const t = (performance.now() - started) / 1000;
+  sendText({ type: 'poke_move', offset: [0, 0, -amplitude * Math.abs(Math.sin(2 * t))] });
+  await new Promise((r) => setTimeout(r, 8));
+}
+const elapsed = (performance.now() - started) / 1000;
+sendText({ type: 'poke_end' });
+sock.end();
+server.kill('SIGINT');
+
+const sorted = (a) => [...a].sort((x, y) => x - y);
+const pct = (a, q) => (a.length ? sorted(a)[Math.min(a.length - 1, Math.floor(q * a.length))] : 0);
+const gaps = updates.slice(1).map((u, i) => u.t - updates[i].t);
+console.log(JSON.stringify({
+  vertices: mesh.vertices,
+  seconds: +elapsed.toFixed(2),
+  updates_per_second: +(updates.length / elapsed).toFixed(1),
+  update_gap_ms_p50: +pct(gaps, 0.5).toFixed(1),
+  update_gap_ms_p99: +pct(gaps, 0.99).toFixed(1),
+  moved_vertices_per_update_p50: pct(updates.map((u) => u.n), 0.5),
+  moved_vertices_per_update_max: Math.max(0, ...updates.map((u) => u.n)),
+  megabytes_per_second: +(updates.reduce((s, u) => s + u.bytes, 0) / elapsed / 1e6).toFixed(2),
+  active_domain_p50: pct(stats.map((s) => s.active), 0.5),
+  active_domain_max: Math.max(0, ...stats.map((s) => s.active)),
+  server_frame_ms_p50: +pct(stats.map((s) => s.frame_ms), 0.5).toFixed(2),
+  server_frame_ms_max: +Math.max(0, ...stats.map((s) => s.frame_ms)).toFixed(2),
+  probe_step_p99_us: stats.length ? stats[stats.length - 1].p99_us : 0,
+  probe_misses: stats.length ? stats[stats.length - 1].misses : 0,
+}, null, 2));
+process.exit(0);
