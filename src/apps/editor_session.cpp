@@ -88,23 +88,13 @@ int EditorSession::poke_contact() const {
   return haptic_ ? haptic_->contact_vertex() : -1;
 }
 int EditorSession::poke_active_vertices() const {
-  int active = 0;
-  if (haptic_) haptic_->displacement(&active);
-  return active;
+  return haptic_ ? haptic_->active_vertices() : 0;
 }
 int EditorSession::poke_misses() const {
   return haptic_ ? haptic_->misses() : 0;
 }
 double EditorSession::poke_p99_us() const {
-  if (!haptic_) return 0;
-  const auto log = haptic_->log();
-  const std::size_t n = std::min<std::size_t>(log.size(), 1000);
-  if (n == 0) return 0;
-  std::vector<double> us;
-  us.reserve(n);
-  for (std::size_t k = log.size() - n; k < log.size(); ++k) us.push_back(log[k].latency_us);
-  std::sort(us.begin(), us.end());
-  return us[std::min(us.size() - 1, static_cast<std::size_t>(0.99 * static_cast<double>(us.size())))];
+  return haptic_ ? haptic_->recent_p99_us() : 0;
 }
 
 CorrectionResult EditorSession::correct(CorrectionParams params) {

@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <chrono>
 
 #include "meshpde/core/errors.h"
@@ -118,6 +119,13 @@ Eigen::Vector3d HapticSession::step_locked(double dt, std::chrono::steady_clock:
   s.free_vertices = r.free_vertices;
   s.cg_iterations = r.cg.iterations;
   s.missed = r.cg.status == CgStatus::Deadline || s.latency_us > 1e6 * dt;
+  {
+    std::lock_guard io(io_mutex_);
+    if (recent_.size() < 1000)
+      recent_.push_back(static_cast<float>(s.latency_us));
+    else
+      recent_[recent_next_++ % recent_.size()] = static_cast<float>(s.latency_us);
+  }
   if (s.missed) ++misses_;
   if (log_.size() >= params_.max_log)
     log_.erase(log_.begin(), log_.begin() + static_cast<std::ptrdiff_t>(log_.size() / 2));
@@ -182,6 +190,23 @@ Field HapticSession::displacement(int* active_vertices) const {
   if (active_vertices) *active_vertices = snapshot_active_;
   if (snapshot_.rows() == 0) return Field::Zero(mesh_.num_vertices(), 3);
   return snapshot_;
+}
+
+int HapticSession::active_vertices() const {
+  std::lock_guard lock(snapshot_mutex_);
+  return snapshot_active_;
+}
+
+double HapticSession::recent_p99_us() const {
+  std::vector<float> v;
+  {
+    std::lock_guard io(io_mutex_);
+    v = recent_;
+  }
+  if (v.empty()) return 0;
+  const std::size_t k = std::min(v.size() - 1, static_cast<std::size_t>(0.99 * static_cast<double>(v.size())));
+  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k), v.end());
+  return v[k];
 }
 
 std::vector<HapticSample> HapticSession::log() const {

@@ -14,6 +14,7 @@
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <string>
 #include <type_traits>
 #include <vector>
@@ -28,6 +29,13 @@ struct CgOptions {
   /// Stop with status Deadline (keeping the current iterate) once this time has passed;
   /// the default (epoch) means no deadline. Used by real-time loops.
   std::chrono::steady_clock::time_point deadline{};
+  /// Iterations always run before the deadline is looked at: a step that starts
+  /// late still makes progress instead of returning its starting guess.
+  int min_iterations = 0;
+  /// Past the deadline, stop only once the relative residual is at most this.
+  /// Real-time loops set it (HapticParams: 1e-2): an overrun costs one late step,
+  /// an inaccurate implicit step can feed energy into the surface, step after step.
+  double late_tolerance = std::numeric_limits<double>::infinity();
 };
 
 enum class CgStatus { Converged, MaxIterations, Breakdown, Deadline };
@@ -118,7 +126,8 @@ CgResult pcg_impl(Apply&& apply, const Eigen::VectorXd& inv_diag, const Block& b
   if (!update_active()) return res;
   const bool timed = opt.deadline != std::chrono::steady_clock::time_point{};
   for (int it = 0; it < opt.max_iterations; ++it) {
-    if (timed && std::chrono::steady_clock::now() > opt.deadline) {
+    if (timed && it >= opt.min_iterations && res.relative_residual <= opt.late_tolerance &&
+        std::chrono::steady_clock::now() > opt.deadline) {
       res.status = CgStatus::Deadline;
       res.message =
           fmt::format("deadline reached after {} iterations (relative residual {:.3g})", it, res.relative_residual);
