@@ -415,7 +415,7 @@ class EditorServer {
                   {"force", {f.x(), f.y(), f.z()}},
                   {"contact", s.poke_contact()},
                   {"poking", s.poking()},
-                  {"active", s.poke_active_vertices()},
+                  {"active", s.poking() || !s.playing() ? s.poke_active_vertices() : s.simulation_active_vertices()},
                   {"p99_us", s.poke_p99_us()},
                   {"misses", s.poke_misses()},
                   {"intersections", c.intersections},

@@ -2,7 +2,10 @@
 // so page rendering does not limit it) pokes a mesh and counts the update frames it
 // receives, their sizes, the probe's active domain and the server's time per frame.
 //
-//   node web/test/throughput.mjs MESHPDE_BINARY MESH [--influence L] [--seconds S]
+//   node web/test/throughput.mjs MESHPDE_BINARY MESH [--influence L] [--seconds S] [--warmup W]
+//
+// --warmup W pokes for W seconds before counting, so the probe's active domain has
+// grown to its full size when the measurement starts.
 //
 // Prints one JSON object. The server sends at most one update every 16 ms (62.5/s).
 import { spawn } from 'node:child_process';
@@ -14,7 +17,8 @@ const opt = (name, fallback) => {
   const i = rest.indexOf(name);
   return i >= 0 ? +rest[i + 1] : fallback;
 };
-const influence = opt('--influence', 0), seconds = opt('--seconds', 4);
+const influence = opt('--influence', 0), seconds = opt('--seconds', 4), warmup = opt('--warmup', 0);
+const simulation = rest.includes('--wave') ? 'wave' : rest.includes('--heat') ? 'heat' : '';
 if (!binary || !meshPath) {
   console.error('usage: node web/test/throughput.mjs MESHPDE_BINARY MESH [--influence L] [--seconds S]');
   process.exit(2);
@@ -75,24 +79,52 @@ onFrame = (op, p) => {
     if (m.type === 'mesh') mesh = m;
     if (m.type === 'stats' && started) stats.push(m);
     if (m.type === 'error') console.error('server error:', m.message);
-  } else if (op === 2 && started && p.subarray(0, 4).toString() === 'POS ') {
+  } else if (op === 2 && started && ['POS ', 'FLD '].includes(p.subarray(0, 4).toString())) {
     updates.push({ t: performance.now(), n: p.readUInt32LE(4), bytes: p.length });
   }
 };
 while (!mesh) await new Promise((r) => setTimeout(r, 20));
 await new Promise((r) => setTimeout(r, 300));
 
-// Poke the middle vertex and move the probe in and out for the whole run.
 const vertex = Math.floor(mesh.vertices / 2);
+if (simulation) {
+  // --heat / --wave: a source at the middle vertex, played; the updates are whole fields.
+  sendText({ type: 'source', vertex });
+  sendText({ type: 'play', kind: simulation });
+  await new Promise((r) => setTimeout(r, warmup * 1000));
+  started = performance.now();
+  await new Promise((r) => setTimeout(r, seconds * 1000));
+  const elapsedSim = (performance.now() - started) / 1000;
+  sock.end();
+  server.kill('SIGINT');
+  const g = updates.slice(1).map((u, i) => u.t - updates[i].t).sort((a, b) => a - b);
+  console.log(JSON.stringify({
+    vertices: mesh.vertices, simulation, seconds: +elapsedSim.toFixed(2),
+    updates_per_second: +(updates.length / elapsedSim).toFixed(1),
+    update_gap_ms_p50: g.length ? +g[Math.floor(0.5 * g.length)].toFixed(1) : 0,
+    values_per_update: updates.length ? updates[0].n : 0,
+    megabytes_per_second: +(updates.reduce((s, u) => s + u.bytes, 0) / elapsedSim / 1e6).toFixed(2),
+    server_frame_ms_p50: stats.length ? +stats.map((x) => x.frame_ms).sort((a, b) => a - b)[Math.floor(stats.length / 2)].toFixed(2) : 0,
+    active_domain_p50: stats.length ? stats.map((x) => x.active).sort((a, b) => a - b)[Math.floor(stats.length / 2)] : 0,
+    active_domain_max: Math.max(0, ...stats.map((x) => x.active)),
+  }, null, 2));
+  process.exit(0);
+}
+// Poke the middle vertex and move the probe in and out for the whole run.
 sendText({ type: 'poke_begin', vertex, influence });
-started = performance.now();
 const amplitude = 3 * mesh.mean_edge;
-while (performance.now() - started < seconds * 1000) {
-  const t = (performance.now() - started) / 1000;
-  sendText({ type: 'poke_move', offset: [0, 0, -amplitude * Math.abs(Math.sin(2 * t))] });
+const t0 = performance.now();
+let counting = false;
+while (performance.now() - t0 < (warmup + seconds) * 1000) {
+  const t = (performance.now() - t0) / 1000;
+  if (!counting && t >= warmup) {
+    counting = true;
+    started = performance.now();
+  }
+  sendText({ type: 'poke_move', offset: [0, 0, -amplitude * (0.5 + 0.5 * Math.abs(Math.sin(2 * t)))] });
   await new Promise((r) => setTimeout(r, 8));
 }
-const elapsed = (performance.now() - started) / 1000;
+const elapsed = (performance.now() - started) / 1000;  // the counted window only
 sendText({ type: 'poke_end' });
 sock.end();
 server.kill('SIGINT');

@@ -82,6 +82,8 @@ class EditorSession {
   void play(const std::string& kind);  ///< "heat" or "wave"
   void pause();
   bool playing() const { return playing_; }
+  /// Vertices in the heat or wave simulation's active domain.
+  int simulation_active_vertices() const;
   /// Advances heat or wave by `steps` steps (the server calls it once a frame).
   void advance(int steps);
 
