@@ -23,15 +23,17 @@
 // solve runs on a copy of the region and six rings around it: its cost follows the
 // region, not the mesh.
 //
-// Method Springs (the thesis's, as a baseline). Rings of neighbours are visited
-// breadth first from the handle up to the level of influence; each vertex is moved
-// once, by integrating eq. 12.1 with its already-placed neighbours held:
+// Method Springs (the thesis's, as a baseline, as we read it). Rings of neighbours
+// are visited breadth first from the handle up to the level of influence; each
+// vertex is moved once, towards the equilibrium of eq. 12.1 with its already-placed
+// neighbours held:
 //     m p'' + gamma p' = c sum_i (|p_i - p| - l_i) / |p_i - p| (p_i - p)
-// (the spring pulls towards its rest length l_i; the sign in the thesis's
-// printed equation is reversed) with the thesis's explicit scheme (dt = 1) until
-// the step is below 1e-4 of the displacement or 200 steps. Its region is counted in
-// rings, so its result changes with the resolution, and nothing stops it from
-// pushing the wall through itself.
+// (the spring pulls towards its rest length l_i; the sign in the thesis's printed
+// equation is reversed), integrated in the overdamped limit until the net spring
+// force falls below c * max(1e-4 |d|, 0.1 viscosity * mean rest length) ("stable"):
+// each ring is left that much stretched, so the motion decays ring by ring, faster
+// with more viscosity. Its region is counted in rings, so its result changes with
+// the resolution, and nothing stops it from pushing the wall through itself.
 //
 // Self-intersections. Triangles touching moved vertices are checked against the
 // mesh with a BVH built once (mesh/self_intersections.h). When a Fem correction
@@ -42,7 +44,7 @@
 //
 // Image guidance (soft correction). With an edge map E = |grad(G_sigma * I)|
 // (image/volume.h, value per mm), each free vertex i of the region looks along its
-// normal, up to `search_radius` mm either way, for the strongest edge t_i (or, with
+// normal, up to `search_radius` mm either way, for an edge t_i (see below; or, with
 // `cube_size`, takes the centre of the strongest voxel of the thesis's direction
 // cube, eq. 13.7). The load f_i = lambda M_i (t_i - p_i - d_i) is a spring towards
 // that edge in the same PDE (its lambda M_i part joins the matrix), with
