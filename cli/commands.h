@@ -7,8 +7,10 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
+#include "meshpde/image/volume.h"
 #include "meshpde/io/mesh_io.h"
 #include "meshpde/mesh/mesh.h"
+#include "meshpde/mesh/topology.h"
 
 namespace meshpde {
 struct RenderOptions;
@@ -50,8 +52,12 @@ void save_mesh(const std::filesystem::path& path, const Positions& V, const Tria
                const std::map<std::string, Eigen::VectorXd>& fields = {});
 
 /// Prints the shape warnings a solver's user must see (badly shaped, degenerate,
-/// non-manifold) to stderr.
-void warn_about_shape(const Mesh& mesh, const std::string& name);
+/// non-manifold) to stderr; returns the report they came from.
+MeshReport warn_about_shape(const Mesh& mesh, const std::string& name);
+
+/// The frame of a mesh's coordinates: the --space option when given, else the
+/// file's 3D Slicer SPACE= header, else LPS. \throw InputError for a bad option.
+Space mesh_space(const std::string& option, const MeshData& data);
 
 /// Prints JSON to stdout (2-space indent).
 void print_json(const nlohmann::json& j);

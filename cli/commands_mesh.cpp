@@ -133,7 +133,7 @@ void add_mesh_commands(CLI::App& app) {
     cmd->callback([=] {
       MeshData d;
       const Mesh mesh = load_mesh(a->mesh, &d);
-      const Space space = !a->space.empty() ? parse_space(a->space) : d.space == "RAS" ? Space::RAS : Space::LPS;
+      const Space space = mesh_space(a->space, d);
       Volume v = read_volume(a->image);
       if (a->sigma >= 0) v = gradient_magnitude(v, a->sigma);
       Eigen::VectorXd values(mesh.num_vertices());

@@ -5,6 +5,7 @@
 #include <cctype>
 #include <chrono>
 #include <memory>
+#include <optional>
 #include <sstream>
 
 #include "commands.h"
@@ -102,7 +103,8 @@ struct CorrectArgs {
 // --move DX,DY,DZ, or normal:D for D mm along the outward normal at the handle
 // (outward: the side the enclosed volume is not on, for closed meshes of either
 // orientation; for open meshes the normal as the triangles orient it).
-Eigen::Vector3d parse_move(const Mesh& mesh, int vertex, const std::string& text) {
+Eigen::Vector3d parse_move(const Mesh& mesh, const MeshReport& report, std::optional<Eigen::MatrixX3d>& normals,
+                           int vertex, const std::string& text) {
   if (text.rfind("normal:", 0) != 0) return parse_vector(text, "--move");
   double dist = 0;
   try {
@@ -112,19 +114,11 @@ Eigen::Vector3d parse_move(const Mesh& mesh, int vertex, const std::string& text
   } catch (const std::exception&) {
     throw InputError(fmt::format("--move '{}': expected normal:DISTANCE in mm, e.g. normal:2.5", text));
   }
-  const MeshReport r = analyze(mesh);
-  const double sign = (r.boundary_loops == 0 && r.signed_volume < 0) ? -1.0 : 1.0;
-  Eigen::Vector3d n = Eigen::Vector3d::Zero();
-  const auto& V = mesh.positions();
-  const auto& F = mesh.triangles();
-  for (int f = 0; f < mesh.num_faces(); ++f)
-    for (int c = 0; c < 3; ++c)
-      if (F(f, c) == vertex) {
-        const Eigen::Vector3d a = V.row(F(f, 0)), b = V.row(F(f, 1)), d = V.row(F(f, 2));
-        n += (b - a).cross(d - a);
-      }
+  if (!normals) normals = vertex_normals(mesh);
+  const Eigen::Vector3d n = normals->row(vertex).transpose();
   if (!(n.norm() > 0)) throw InputError(fmt::format("vertex {} has no normal (no incident area)", vertex));
-  return sign * dist * n.normalized();
+  const double sign = (report.boundary_loops == 0 && report.signed_volume < 0) ? -1.0 : 1.0;
+  return sign * dist * n;
 }
 
 Eigen::VectorXd stiffness_field(const Mesh& mesh, const MeshData& d, const CorrectArgs& a) {
@@ -169,19 +163,11 @@ void refresh_normals(MeshData& d, const std::string& name) {
     if (lower.find("normal") == std::string::npos || !d.vertex_scalars.count(base + "_y") ||
         !d.vertex_scalars.count(base + "_z"))
       continue;
-    Eigen::MatrixX3d N = Eigen::MatrixX3d::Zero(d.V.rows(), 3);
-    for (Eigen::Index f = 0; f < d.F.rows(); ++f) {
-      const Eigen::Vector3d a = d.V.row(d.F(f, 0)), b = d.V.row(d.F(f, 1)), c = d.V.row(d.F(f, 2));
-      const Eigen::RowVector3d n = (b - a).cross(c - a).transpose();
-      for (int k = 0; k < 3; ++k) N.row(d.F(f, k)) += n;
-    }
+    Eigen::MatrixX3d N = vertex_normals(Mesh(d.V, d.F));
     double agree = 0;
-    for (Eigen::Index i = 0; i < N.rows(); ++i) {
-      const double l = N.row(i).norm();
-      if (l > 0) N.row(i) /= l;
+    for (Eigen::Index i = 0; i < N.rows(); ++i)
       agree += N(i, 0) * values[i] + N(i, 1) * d.vertex_scalars.at(base + "_y")[i] +
                N(i, 2) * d.vertex_scalars.at(base + "_z")[i];
-    }
     if (agree < 0) N = -N;
     d.vertex_scalars[base + "_x"] = N.col(0);
     d.vertex_scalars[base + "_y"] = N.col(1);
@@ -198,11 +184,12 @@ void run_correct(const CorrectArgs& a) {
         fmt::format("{} --vertex but {} --move: give one displacement per handle", a.vertices.size(), a.moves.size()));
   MeshData data;
   const Mesh mesh = load_mesh(a.mesh, &data);
-  warn_about_shape(mesh, a.mesh);
+  const MeshReport report = warn_about_shape(mesh, a.mesh);
   CorrectionParams p;
+  std::optional<Eigen::MatrixX3d> normals;  // computed once, if a move is along a normal
   for (std::size_t k = 0; k < a.vertices.size(); ++k) {
     const int v = parse_vertex(mesh, a.vertices[k], "--vertex");
-    p.handles.push_back({v, parse_move(mesh, v, a.moves[k])});
+    p.handles.push_back({v, parse_move(mesh, report, normals, v, a.moves[k])});
   }
   p.radius = a.radius;
   p.rings = a.rings;
@@ -215,7 +202,7 @@ void run_correct(const CorrectArgs& a) {
   p.steps = a.steps;
   p.tissue = {a.mass, a.elasticity, a.viscosity};
   p.prevent_intersections = !a.allow_intersections;
-  const Space space = !a.space.empty() ? parse_space(a.space) : data.space == "RAS" ? Space::RAS : Space::LPS;
+  const Space space = mesh_space(a.space, data);
   if (!a.image.empty()) {
 #ifdef MESHPDE_HAVE_MEDICAL
     const Volume volume = read_volume(a.image);

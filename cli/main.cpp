@@ -51,8 +51,15 @@ void save_mesh(const std::filesystem::path& path, const Positions& V, const Tria
   for (const auto& w : write_mesh_file(path, d)) fmt::print(stderr, "warning: {}\n", w);
 }
 
-void warn_about_shape(const Mesh& mesh, const std::string& name) {
-  for (const auto& w : analyze(mesh).warnings) fmt::print(stderr, "warning: {}: {}\n", name, w);
+MeshReport warn_about_shape(const Mesh& mesh, const std::string& name) {
+  MeshReport r = analyze(mesh);
+  for (const auto& w : r.warnings) fmt::print(stderr, "warning: {}: {}\n", name, w);
+  return r;
+}
+
+Space mesh_space(const std::string& option, const MeshData& data) {
+  if (!option.empty()) return parse_space(option);
+  return data.space == "RAS" ? Space::RAS : Space::LPS;
 }
 
 void print_json(const nlohmann::json& j) {

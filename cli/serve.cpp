@@ -191,7 +191,6 @@ struct Client {
   std::string sent_field_name;
   Eigen::VectorXd stiffness;  // the page's stiffness brush (empty: uniform)
   int intersections = 0;
-  int frames = 0;
   double frame_ms = 0;  // time to build the last frame
   std::chrono::steady_clock::time_point last_stats{};
 };
@@ -214,14 +213,12 @@ class EditorServer {
                       "build, or pass --web-root)",
                       web_root_.string()));
     if (!a.mesh.empty()) {
-      const MeshData d = read_mesh_file(a.mesh);
-      initial_.data = d;
+      initial_.data = read_mesh_file(a.mesh);
       initial_.name = fs::path(a.mesh).filename().string();
-      space_ = !a.space.empty() ? parse_space(a.space) : d.space == "RAS" ? Space::RAS : Space::LPS;
     } else {
       initial_ = generated("dented");
-      space_ = a.space.empty() ? Space::LPS : parse_space(a.space);
     }
+    space_ = mesh_space(a.space, initial_.data);
     if (!a.image.empty()) {
 #ifdef MESHPDE_HAVE_MEDICAL
       edges_ = std::make_shared<const Volume>(gradient_magnitude(read_volume(a.image), 1.0));
@@ -480,7 +477,6 @@ class EditorServer {
       c.sent_vectors = vec;
     }
     c.frame_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-    ++c.frames;
     send_stats(h, c, false);
   }
 

@@ -48,7 +48,6 @@ void HapticSession::touch(int vertex) {
   std::lock_guard lock(mutex_);
   if (contact_ >= 0) session_->release(contact_);
   contact_ = vertex;
-  contact_view_ = vertex;
   // The probe starts where the surface is now (it may still be moving from a past poke).
   const Eigen::Vector3d start = session_->values().row(vertex).transpose();
   {
@@ -76,17 +75,16 @@ void HapticSession::release() {
   std::lock_guard lock(mutex_);
   if (contact_ >= 0) session_->release(contact_);
   contact_ = -1;
-  contact_view_ = -1;
   std::lock_guard io(io_mutex_);
   force_.setZero();
 }
 
 bool HapticSession::touching() const {
-  return contact_view_ >= 0;
+  return contact_ >= 0;
 }
 
 int HapticSession::contact_vertex() const {
-  return contact_view_;
+  return contact_;
 }
 
 Eigen::Vector3d HapticSession::step(double dt) {
@@ -101,11 +99,12 @@ Eigen::Vector3d HapticSession::step_locked(double dt, std::chrono::steady_clock:
     std::lock_guard io(io_mutex_);
     probe = probe_;
   }
-  if (contact_ >= 0) session_->constrain(contact_, std::span<const double>(probe.data(), 3));
+  const int contact = contact_;  // changes only under mutex_, which this step holds
+  if (contact >= 0) session_->constrain(contact, std::span<const double>(probe.data(), 3));
   session_->cg_options.deadline = deadline;
   const StepResult r = session_->step(dt);
   const Eigen::Vector3d force =
-      contact_ >= 0 ? Eigen::Vector3d(-session_->reaction_forces().row(0).transpose()) : Eigen::Vector3d::Zero();
+      contact >= 0 ? Eigen::Vector3d(-session_->reaction_forces().row(0).transpose()) : Eigen::Vector3d::Zero();
   {
     std::lock_guard io(io_mutex_);
     force_ = force;

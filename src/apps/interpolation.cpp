@@ -11,22 +11,6 @@
 
 namespace meshpde {
 
-Eigen::MatrixX3d vertex_normals(const Mesh& mesh) {
-  const auto& V = mesh.positions();
-  const auto& F = mesh.triangles();
-  Eigen::MatrixX3d N = Eigen::MatrixX3d::Zero(mesh.num_vertices(), 3);
-  for (int f = 0; f < mesh.num_faces(); ++f) {
-    const Eigen::Vector3d a = V.row(F(f, 0)), b = V.row(F(f, 1)), c = V.row(F(f, 2));
-    const Eigen::Vector3d n = (b - a).cross(c - a);
-    for (int k = 0; k < 3; ++k) N.row(F(f, k)) += n.transpose();
-  }
-  for (int i = 0; i < mesh.num_vertices(); ++i) {
-    const double nn = N.row(i).norm();
-    if (nn > 0) N.row(i) /= nn;
-  }
-  return N;
-}
-
 namespace {
 
 Field solve_scalar_like(const Mesh& mesh, const FemOperators& ops, int m,

@@ -94,22 +94,6 @@ std::vector<int> region_of(const Mesh& mesh, const CorrectionParams& p) {
   return out;
 }
 
-Eigen::MatrixX3d vertex_normals(const Mesh& mesh) {
-  const auto& V = mesh.positions();
-  const auto& F = mesh.triangles();
-  Eigen::MatrixX3d N = Eigen::MatrixX3d::Zero(mesh.num_vertices(), 3);
-  for (int f = 0; f < mesh.num_faces(); ++f) {
-    const Eigen::Vector3d a = V.row(F(f, 0)), b = V.row(F(f, 1)), c = V.row(F(f, 2));
-    const Eigen::RowVector3d n = (b - a).cross(c - a).transpose();  // area-weighted
-    for (int k = 0; k < 3; ++k) N.row(F(f, k)) += n;
-  }
-  for (int i = 0; i < N.rows(); ++i) {
-    const double l = N.row(i).norm();
-    if (l > 0) N.row(i) /= l;
-  }
-  return N;
-}
-
 // Image guidance: where along its normal (or, with a cube, at which voxel nearby)
 // the edge map is strongest, for each pulled vertex at its current position q.
 struct ImageTargets {

@@ -16,7 +16,7 @@
 #include <cmath>
 #include <fstream>
 #include <iostream>
-#include <regex>
+#include <optional>
 #include <sstream>
 
 #include "meshpde/core/errors.h"
@@ -37,9 +37,9 @@ std::string trim(const std::string& s) {
   return b == std::string::npos ? std::string() : s.substr(b, e - b + 1);
 }
 
-// Header lines "key<sep>value" up to the first line for which stop(key) holds.
-std::map<std::string, std::string> read_header(const std::filesystem::path& path, char sep, const std::string& stop_key,
-                                               std::size_t max_bytes = 1 << 20) {
+// A MetaImage header: "Key = Value" lines, keys lower-cased, up to ElementDataFile.
+std::map<std::string, std::string> read_metaimage_header(const std::filesystem::path& path,
+                                                         std::size_t max_bytes = 1 << 20) {
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(fmt::format("{}: cannot open for reading", path.string()));
   std::map<std::string, std::string> h;
@@ -47,12 +47,11 @@ std::map<std::string, std::string> read_header(const std::filesystem::path& path
   std::size_t read = 0;
   while (read < max_bytes && std::getline(in, line)) {
     read += line.size() + 1;
-    if (line.empty() || line == "\r") break;  // NRRD: a blank line ends the header
-    const auto at = line.find(sep);
+    const auto at = line.find('=');
     if (at == std::string::npos) continue;
     const std::string key = lower(trim(line.substr(0, at)));
     h[key] = trim(line.substr(at + 1));
-    if (key == stop_key) break;
+    if (key == "elementdatafile") break;
   }
   return h;
 }
@@ -104,7 +103,7 @@ vtkSmartPointer<Reader> run_reader(const std::filesystem::path& path, detail::Vt
 }
 
 Volume read_metaimage(const std::filesystem::path& path) {
-  const auto h = read_header(path, '=', "elementdatafile");
+  const auto h = read_metaimage_header(path);
   if (!h.count("ndims") || !h.count("dimsize"))
     throw InputError(fmt::format("{}: not a MetaImage header (NDims and DimSize missing)", path.string()));
   if (numbers(h.at("ndims")) != std::vector<double>{3})
@@ -132,30 +131,22 @@ Volume read_metaimage(const std::filesystem::path& path) {
   Volume v;
   v.name = path.string();
   take_values(r->GetOutput(), v, v.name);
-  for (const char* key : {"elementspacing", "elementsize"})
-    if (h.count(key)) {
-      const auto s = numbers(h.at(key));
-      if (s.size() != 3) throw InputError(fmt::format("{}: {} needs 3 values", v.name, key));
-      v.spacing = Eigen::Vector3d(s[0], s[1], s[2]);
-      break;
-    }
-  for (const char* key : {"offset", "position", "origin"})
-    if (h.count(key)) {
-      const auto o = numbers(h.at(key));
-      if (o.size() != 3) throw InputError(fmt::format("{}: {} needs 3 values", v.name, key));
-      v.origin = Eigen::Vector3d(o[0], o[1], o[2]);
-      break;
-    }
-  for (const char* key : {"transformmatrix", "rotation", "orientation"})
-    if (h.count(key)) {
-      const auto m = numbers(h.at(key));
-      if (m.size() != 9) throw InputError(fmt::format("{}: {} needs 9 values", v.name, key));
-      // ITK writes the direction matrix column by column: the first three numbers
-      // are the LPS direction of the i axis.
-      for (int c = 0; c < 3; ++c)
-        for (int rr = 0; rr < 3; ++rr) v.direction(rr, c) = m[static_cast<std::size_t>(3 * c + rr)];
-      break;
-    }
+  // Each quantity has synonyms in the MetaIO format; the first present wins.
+  auto values = [&](std::initializer_list<const char*> keys, std::size_t count) -> std::optional<std::vector<double>> {
+    for (const char* key : keys)
+      if (h.count(key)) {
+        auto x = numbers(h.at(key));
+        if (x.size() != count) throw InputError(fmt::format("{}: {} needs {} values", v.name, key, count));
+        return x;
+      }
+    return std::nullopt;
+  };
+  if (const auto s = values({"elementspacing", "elementsize"}, 3)) v.spacing = Eigen::Vector3d(s->data());
+  if (const auto o = values({"offset", "position", "origin"}, 3)) v.origin = Eigen::Vector3d(o->data());
+  if (const auto m = values({"transformmatrix", "rotation", "orientation"}, 9))
+    // ITK writes the direction matrix column by column: the first three numbers
+    // are the LPS direction of the i axis.
+    v.direction = Eigen::Map<const Eigen::Matrix3d>(m->data());
   v.validate();
   return v;
 }

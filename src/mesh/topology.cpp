@@ -51,6 +51,22 @@ double mean_edge_length(const Mesh& mesh) {
   return mesh.num_edges() ? sum / mesh.num_edges() : 0.0;
 }
 
+Eigen::MatrixX3d vertex_normals(const Mesh& mesh) {
+  const auto& V = mesh.positions();
+  const auto& F = mesh.triangles();
+  Eigen::MatrixX3d N = Eigen::MatrixX3d::Zero(mesh.num_vertices(), 3);
+  for (int f = 0; f < mesh.num_faces(); ++f) {
+    const Eigen::Vector3d a = V.row(F(f, 0)), b = V.row(F(f, 1)), c = V.row(F(f, 2));
+    const Eigen::Vector3d n = (b - a).cross(c - a);
+    for (int k = 0; k < 3; ++k) N.row(F(f, k)) += n.transpose();
+  }
+  for (int i = 0; i < mesh.num_vertices(); ++i) {
+    const double nn = N.row(i).norm();
+    if (nn > 0) N.row(i) /= nn;
+  }
+  return N;
+}
+
 std::vector<int> vertex_components(const Mesh& mesh, int* count) {
   const int nv = mesh.num_vertices();
   UnionFind uf(nv);

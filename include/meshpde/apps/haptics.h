@@ -113,7 +113,7 @@ class HapticSession {
   HapticParams params_;
   std::unique_ptr<PdeSession> session_;
   mutable std::mutex mutex_;
-  int contact_ = -1;
+  std::atomic<int> contact_{-1};  // written under mutex_; read without it by touching()
   Eigen::Vector3d probe_ = Eigen::Vector3d::Zero();
   Eigen::Vector3d force_ = Eigen::Vector3d::Zero();
   std::vector<HapticSample> log_;
@@ -124,7 +124,6 @@ class HapticSession {
   mutable std::mutex io_mutex_;  // probe_, force_, recent_: never held across a step
   std::vector<float> recent_;    // ring of the last step latencies (us)
   std::size_t recent_next_ = 0;
-  std::atomic<int> contact_view_{-1};  // contact_ for readers that must not wait
   mutable std::mutex snapshot_mutex_;
   Field snapshot_;
   std::vector<int> published_;

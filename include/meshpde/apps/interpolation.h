@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "meshpde/mesh/mesh.h"
+#include "meshpde/mesh/topology.h"  // vertex_normals, used by tangent interpolation
 #include "meshpde/operators/fem_operators.h"
 #include "meshpde/pde/steady_direct.h"
 #include "meshpde/solvers/cg.h"
@@ -52,8 +53,5 @@ struct InterpolationResult {
 InterpolationResult interpolate(const Mesh& mesh, const FemOperators& ops, FieldKind kind,
                                 const std::vector<InterpolationConstraint>& constraints,
                                 const InterpolationParams& params = {});
-
-/// Unit vertex normals (area-weighted).
-Eigen::MatrixX3d vertex_normals(const Mesh& mesh);
 
 }  // namespace meshpde

@@ -60,6 +60,10 @@ MeshReport analyze(const Mesh& mesh, const ShapeWarningThresholds& thresholds = 
 /// Mean length of the unique edges (0 for a mesh without edges).
 double mean_edge_length(const Mesh& mesh);
 
+/// Unit vertex normals (#V x 3), area-weighted, oriented as the triangles are
+/// (inward on an inward-oriented mesh); zero rows where a vertex has no area.
+Eigen::MatrixX3d vertex_normals(const Mesh& mesh);
+
 /// Connected-component label per vertex (unreferenced vertices get their own label).
 std::vector<int> vertex_components(const Mesh& mesh, int* count = nullptr);
 
