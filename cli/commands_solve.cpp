@@ -246,6 +246,7 @@ void run_correct(const CorrectArgs& a) {
     const CorrectionResult r = correct_vessel(mesh, p);
     V = r.V;
     disp = r.displacement;
+    if (!r.accuracy_warning.empty()) fmt::print(stderr, "warning: {}\n", r.accuracy_warning);
     j = {{"moved_vertices", r.moved_vertices},
          {"max_displacement", r.max_displacement},
          {"region_vertices", r.region.size()},
@@ -256,6 +257,9 @@ void run_correct(const CorrectArgs& a) {
          {"laplacian", to_string(r.laplacian)},
          {"laplacian_reason", r.laplacian_reason},
          {"relative_residual", r.relative_residual},
+         {"condition_estimate", r.condition_estimate},
+         {"error_bound", r.error_bound},
+         {"accuracy_warning", r.accuracy_warning.empty() ? nlohmann::json() : nlohmann::json(r.accuracy_warning)},
          {"applied_fraction", r.applied_fraction},
          {"substeps", r.substeps},
          {"intersection_action", r.intersection_action},

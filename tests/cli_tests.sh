@@ -63,7 +63,15 @@ if [ -f "$DATA/aorta-closed-6k.vtp" ]; then
   check "aorta carina drag: no new self-intersections" [ "$(json "$T/ac.json" "d['new_self_intersections']")" = 0 ]
   check "aorta: intrinsic Laplacian chosen" [ "$(json "$T/ac.json" "d['laplacian']")" = intrinsic ]
   check "corrected vtp keeps Scalars_" grep -q 'Name="Scalars_"' "$T/ac.vtp"
+  check "intrinsic solve vouched for" [ "$(json "$T/ac.json" "d['accuracy_warning'] is None and d['error_bound'] < 1e-5")" = True ]
   check "corrected vtp has the displacement" grep -q 'Name="displacement" NumberOfComponents="3"' "$T/ac.vtp"
+  if [ -f "$DATA/aorta-103k.vtp" ]; then
+    # the plain cotangent operator on the marching-cubes mesh: the solver says it cannot promise 1e-5
+    "$M" correct "$DATA/aorta-103k.vtp" --vertex 1000 --move 0,0,8.9 --radius 20 --laplacian cotan --allow-intersections \
+      -o "$T/ac103.vtp" --json >"$T/ac103.json" 2>"$T/err" || bad "correct cotan on aorta-103k"
+    check "ill-conditioned solve flagged in json" [ "$(json "$T/ac103.json" "d['accuracy_warning'] is not None and d['condition_estimate'] > 1e12")" = True ]
+    check "ill-conditioned solve warned on stderr" grep -q "too ill-conditioned" "$T/err"
+  fi
   if [ -f "$DATA/aorta-levelset.mha" ]; then
     "$M" sample "$DATA/aorta-closed-6k.vtp" --image "$DATA/aorta-levelset.mha" --space ras --json -o "$T/phi.vtp" \
       >"$T/phi.json" || bad "sample"

@@ -317,3 +317,130 @@ TEST(GlobalBilaplacian, IterationsStayFlatUnderRefinementAndMatchTheDirectSolve)
                                         Field::Zero(42, 1), GlobalBilaplacianParams{.g2 = 0}),
                InputError);
 }
+
+#include "meshpde/apps/local_drag.h"
+
+namespace {
+
+// Held values of the session's handles and the region solved from scratch by a fresh
+// factorization: the reference for every DragSession figure.
+Field fresh_solve(const Mesh& mesh, const FemOperators& ops, const std::vector<int>& handles,
+                  const Eigen::MatrixXd& moves, const std::vector<int>& region_with_handles) {
+  std::vector<int> free;
+  for (int v : region_with_handles)
+    if (std::find(handles.begin(), handles.end(), v) == handles.end()) free.push_back(v);
+  const SteadyDirectSolver s(mesh, ops, PdeCoefficients{.g0 = 0, .g1 = 0, .g2 = 1}, free);
+  Field held = Field::Zero(mesh.num_vertices(), 3);
+  for (std::size_t k = 0; k < handles.size(); ++k) held.row(handles[k]) = moves.row(static_cast<Eigen::Index>(k));
+  return s.solve(held);
+}
+
+Field session_field(const Mesh& mesh, const DragSession& s, const Eigen::MatrixXd& moves) {
+  return s.positions(moves) - mesh.positions();
+}
+
+}  // namespace
+
+TEST(DragSession, UpdatesAreTheDirectSolveAndLinearInTheHandle) {
+  const GeneratedMesh g = icosphere(4);
+  const Mesh mesh(g.V, g.F);
+  const FemOperators ops = build_operators(mesh);
+  int handle = 0;
+  mesh.positions().col(2).maxCoeff(&handle);
+  DragSession s(mesh, ops, {handle}, DragSessionParams{.radius = 0.6});
+  EXPECT_EQ(s.factorizations(), 1);
+  EXPECT_GT(s.region().size(), 150u);
+  for (const Eigen::RowVector3d& move : {Eigen::RowVector3d(0, 0, 0.1), Eigen::RowVector3d(0.05, -0.02, 0.3)}) {
+    const Eigen::MatrixXd d = move;
+    const DragResult r =
+        drag_vertex(mesh, ops, DragParams{.vertex = handle, .displacement = move.transpose(), .radius = 0.6});
+    EXPECT_LE((session_field(mesh, s, d) - r.displacement).cwiseAbs().maxCoeff(), 1e-12 + 1e-10 * move.norm());
+  }
+  // Still one factorization: updates are products with the basis.
+  EXPECT_EQ(s.factorizations(), 1);
+  EXPECT_EQ(s.solves(), 1);
+}
+
+TEST(DragSession, AddedHandlesAndGrownRegionsMatchFreshFactorizations) {
+  const GeneratedMesh g = icosphere(4);
+  const Mesh mesh(g.V, g.F);
+  const FemOperators ops = build_operators(mesh);
+  int h0 = 0;
+  mesh.positions().col(2).maxCoeff(&h0);
+  DragSession s(mesh, ops, {h0}, DragSessionParams{.radius = 0.7});
+  // Two more handles inside the region, far enough from each other and the first.
+  const std::vector<int> region0 = s.region();
+  std::vector<int> extra;
+  for (int v : region0) {
+    const Eigen::RowVector3d p = mesh.positions().row(v);
+    bool far = (p - mesh.positions().row(h0)).norm() > 0.25;
+    for (int e : extra) far = far && (p - mesh.positions().row(e)).norm() > 0.25;
+    if (far && (p - mesh.positions().row(h0)).norm() < 0.4) extra.push_back(v);
+    if (extra.size() == 2) break;
+  }
+  ASSERT_EQ(extra.size(), 2u);
+  s.add_handle(extra[0]);
+  s.add_handle(extra[1]);
+  EXPECT_EQ(s.factorizations(), 1);  // handles added with the same factor
+  Eigen::MatrixXd moves(3, 3);
+  moves << 0, 0, 0.2, 0.05, 0, -0.1, 0, 0.08, 0.02;
+  std::vector<int> with_handles = region0;
+  with_handles.push_back(h0);
+  const Field ref = fresh_solve(mesh, ops, s.handles(), moves, with_handles);
+  const double tol = 1e-9 * moves.norm();
+  EXPECT_LE((session_field(mesh, s, moves) - ref).cwiseAbs().maxCoeff(), tol);
+  // Each handle lands exactly where it was moved; the basis is 1 at its own handle.
+  const Positions P = s.positions(moves);
+  for (int k = 0; k < 3; ++k)
+    EXPECT_LE((P.row(s.handles()[k]) - mesh.positions().row(s.handles()[k]) - moves.row(k)).norm(), 1e-12);
+  // Grown by a ring: the larger region's answer, handles kept.
+  s.grow(1);
+  EXPECT_EQ(s.factorizations(), 2);
+  EXPECT_GT(s.region().size(), region0.size());
+  std::vector<int> grown = s.region();
+  grown.push_back(h0);
+  const Field ref2 = fresh_solve(mesh, ops, s.handles(), moves, grown);
+  EXPECT_LE((session_field(mesh, s, moves) - ref2).cwiseAbs().maxCoeff(), tol);
+  EXPECT_GT((ref2 - ref).cwiseAbs().maxCoeff(), 1e-6);  // the ring did change the answer
+}
+
+TEST(DragSession, BadRequestsAreRefused) {
+  const GeneratedMesh g = icosphere(3);
+  const Mesh mesh(g.V, g.F);
+  const FemOperators ops = build_operators(mesh);
+  EXPECT_THROW(DragSession(mesh, ops, {}, DragSessionParams{.rings = 3}), InputError);
+  EXPECT_THROW(DragSession(mesh, ops, {0, 0}, DragSessionParams{.rings = 3}), InputError);
+  EXPECT_THROW(DragSession(mesh, ops, {mesh.num_vertices()}, DragSessionParams{.rings = 3}), InputError);
+  EXPECT_THROW(DragSession(mesh, ops, {0}, DragSessionParams{}), InputError);
+  DragSession s(mesh, ops, {0}, DragSessionParams{.rings = 3});
+  int outside = 0;
+  for (int v = 0; v < mesh.num_vertices(); ++v)
+    if (s.solver().free_index(v) < 0 && v != 0) outside = v;
+  EXPECT_THROW(s.add_handle(outside), InputError);
+  EXPECT_THROW(s.add_handle(0), InputError);
+  EXPECT_THROW((void)s.displacements(Eigen::MatrixXd::Zero(2, 3)), InputError);
+}
+
+TEST(Direct, ConditioningEstimateMatchesTheTrueConditionNumber) {
+  // A small system whose 1-norm condition number is computed exactly from the dense
+  // inverse: the estimate is a lower bound within a factor of 3 (Higham's experience).
+  const GeneratedMesh g = icosphere(2);
+  const Mesh mesh(g.V, g.F);
+  const FemOperators ops = build_operators(mesh);
+  std::vector<int> free;
+  for (int v = 1; v < mesh.num_vertices(); ++v)
+    if (mesh.positions()(v, 2) > -0.5) free.push_back(v);
+  const SteadyDirectSolver s(mesh, ops, PdeCoefficients{.g0 = 0, .g1 = 0, .g2 = 1}, free);
+  const Eigen::MatrixXd A = Eigen::MatrixXd(s.matrix());
+  const Eigen::MatrixXd Ainv = A.inverse();
+  const double exact = A.cwiseAbs().colwise().sum().maxCoeff() * Ainv.cwiseAbs().colwise().sum().maxCoeff();
+  const auto c = s.conditioning();
+  EXPECT_LE(c.condition_1, exact * (1 + 1e-9));
+  EXPECT_GE(c.condition_1, exact / 3);
+  EXPECT_TRUE(c.sufficient) << c.message;
+  EXPECT_TRUE(c.message.empty());
+  // Asking for more than double precision can give is refused in words.
+  const auto strict = s.conditioning(1e-18);
+  EXPECT_FALSE(strict.sufficient);
+  EXPECT_NE(strict.message.find("ill-conditioned"), std::string::npos);
+}

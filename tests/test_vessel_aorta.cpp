@@ -37,6 +37,7 @@ constexpr int kTrunk = 500;
 struct TwoSolves {
   Field cholmod, eigen;
   double residual_cholmod = 0, residual_eigen = 0;
+  SteadyDirectSolver::Conditioning conditioning;  // of the CHOLMOD solve, default accuracy 1e-5
 };
 
 TwoSolves drag_both_ways(const Mesh& mesh, const MeshOperators& mo, int handle) {
@@ -51,6 +52,7 @@ TwoSolves drag_both_ways(const Mesh& mesh, const MeshOperators& mo, int handle) 
   const SteadyDirectSolver a(mo.mesh, mo.ops, c, free, SparseCholesky::Backend::Cholmod);
   t.cholmod = a.solve(held);
   t.residual_cholmod = a.last_relative_residual();
+  t.conditioning = a.conditioning();
   const SteadyDirectSolver b(mo.mesh, mo.ops, c, free, SparseCholesky::Backend::Eigen);
   t.eigen = b.solve(held);
   t.residual_eigen = b.last_relative_residual();
@@ -74,6 +76,11 @@ TEST(AortaCorrection, IntrinsicOperatorsMakeTwoSolversAgree) {
     EXPECT_LE(diff, 1e-6 * 8.9);
     EXPECT_LE(t.residual_cholmod, 1e-10);
     EXPECT_LE(t.residual_eigen, 1e-10);
+    // The solver layer vouches for this solve: its error bound is below 1e-5.
+    std::printf("  condition estimate %.1e, error bound %.1e\n", t.conditioning.condition_1,
+                t.conditioning.relative_error);
+    EXPECT_TRUE(t.conditioning.sufficient) << t.conditioning.message;
+    EXPECT_LE(diff / 8.9, t.conditioning.relative_error);  // the bound holds
     // Smooth: nothing moves further than the handle, and the field is no rougher
     // (|d_i - mean of its neighbours|) at vertices of sliver triangles (an angle
     // below 1 degree) than anywhere else away from the handle: no spikes at slivers.
@@ -112,6 +119,12 @@ TEST(AortaCorrection, IntrinsicOperatorsMakeTwoSolversAgree) {
       std::printf("%s cotan: solvers differ by %.2e mm, residuals %.1e %.1e\n", name, plain_diff, p.residual_cholmod,
                   p.residual_eigen);
       EXPECT_GT(plain_diff, 100 * diff);
+      // ... and the solver layer says so by itself, before anyone compares solvers.
+      std::printf("  cotan condition estimate %.1e, error bound %.1e\n", p.conditioning.condition_1,
+                  p.conditioning.relative_error);
+      EXPECT_FALSE(p.conditioning.sufficient);
+      EXPECT_NE(p.conditioning.message.find("ill-conditioned"), std::string::npos);
+      EXPECT_GE(p.conditioning.relative_error, plain_diff / 8.9);  // the bound covers the disagreement
     }
   }
 }

@@ -312,6 +312,12 @@ Field fem_solve_local(const Mesh& mesh, const CorrectionParams& p, const std::ve
     d = cur;
   }
   r.relative_residual = std::max(r.relative_residual, worst);
+  // Whether these solves can be trusted to 1e-5 of the drag (badly shaped meshes with
+  // the plain cotangent operator cannot): a few extra solves with the same factor.
+  const SteadyDirectSolver::Conditioning cond = solver.conditioning();
+  r.condition_estimate = std::max(r.condition_estimate, cond.condition_1);
+  r.error_bound = std::max(r.error_bound, cond.relative_error);
+  if (!cond.sufficient) r.accuracy_warning = cond.message;
   if (guided) {
     r.pulled_vertices = static_cast<int>(pulled.size());
     r.image_mean_edge_before = mean_edge_strength(p.image, pulled, V);

@@ -2,6 +2,9 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
+#include <cmath>
+#include <limits>
 #include <numeric>
 
 #include "meshpde/core/errors.h"
@@ -119,13 +122,20 @@ Eigen::MatrixXd SteadyDirectSolver::solve_free(const Field& u, const Field* f) c
       b(k, c) = (f ? (*f)(i, c) : 0.0) - kt;
     }
   }
+  return solve_rhs(b);
+}
+
+Eigen::MatrixXd SteadyDirectSolver::solve_rhs(const Eigen::MatrixXd& b) const {
+  if (b.rows() != num_free())
+    throw InputError(fmt::format("right-hand side has {} rows for {} free vertices", b.rows(), num_free()));
+  const auto m = b.cols();
   Eigen::MatrixXd x = chol_.solve(b);
   // Iterative refinement: on badly shaped meshes K D K is ill-conditioned enough that
   // one triangular solve leaves a visible residual; each step x += A^-1 (b - A x)
   // costs one sparse product and one solve and shrinks it by about cond * eps.
   auto worst_residual = [&](const Eigen::MatrixXd& r) {
     double worst = 0;
-    for (int c = 0; c < m; ++c) {
+    for (Eigen::Index c = 0; c < m; ++c) {
       const double bn = b.col(c).norm();
       if (bn > 0) worst = std::max(worst, r.col(c).norm() / bn);
     }
@@ -133,6 +143,22 @@ Eigen::MatrixXd SteadyDirectSolver::solve_free(const Field& u, const Field* f) c
   };
   Eigen::MatrixXd r = b - A_ * x;
   residual_ = worst_residual(r);
+  double a_inf = 0;  // ||A||_inf = ||A||_1 (symmetric), for the backward error below
+  for (Eigen::Index k = 0; k < A_.outerSize(); ++k) {
+    double sum = 0;
+    for (Eigen::SparseMatrix<double>::InnerIterator it(A_, k); it; ++it) sum += std::abs(it.value());
+    a_inf = std::max(a_inf, sum);
+  }
+  // Normwise backward error (Rigal and Gaches): the smallest relative change of A and b
+  // that makes x exact; the forward error is about cond times this.
+  auto backward = [&](const Eigen::MatrixXd& xx, const Eigen::MatrixXd& rr) {
+    double worst = 0;
+    for (Eigen::Index c = 0; c < m; ++c) {
+      const double den = a_inf * xx.col(c).cwiseAbs().maxCoeff() + b.col(c).cwiseAbs().maxCoeff();
+      if (den > 0) worst = std::max(worst, rr.col(c).cwiseAbs().maxCoeff() / den);
+    }
+    return worst;
+  };
   refinements_ = 0;
   while (residual_ > refine_tolerance && refinements_ < max_refinements) {
     const Eigen::MatrixXd x_new = x + chol_.solve(r);
@@ -144,7 +170,90 @@ Eigen::MatrixXd SteadyDirectSolver::solve_free(const Field& u, const Field* f) c
     r = r_new;
     residual_ = res_new;
   }
+  backward_error_ = backward(x, r);
   return x;
+}
+
+Eigen::VectorXd SteadyDirectSolver::coupling(int v) const {
+  const int nv = mesh_.num_vertices();
+  if (v < 0 || v >= nv) throw InputError(fmt::format("vertex {} does not exist (the mesh has {})", v, nv));
+  if (local_index(v) >= 0) throw InputError(fmt::format("vertex {} is free, not held", v));
+  Eigen::VectorXd b = Eigen::VectorXd::Zero(num_free());
+  auto unit = [v](int j) { return j == v ? 1.0 : 0.0; };
+  // Rows that Kt couples to v: v's one ring (K) and two rings (K D K).
+  std::vector<int> near{v};
+  for (int w : mesh_.neighbors(v)) near.push_back(w);
+  const std::size_t ring1 = near.size();
+  for (std::size_t k = 1; k < ring1; ++k)
+    for (int w : mesh_.neighbors(near[k])) near.push_back(w);
+  std::sort(near.begin(), near.end());
+  near.erase(std::unique(near.begin(), near.end()), near.end());
+  for (int i : near) {
+    const int k = local_index(i);
+    if (k < 0) continue;
+    double kt = c_.g1 * stiffness_row(mesh_, ops_, i, unit);
+    if (c_.g2 != 0) kt += c_.g2 * bilaplacian_row(mesh_, ops_, i, unit);
+    b[k] = -kt;
+  }
+  return b;
+}
+
+SteadyDirectSolver::Conditioning SteadyDirectSolver::conditioning(double accuracy) const {
+  // The condition number of the diagonally scaled matrix B = S A S, S = diag(A)^-1/2:
+  // Cholesky's rounding errors are invariant under that scaling (van der Sluis), so
+  // cond(B), not cond(A), is what bounds the error; cond(A) also counts the spread of
+  // the vertex areas, which costs no accuracy.
+  const Eigen::Index n = A_.rows();
+  const Eigen::VectorXd s = A_.diagonal().cwiseSqrt().cwiseInverse();
+  if (inverse_norm_1_ < 0) {
+    // Hager's estimator (Higham's refinement, LAPACK dlacon) of ||B^-1||_1: maximize
+    // |B^-1 x|_1 over |x|_1 = 1 by a few steps of a subgradient ascent; B is symmetric.
+    // B^-1 x = S^-1 A^-1 S^-1 x: two scalings around a solve with the existing factor.
+    auto apply_inverse = [&](const Eigen::VectorXd& x) -> Eigen::VectorXd {
+      return chol_.solve(x.cwiseQuotient(s)).col(0).cwiseQuotient(s);
+    };
+    Eigen::VectorXd x = Eigen::VectorXd::Constant(n, 1.0 / static_cast<double>(n));
+    double est = 0;
+    Eigen::Index last = -1;
+    for (int it = 0; it < 5; ++it) {
+      const Eigen::VectorXd y = apply_inverse(x);
+      const double norm = y.lpNorm<1>();
+      if (it > 0 && norm <= est) break;
+      est = norm;
+      const Eigen::VectorXd sign = y.unaryExpr([](double t) { return t >= 0 ? 1.0 : -1.0; });
+      const Eigen::VectorXd z = apply_inverse(sign);
+      Eigen::Index j = 0;
+      z.cwiseAbs().maxCoeff(&j);
+      if (j == last || z.cwiseAbs()[j] <= z.dot(x)) break;
+      last = j;
+      x.setZero();
+      x[j] = 1;
+    }
+    // Higham's extra test vector catches matrices the ascent underestimates.
+    Eigen::VectorXd alt(n);
+    for (Eigen::Index i = 0; i < n; ++i)
+      alt[i] =
+          (i % 2 ? -1.0 : 1.0) * (1.0 + static_cast<double>(i) / static_cast<double>(std::max<Eigen::Index>(1, n - 1)));
+    const double alt_est = 2 * apply_inverse(alt).lpNorm<1>() / (3 * static_cast<double>(n));
+    inverse_norm_1_ = std::max(est, alt_est);
+  }
+  double b_norm = 0;  // ||B||_1: the largest column sum of |s_i A_ij s_j| (B is symmetric)
+  for (Eigen::Index k = 0; k < A_.outerSize(); ++k) {
+    double sum = 0;
+    for (Eigen::SparseMatrix<double>::InnerIterator it(A_, k); it; ++it) sum += std::abs(it.value()) * s[it.row()];
+    b_norm = std::max(b_norm, sum * s[k]);
+  }
+  Conditioning c;
+  c.condition_1 = b_norm * inverse_norm_1_;
+  c.relative_error = c.condition_1 * std::max(std::numeric_limits<double>::epsilon() / 2, backward_error_);
+  c.sufficient = c.relative_error <= accuracy;
+  if (!c.sufficient)
+    c.message = fmt::format(
+        "the system is too ill-conditioned for the requested accuracy: condition number about {:.1e}, so "
+        "the answer may be off by {:.1e} of its size (asked: {:.0e}); badly shaped triangles cause this: "
+        "use the intrinsic Delaunay Laplacian (--laplacian intrinsic or auto)",
+        c.condition_1, c.relative_error, accuracy);
+  return c;
 }
 
 }  // namespace meshpde

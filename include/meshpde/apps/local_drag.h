@@ -9,6 +9,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <memory>
 #include <vector>
 
 #include "meshpde/mesh/mesh.h"
@@ -47,5 +48,69 @@ std::vector<int> ring_ball(const Mesh& mesh, int source, int rings);
 
 /// \throw InputError for a bad vertex or region; SolverError on a breakdown.
 DragResult drag_vertex(const Mesh& mesh, const FemOperators& ops, const DragParams& params);
+
+/// Interactive drags of one or more handles over one region of influence, with the
+/// region's factor computed once and reused.
+///
+/// The displacement is linear in the handles' displacements: d_F = B d_H, with B the
+/// region's basis (one column per handle: the response to a unit move of that handle,
+/// B = -Kt_FF^-1 Kt_FH). The constructor factors Kt_FF once (SteadyDirectSolver) and
+/// solves for B (one solve per handle); then
+///   - a drag update (new handle displacements) is the product B d_H: region x handles
+///     x 3 multiply-adds, no solve at all;
+///   - adding a handle inside the region costs one solve with the same factor and a
+///     rank-one update of B (the new handle's column is its Green's function scaled to
+///     1 at the handle; every other column is corrected to 0 there), no refactorization;
+///   - growing the region by rings builds the larger region's factor (a new pattern).
+/// The region is held at zero displacement outside (two frozen rings make the join C1
+/// for g2 > 0), exactly as drag_vertex().
+struct DragSessionParams {
+  double radius = 0;  ///< region: edge-path distance from the first handle (mesh units); 0: use rings
+  int rings = 0;      ///< region in rings of neighbours of the first handle (when radius == 0)
+  double g1 = 0;      ///< membrane stiffness
+  double g2 = 1;      ///< plate (bi-Laplacian) stiffness
+};
+
+class DragSession {
+ public:
+  /// \throw InputError for bad handles or region; SolverError if the region's system
+  ///        cannot be factored.
+  DragSession(const Mesh& mesh, const FemOperators& ops, std::vector<int> handles, const DragSessionParams& params);
+
+  /// Displacements of the free region vertices (rows in the order of region()) for the
+  /// handles' displacements (#handles x 3, rows in the order of handles()).
+  Eigen::MatrixXd displacements(const Eigen::MatrixXd& handle_displacements) const;
+  /// Whole-mesh positions: rest positions plus the displacements of handles and region.
+  Positions positions(const Eigen::MatrixXd& handle_displacements) const;
+
+  /// Makes a free region vertex a handle (appended to handles()): one solve with the
+  /// existing factor and a rank-one update of the basis. \throw InputError if the vertex
+  /// is not a free region vertex.
+  void add_handle(int vertex);
+  /// Grows the region by `rings` rings of neighbours and rebuilds its factor and basis.
+  void grow(int rings = 1);
+
+  const std::vector<int>& handles() const { return handles_; }
+  /// Free vertices of the region, handles added by add_handle() included (their rows
+  /// of the basis are 1 for themselves and 0 for every other handle).
+  const std::vector<int>& region() const { return solver_->free_vertices(); }
+  const Eigen::MatrixXd& basis() const { return basis_; }  ///< region x handles
+  const SteadyDirectSolver& solver() const { return *solver_; }
+  int factorizations() const { return factorizations_; }  ///< factors built so far (1 + grows)
+  int solves() const { return solves_; }                  ///< solves with a factor so far
+
+ private:
+  void build(std::vector<int> free);
+  void constrain(std::size_t k);  // handle k (a free row) gets its own column, 0 in the others
+
+  const Mesh& mesh_;
+  const FemOperators& ops_;
+  DragSessionParams params_;
+  std::vector<int> handles_;
+  std::vector<bool> handle_in_region_;  // per handle: added by add_handle (a row of the factor)
+  std::unique_ptr<SteadyDirectSolver> solver_;
+  Eigen::MatrixXd basis_;
+  int factorizations_ = 0, solves_ = 0;
+};
 
 }  // namespace meshpde

@@ -125,6 +125,9 @@ struct CorrectionResult {
   int substeps = 1;                          ///< steps the displacement was split into
   std::string intersection_action = "none";  ///< none | split into N steps | limited to F
   double relative_residual = 0;              ///< worst relative residual of the accepted solves
+  double condition_estimate = 0;             ///< largest cond_1 of the scaled system (SteadyDirectSolver::conditioning)
+  double error_bound = 0;                    ///< largest estimated relative error of a solve
+  std::string accuracy_warning;              ///< set when a solve cannot promise 1e-5 relative accuracy
   LaplacianKind laplacian = LaplacianKind::Cotan;
   std::string laplacian_reason;
   double image_mean_edge_before = 0;  ///< image guidance: mean E over the pulled vertices
