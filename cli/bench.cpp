@@ -12,6 +12,7 @@
 #include "meshpde/apps/haptics.h"
 #include "meshpde/apps/local_drag.h"
 #include "meshpde/core/errors.h"
+#include "meshpde/core/parallel.h"
 #include "meshpde/mesh/generators.h"
 #include "meshpde/mesh/topology.h"
 #include "meshpde/operators/fem_operators.h"
@@ -127,11 +128,16 @@ void add_bench_command(CLI::App& app) {
   auto json = std::make_shared<bool>(false);
   cmd->add_flag("--quick", *quick, "Fewer repetitions and steps (same meshes)");
   cmd->add_flag("--json", *json, "Print a JSON object");
+  auto threads = std::make_shared<int>(0);
+  cmd->add_option("--threads", *threads, "Thread limit for the whole run (default: every core)");
   cmd->callback([=] {
     nlohmann::json j;
     const int reps = *quick ? 3 : 10;
     const int steps = *quick ? 300 : 1000;
     j["quick"] = *quick;
+    if (*threads > 0) set_max_threads(*threads);
+    j["threads"] = max_threads();
+    j["openmp"] = openmp_available();
 
     progress("icosphere level 8 (655k vertices): build");
     auto t0 = clock_type::now();
@@ -154,6 +160,21 @@ void add_bench_command(CLI::App& app) {
         apply_bilaplacian_scalar(big, big_ops, u.data(), t.data(), y.data());
         best = std::min(best, seconds_since(tt));
       }
+      // The same apply on one and on two threads (OpenMP), interleaved.
+      double best1 = 1e30, best2 = 1e30;
+      const int limit = max_threads();
+      for (int r = 0; r < 2 * reps; ++r) {
+        for (const int count : {1, 2}) {
+          set_max_threads(count);
+          const auto tt = clock_type::now();
+          apply_bilaplacian_scalar(big, big_ops, u.data(), t.data(), y.data());
+          (count == 1 ? best1 : best2) = std::min(count == 1 ? best1 : best2, seconds_since(tt));
+        }
+      }
+      set_max_threads(limit);
+      j["kdk_apply_ms_655k_1thread"] = best1 * 1e3;
+      j["kdk_apply_ms_655k_2threads"] = best2 * 1e3;
+      j["kdk_apply_speedup_2threads"] = best1 / best2;
       // Bytes an ideal K D K apply must move: the operator twice (offsets, neighbours,
       // K_ij, K_ii), u read, t written and read back, the mass read, y written.
       const double op_bytes = 4.0 * (nv + 1) + 4.0 * S + 8.0 * S + 8.0 * nv;
@@ -196,9 +217,17 @@ void add_bench_command(CLI::App& app) {
         return best;
       };
       std::unique_ptr<DragSession> session;
-      const double setup_s =
-          best_of(*quick ? 2 : 4, [&] { session = std::make_unique<DragSession>(big, big_ops, std::vector<int>{handle}, region_params); });
+      const double setup_s = best_of(*quick ? 2 : 4, [&] {
+        session = std::make_unique<DragSession>(big, big_ops, std::vector<int>{handle}, region_params);
+      });
       j["drag_setup_ms_10k_region"] = setup_s * 1e3;
+      {
+        const int limit = max_threads();
+        set_max_threads(1);
+        j["drag_setup_ms_10k_region_1thread"] =
+            best_of(*quick ? 2 : 4, [&] { DragSession s(big, big_ops, {handle}, region_params); }) * 1e3;
+        set_max_threads(limit);
+      }
       j["drag_region_vertices"] = session->region().size();
       const std::vector<int> free = session->region();
       const double eigen_setup_s = best_of(*quick ? 1 : 2, [&] {
@@ -271,16 +300,20 @@ void add_bench_command(CLI::App& app) {
       std::vector<int> free2;
       for (int v : free)
         if (v != second) free2.push_back(v);
-      j["drag_add_handle_baseline_ms_refactor"] = best_of(1, [&] {
-        DragSession fresh(big, big_ops, {handle, second}, region_params);
-      }) * 1e3;
+      j["drag_add_handle_baseline_ms_refactor"] =
+          best_of(1,
+                  [&] {
+                    DragSession fresh(big, big_ops, {handle, second}, region_params);
+                  }) *
+          1e3;
       const auto t_grow = clock_type::now();
       session->grow(1);
       j["drag_grow_ring_ms"] = seconds_since(t_grow) * 1e3;
       j["drag_grown_region_vertices"] = session->region().size();
       j["drag_grow_ring_baseline_ms_fresh_setup"] = setup_s * 1e3;
       j["drag_setup_ms_2k_region"] =
-          best_of(*quick ? 2 : 4, [&] { DragSession s(big, big_ops, {handle}, DragSessionParams{.radius = 26.0}); }) * 1e3;
+          best_of(*quick ? 2 : 4, [&] { DragSession s(big, big_ops, {handle}, DragSessionParams{.radius = 26.0}); }) *
+          1e3;
     }
 
     // Global steady bi-Laplacian (three right-hand sides; the handle moved, a far cap of
@@ -305,6 +338,15 @@ void add_bench_command(CLI::App& app) {
       const double pcg_s = seconds_since(t_pcg);
       j["global_bilap_iters_" + tag] = r.iterations;
       if (level == 7) {
+        // Both cores against one: the same solve with the thread limit at 1 (OpenMP
+        // applies and the BLAS under CHOLMOD).
+        const int limit = max_threads();
+        set_max_threads(1);
+        const auto t_one = clock_type::now();
+        (void)solve_global_bilaplacian(m, o, free, u);
+        j["global_bilap_s_164k_1thread"] = seconds_since(t_one);
+        set_max_threads(limit);
+        j["global_bilap_speedup_2threads_164k"] = j["global_bilap_s_164k_1thread"].get<double>() / pcg_s;
         const auto t_direct = clock_type::now();
         const SteadyDirectSolver direct(m, o, PdeCoefficients{.g0 = 0, .g1 = 0, .g2 = 1}, free);
         const Field x = direct.solve(u);

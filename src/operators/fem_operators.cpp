@@ -8,9 +8,16 @@
 
 #include "csr_row.h"
 #include "meshpde/core/errors.h"
+#include "meshpde/core/parallel.h"
 #include "meshpde/mesh/topology.h"
 
 namespace meshpde {
+
+namespace {
+// Below this many rows an apply stays on the calling thread: waking a second one
+// costs more than half of a small apply (measured in meshpde bench, docs/solvers.md).
+constexpr std::ptrdiff_t kParallelRows = 20000;
+}  // namespace
 
 Eigen::VectorXd face_areas(const Mesh& mesh) {
   Eigen::VectorXd a(mesh.num_faces());
@@ -98,18 +105,34 @@ void apply_stiffness_rows(const Mesh& mesh, const FemOperators& ops, const doubl
   const int* nbr = mesh.neighbors().data();
   const double* kij = ops.Kij.data();
   const double* kii = ops.Kii.data();
+  const auto count = static_cast<std::ptrdiff_t>(rows.size());
+  [[maybe_unused]] const bool parallel = count >= kParallelRows;
+  [[maybe_unused]] const int threads = max_threads();
+  // Rows are independent (each writes only its own Y), so they split across threads.
   if (m == 1) {
-    for (const int i : rows) {
+#ifdef MESHPDE_HAVE_OPENMP
+#pragma omp parallel for schedule(static) if (parallel) num_threads(threads)
+#endif
+    for (std::ptrdiff_t k = 0; k < count; ++k) {
+      const int i = rows[static_cast<std::size_t>(k)];
       prefetch_row(off[i], kij, nbr);
       detail::csr_row<1>(i, off, nbr, kij, kii, U, Y);
     }
   } else if (m == 3) {
-    for (const int i : rows) {
+#ifdef MESHPDE_HAVE_OPENMP
+#pragma omp parallel for schedule(static) if (parallel) num_threads(threads)
+#endif
+    for (std::ptrdiff_t k = 0; k < count; ++k) {
+      const int i = rows[static_cast<std::size_t>(k)];
       prefetch_row(off[i], kij, nbr);
       detail::csr_row<3>(i, off, nbr, kij, kii, U, Y);
     }
   } else {
-    for (const int i : rows) {
+#ifdef MESHPDE_HAVE_OPENMP
+#pragma omp parallel for schedule(static) if (parallel) num_threads(threads)
+#endif
+    for (std::ptrdiff_t k = 0; k < count; ++k) {
+      const int i = rows[static_cast<std::size_t>(k)];
       for (int c = 0; c < m; ++c) Y[m * i + c] = kii[i] * U[m * i + c];
       for (int s = off[i]; s < off[i + 1]; ++s)
         for (int c = 0; c < m; ++c) Y[m * i + c] += kij[s] * U[m * nbr[s] + c];
@@ -124,17 +147,31 @@ void apply_bilaplacian_scalar(const Mesh& mesh, const FemOperators& ops, const d
   const double* kij = ops.Kij.data();
   const double* kii = ops.Kii.data();
   const double* mass = ops.mass.data();
-  for (int i = 0; i < n; ++i) {
-    prefetch_row(off[i], kij, nbr);
-    double y = kii[i] * u[i];
-    for (int s = off[i]; s < off[i + 1]; ++s) y += kij[s] * u[nbr[s]];
-    T[i] = mass[i] > 0 ? y / mass[i] : 0.0;
-  }
-  for (int i = 0; i < n; ++i) {
-    prefetch_row(off[i], kij, nbr);
-    double y = kii[i] * T[i];
-    for (int s = off[i]; s < off[i + 1]; ++s) y += kij[s] * T[nbr[s]];
-    Y[i] = y;
+  [[maybe_unused]] const bool parallel = n >= kParallelRows;
+  // Two sweeps; the second reads T of neighbours, so all of T must be written first
+  // (the barrier at the end of the first omp for).
+#ifdef MESHPDE_HAVE_OPENMP
+#pragma omp parallel if (parallel) num_threads(max_threads())
+#endif
+  {
+#ifdef MESHPDE_HAVE_OPENMP
+#pragma omp for schedule(static)
+#endif
+    for (int i = 0; i < n; ++i) {
+      prefetch_row(off[i], kij, nbr);
+      double y = kii[i] * u[i];
+      for (int s = off[i]; s < off[i + 1]; ++s) y += kij[s] * u[nbr[s]];
+      T[i] = mass[i] > 0 ? y / mass[i] : 0.0;
+    }
+#ifdef MESHPDE_HAVE_OPENMP
+#pragma omp for schedule(static)
+#endif
+    for (int i = 0; i < n; ++i) {
+      prefetch_row(off[i], kij, nbr);
+      double y = kii[i] * T[i];
+      for (int s = off[i]; s < off[i + 1]; ++s) y += kij[s] * T[nbr[s]];
+      Y[i] = y;
+    }
   }
 }
 

@@ -25,15 +25,8 @@ GlobalBilaplacianResult solve_global_bilaplacian(const Mesh& mesh, const FemOper
   }
   const auto off = mesh.offsets();
   const auto nbr = mesh.neighbors();
-  // K_SF with S = all vertices (rows), F = free (columns); K_FF its free rows.
-  std::vector<Eigen::Triplet<double>> t, tf;
-  for (int i = 0; i < nv; ++i) {
-    if (local[i] >= 0) t.emplace_back(i, local[i], ops.Kii[i]);
-    for (int q = off[i]; q < off[i + 1]; ++q)
-      if (local[nbr[q]] >= 0) t.emplace_back(i, local[nbr[q]], ops.Kij[q]);
-  }
-  Eigen::SparseMatrix<double> KSF(nv, n);
-  KSF.setFromTriplets(t.begin(), t.end());
+  // K_FF: the free rows and columns of K, for the preconditioner.
+  std::vector<Eigen::Triplet<double>> tf;
   for (int k = 0; k < n; ++k) {
     const int i = free[k];
     tf.emplace_back(k, k, ops.Kii[i]);
@@ -56,10 +49,23 @@ GlobalBilaplacianResult solve_global_bilaplacian(const Mesh& mesh, const FemOper
   const Field KDKw = apply_stiffness(mesh, ops, DKw);
   Eigen::MatrixXd b(n, m);
   for (int k = 0; k < n; ++k) b.row(k) = -(p.g1 * Kw.row(free[k]) + p.g2 * KDKw.row(free[k]));
+  // (g1 K + g2 K D K)_FF x, matrix-free over the whole mesh (the free set is nearly all
+  // of it here): scatter x into a field that is zero on held vertices, apply K (both
+  // cores for large meshes), scale by D, apply K again, gather the free rows.
+  Field full = Field::Zero(nv, m), kx(nv, m), kdkx(nv, m);
+  const std::vector<int> all = [&] {
+    std::vector<int> a(static_cast<std::size_t>(nv));
+    for (int i = 0; i < nv; ++i) a[static_cast<std::size_t>(i)] = i;
+    return a;
+  }();
   auto apply = [&](const Eigen::MatrixXd& x) -> Eigen::MatrixXd {
-    const Eigen::MatrixXd kx = KSF * x;
-    Eigen::MatrixXd y = p.g2 * (KSF.transpose() * (d.asDiagonal() * kx));
-    if (p.g1 != 0) y += p.g1 * (KFF * x);
+    for (int k = 0; k < n; ++k) full.row(free[k]) = x.row(k);
+    apply_stiffness_rows(mesh, ops, full.data(), kx.data(), m, all);
+    Field dkx = kx;
+    for (int i = 0; i < nv; ++i) dkx.row(i) *= d[i];
+    apply_stiffness_rows(mesh, ops, dkx.data(), kdkx.data(), m, all);
+    Eigen::MatrixXd y(n, m);
+    for (int k = 0; k < n; ++k) y.row(k) = p.g2 * kdkx.row(free[k]) + p.g1 * kx.row(free[k]);
     return y;
   };
   auto precondition = [&](const Eigen::MatrixXd& r) -> Eigen::MatrixXd {

@@ -11,6 +11,59 @@
 
 namespace meshpde {
 
+Eigen::SparseMatrix<double> assemble_steady_matrix(const Mesh& mesh, const FemOperators& ops, const PdeCoefficients& c,
+                                                   const std::vector<int>& free_,
+                                                   const Eigen::VectorXd& extra_diagonal) {
+  const int n = static_cast<int>(free_.size());
+  const bool extra = extra_diagonal.size() > 0;
+  const auto off = mesh.offsets();
+  const auto nbr = mesh.neighbors();
+  std::unordered_map<int, int> local;  // sized to the region, not the mesh
+  local.reserve(2 * static_cast<std::size_t>(n));
+  for (int k = 0; k < n; ++k) local.emplace(free_[k], k);
+  auto local_index = [&](int v) {
+    const auto it = local.find(v);
+    return it == local.end() ? -1 : it->second;
+  };
+  // Assemble Kt_FF from CSR rows: K_FF directly, K D K as (K_SF)^T D_S K_SF.
+  std::vector<Eigen::Triplet<double>> t;
+  std::vector<int> S;  // F and its ring, local index into K_SF rows
+  {
+    std::unordered_map<int, int> s_index;
+    s_index.reserve(4 * static_cast<std::size_t>(n));
+    for (int v : free_) {
+      if (s_index.emplace(v, static_cast<int>(S.size())).second) S.push_back(v);
+      for (int q = off[v]; q < off[v + 1]; ++q)
+        if (s_index.emplace(nbr[q], static_cast<int>(S.size())).second) S.push_back(nbr[q]);
+    }
+  }
+  for (int k = 0; k < n; ++k) {
+    const int v = free_[k];
+    t.emplace_back(k, k, c.g0 * ops.mass[v] + c.g1 * ops.Kii[v] + (extra ? extra_diagonal[v] : 0.0));
+    if (c.g1 != 0)
+      for (int q = off[v]; q < off[v + 1]; ++q)
+        if (const int j = local_index(nbr[q]); j >= 0) t.emplace_back(k, j, c.g1 * ops.Kij[q]);
+  }
+  Eigen::SparseMatrix<double> A(n, n);
+  A.setFromTriplets(t.begin(), t.end());
+  if (c.g2 != 0) {
+    std::vector<Eigen::Triplet<double>> ks;
+    for (std::size_t r = 0; r < S.size(); ++r) {
+      const int i = S[r];
+      if (const int li = local_index(i); li >= 0) ks.emplace_back(static_cast<int>(r), li, ops.Kii[i]);
+      for (int q = off[i]; q < off[i + 1]; ++q)
+        if (const int j = local_index(nbr[q]); j >= 0) ks.emplace_back(static_cast<int>(r), j, ops.Kij[q]);
+    }
+    Eigen::SparseMatrix<double> KSF(static_cast<Eigen::Index>(S.size()), n);
+    KSF.setFromTriplets(ks.begin(), ks.end());
+    Eigen::VectorXd d(static_cast<Eigen::Index>(S.size()));
+    for (std::size_t r = 0; r < S.size(); ++r) d[static_cast<Eigen::Index>(r)] = ops.D(S[r]);
+    const Eigen::SparseMatrix<double> KDK = KSF.transpose() * d.asDiagonal() * KSF;
+    A += c.g2 * KDK;
+  }
+  return A;
+}
+
 SteadyDirectSolver::SteadyDirectSolver(const Mesh& mesh, const FemOperators& ops, const PdeCoefficients& c,
                                        std::vector<int> free, SparseCholesky::Backend backend,
                                        const Eigen::VectorXd& extra_diagonal)
@@ -59,43 +112,7 @@ SteadyDirectSolver::SteadyDirectSolver(const Mesh& mesh, const FemOperators& ops
                         members.size(), members.front()));
     }
   }
-  // Assemble Kt_FF from CSR rows: K_FF directly, K D K as (K_SF)^T D_S K_SF.
-  std::vector<Eigen::Triplet<double>> t;
-  std::vector<int> S;  // F and its ring, local index into K_SF rows
-  {
-    std::unordered_map<int, int> s_index;
-    s_index.reserve(4 * static_cast<std::size_t>(n));
-    for (int v : free_) {
-      if (s_index.emplace(v, static_cast<int>(S.size())).second) S.push_back(v);
-      for (int q = off[v]; q < off[v + 1]; ++q)
-        if (s_index.emplace(nbr[q], static_cast<int>(S.size())).second) S.push_back(nbr[q]);
-    }
-  }
-  for (int k = 0; k < n; ++k) {
-    const int v = free_[k];
-    t.emplace_back(k, k, c.g0 * ops.mass[v] + c.g1 * ops.Kii[v] + (extra ? extra_diagonal[v] : 0.0));
-    if (c.g1 != 0)
-      for (int q = off[v]; q < off[v + 1]; ++q)
-        if (const int j = local_index(nbr[q]); j >= 0) t.emplace_back(k, j, c.g1 * ops.Kij[q]);
-  }
-  Eigen::SparseMatrix<double> A(n, n);
-  A.setFromTriplets(t.begin(), t.end());
-  if (c.g2 != 0) {
-    std::vector<Eigen::Triplet<double>> ks;
-    for (std::size_t r = 0; r < S.size(); ++r) {
-      const int i = S[r];
-      if (const int li = local_index(i); li >= 0) ks.emplace_back(static_cast<int>(r), li, ops.Kii[i]);
-      for (int q = off[i]; q < off[i + 1]; ++q)
-        if (const int j = local_index(nbr[q]); j >= 0) ks.emplace_back(static_cast<int>(r), j, ops.Kij[q]);
-    }
-    Eigen::SparseMatrix<double> KSF(static_cast<Eigen::Index>(S.size()), n);
-    KSF.setFromTriplets(ks.begin(), ks.end());
-    Eigen::VectorXd d(static_cast<Eigen::Index>(S.size()));
-    for (std::size_t r = 0; r < S.size(); ++r) d[static_cast<Eigen::Index>(r)] = ops.D(S[r]);
-    const Eigen::SparseMatrix<double> KDK = KSF.transpose() * d.asDiagonal() * KSF;
-    A += c.g2 * KDK;
-  }
-  A_ = A;
+  A_ = assemble_steady_matrix(mesh, ops, c, free_, extra_diagonal);
   chol_.factorize(A_);
 }
 

@@ -11,9 +11,9 @@
 #include <dlfcn.h>
 
 #include <algorithm>
-#include <thread>
 
 #include "meshpde/core/errors.h"
+#include "meshpde/core/parallel.h"
 
 namespace meshpde {
 
@@ -34,7 +34,7 @@ void set_blas_threads(int n) {
 }
 
 int blas_threads_for(Eigen::Index n) {
-  return n < kOneBlasThreadBelow ? 1 : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  return n < kOneBlasThreadBelow ? 1 : max_threads();
 }
 
 }  // namespace
@@ -137,7 +137,10 @@ Eigen::MatrixXd SparseCholesky::solve(const Eigen::MatrixXd& B) const {
   if (!d.factored) throw SolverError("direct solve: solve() before a successful factorize()");
 #ifdef MESHPDE_HAVE_CHOLMOD
   if (d.backend == Backend::Cholmod) {
-    set_blas_threads(blas_threads_for(d.pattern.rows()));
+    // Triangular solves stream the factor once per column: memory-bound, and a second
+    // BLAS thread makes them slower (164k-vertex Laplacian factor, three columns:
+    // 43 ms on one thread, 48 ms on two), so they always run on one.
+    set_blas_threads(1);
     return d.cholmod.solve(B);
   }
 #endif

@@ -22,6 +22,13 @@ namespace meshpde {
 /// Iterative (Jacobi-CG through PdeSession::solve_steady, no factorization memory).
 enum class SteadySolver { Direct, Iterative };
 
+/// Kt_FF = g0 M_FF + g1 K_FF + g2 (K_SF)^T D_S K_SF (+ diag(extra_diagonal) on the free
+/// rows when given, #V values), rows and columns in the order of `free`: the principal
+/// submatrix of the whole-mesh Kt on those vertices. Cost follows the free set.
+Eigen::SparseMatrix<double> assemble_steady_matrix(const Mesh& mesh, const FemOperators& ops,
+                                                   const PdeCoefficients& coefficients, const std::vector<int>& free,
+                                                   const Eigen::VectorXd& extra_diagonal = Eigen::VectorXd());
+
 class SteadyDirectSolver {
  public:
   /// Assembles and factors Kt_FF (+ diag(extra_diagonal) on the free rows, when
