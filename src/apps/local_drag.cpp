@@ -2,6 +2,8 @@
 
 #include <fmt/format.h>
 
+#include <Eigen/OrderingMethods>
+#include <Eigen/SparseCholesky>
 #include <algorithm>
 #include <queue>
 #include <unordered_map>
@@ -98,6 +100,44 @@ DragResult drag_vertex(const Mesh& mesh, const FemOperators& ops, const DragPara
   return r;
 }
 
+struct DragSession::Factor {
+  std::vector<int> vertices;         // factored rows: the region (AMD order), then the margin
+  std::unordered_map<int, int> row;  // vertex -> row of `vertices`
+  Eigen::SparseMatrix<double> A;     // Kt on `vertices`, symmetric, both triangles
+  Eigen::SparseMatrix<double> L;     // lower Cholesky factor (column-major, rows sorted)
+  Eigen::Index active = 0;           // leading rows in use (the region)
+
+  // x = A_aa^-1 b for the leading `active` rows, with the leading block of L: a
+  // forward and a backward sweep that skip every entry below row `active`.
+  void solve_leading(Eigen::Ref<Eigen::VectorXd> x) const {
+    const int* outer = L.outerIndexPtr();
+    const int* inner = L.innerIndexPtr();
+    const double* val = L.valuePtr();
+    const auto n = static_cast<int>(active);
+    for (int j = 0; j < n; ++j) {
+      x[j] /= val[outer[j]];  // the diagonal is the first entry of its column
+      const double xj = x[j];
+      for (int q = outer[j] + 1; q < outer[j + 1] && inner[q] < n; ++q) x[inner[q]] -= val[q] * xj;
+    }
+    for (int j = n - 1; j >= 0; --j) {
+      double s = x[j];
+      for (int q = outer[j] + 1; q < outer[j + 1] && inner[q] < n; ++q) s -= val[q] * x[inner[q]];
+      x[j] = s / val[outer[j]];
+    }
+  }
+  // y = A_aa x on the leading rows.
+  Eigen::VectorXd multiply_leading(const Eigen::VectorXd& x) const {
+    Eigen::VectorXd y = Eigen::VectorXd::Zero(active);
+    for (Eigen::Index j = 0; j < active; ++j)
+      for (Eigen::SparseMatrix<double>::InnerIterator it(A, j); it; ++it)
+        if (it.row() < active) y[it.row()] += it.value() * x[j];
+    return y;
+  }
+};
+
+DragSession::~DragSession() = default;
+DragSession::DragSession(DragSession&&) noexcept = default;
+
 DragSession::DragSession(const Mesh& mesh, const FemOperators& ops, std::vector<int> handles,
                          const DragSessionParams& params)
     : mesh_(mesh), ops_(ops), params_(params), handles_(std::move(handles)) {
@@ -123,28 +163,113 @@ DragSession::DragSession(const Mesh& mesh, const FemOperators& ops, std::vector<
 }
 
 void DragSession::build(std::vector<int> free) {
-  solver_ = std::make_unique<SteadyDirectSolver>(
-      mesh_, ops_, PdeCoefficients{.g0 = 0, .g1 = params_.g1, .g2 = params_.g2}, std::move(free));
-  ++factorizations_;
-  // Handles outside the free set couple through the right-hand side; handles inside it
-  // (added earlier) are constrained by the Green's-function updates of add_handle().
-  const std::vector<int> outside_handles = [&] {
-    std::vector<int> o;
+  const PdeCoefficients coef{.g0 = 0, .g1 = params_.g1, .g2 = params_.g2};
+  auto f = std::make_unique<Factor>();
+  // Fill-reducing order of the region by itself (AMD on its own matrix), the margin ring
+  // after it: then the region's factor is the leading block of the whole factor.
+  {
+    const Eigen::SparseMatrix<double> AF = assemble_steady_matrix(mesh_, ops_, coef, free);
+    Eigen::AMDOrdering<int> amd;
+    Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> perm;
+    amd(AF, perm);  // perm.indices()[new position] = old position (Eigen's convention)
+    f->vertices.resize(free.size());
+    for (std::size_t k = 0; k < free.size(); ++k)
+      f->vertices[k] = free[static_cast<std::size_t>(perm.indices()[static_cast<Eigen::Index>(k)])];
+  }
+  std::vector<int> margin;
+  if (params_.margin) {
+    std::unordered_map<int, char> in;
+    for (int v : free) in.emplace(v, 1);
     for (std::size_t k = 0; k < handles_.size(); ++k)
-      if (!handle_in_region_[k]) o.push_back(handles_[k]);
-    return o;
-  }();
-  Eigen::MatrixXd rhs(solver_->num_free(), static_cast<Eigen::Index>(outside_handles.size()));
-  for (std::size_t k = 0; k < outside_handles.size(); ++k)
-    rhs.col(static_cast<Eigen::Index>(k)) = solver_->coupling(outside_handles[k]);
-  const Eigen::MatrixXd outside_basis = solver_->solve_rhs(rhs);
+      if (!handle_in_region_[k]) in.emplace(handles_[k], 1);
+    for (int v : free)
+      for (int w : mesh_.neighbors(v))
+        if (ops_.mass[w] > 0 && in.emplace(w, 1).second) margin.push_back(w);
+  }
+  f->vertices.insert(f->vertices.end(), margin.begin(), margin.end());
+  for (std::size_t k = 0; k < f->vertices.size(); ++k) f->row.emplace(f->vertices[k], static_cast<int>(k));
+  f->A = assemble_steady_matrix(mesh_, ops_, coef, f->vertices);
+  Eigen::SimplicialLLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::NaturalOrdering<int>> llt(f->A);
+  if (llt.info() != Eigen::Success)
+    throw SolverError(
+        fmt::format("the drag region's system ({} vertices) is not positive definite: does the region cover a "
+                    "whole closed part of the mesh, or is a coefficient negative?",
+                    f->vertices.size()));
+  f->L = llt.matrixL();
+  f->L.makeCompressed();
+  f->active = static_cast<Eigen::Index>(free.size());
+  region_.assign(f->vertices.begin(), f->vertices.begin() + static_cast<std::ptrdiff_t>(free.size()));
+  margin_ = std::move(margin);
+  factor_ = std::move(f);
+  ++factorizations_;
+  compute_basis();
+}
+
+int DragSession::region_index(int v) const {
+  const auto it = factor_->row.find(v);
+  return it == factor_->row.end() || it->second >= factor_->active ? -1 : it->second;
+}
+
+Eigen::VectorXd DragSession::coupling(int v) const {
+  // -Kt_{F,v}: rows that Kt couples to v lie within its two rings.
+  Eigen::VectorXd b = Eigen::VectorXd::Zero(factor_->active);
+  const PdeCoefficients c{.g0 = 0, .g1 = params_.g1, .g2 = params_.g2};
+  auto unit = [v](int j) { return j == v ? 1.0 : 0.0; };
+  std::vector<int> near{v};
+  for (int w : mesh_.neighbors(v)) near.push_back(w);
+  const std::size_t ring1 = near.size();
+  for (std::size_t k = 1; k < ring1; ++k)
+    for (int w : mesh_.neighbors(near[k])) near.push_back(w);
+  std::sort(near.begin(), near.end());
+  near.erase(std::unique(near.begin(), near.end()), near.end());
+  for (int i : near)
+    if (const int k = region_index(i); k >= 0)
+      b[k] = -(c.g1 * stiffness_row(mesh_, ops_, i, unit) + c.g2 * bilaplacian_row(mesh_, ops_, i, unit));
+  return b;
+}
+
+Eigen::MatrixXd DragSession::solve(const Eigen::MatrixXd& b) {
+  Eigen::MatrixXd x = b;
+  residual_ = 0;
+  for (Eigen::Index c = 0; c < b.cols(); ++c) {
+    factor_->solve_leading(x.col(c));
+    // Iterative refinement, as SteadyDirectSolver does: at most five steps while the
+    // relative residual exceeds 1e-12 and keeps falling.
+    const double bn = b.col(c).norm();
+    if (bn == 0) continue;
+    Eigen::VectorXd r = b.col(c) - factor_->multiply_leading(x.col(c));
+    double res = r.norm() / bn;
+    for (int step = 0; step < 5 && res > 1e-12; ++step) {
+      Eigen::VectorXd dx = r;
+      factor_->solve_leading(dx);
+      const Eigen::VectorXd x_new = x.col(c) + dx;
+      const Eigen::VectorXd r_new = b.col(c) - factor_->multiply_leading(x_new);
+      const double res_new = r_new.norm() / bn;
+      if (!(res_new < res)) break;
+      x.col(c) = x_new;
+      r = r_new;
+      res = res_new;
+    }
+    residual_ = std::max(residual_, res);
+  }
   ++solves_;
-  basis_.setZero(solver_->num_free(), static_cast<Eigen::Index>(handles_.size()));
-  for (std::size_t k = 0, o = 0; k < handles_.size(); ++k)
-    if (!handle_in_region_[k])
-      basis_.col(static_cast<Eigen::Index>(k)) = outside_basis.col(static_cast<Eigen::Index>(o++));
-  // Handles inside the free set (added earlier, kept as rows across a grow): constrain
-  // them again, one by one, as add_handle() did.
+  return x;
+}
+
+void DragSession::compute_basis() {
+  // Handles outside the region couple through the right-hand side; handles inside it
+  // (added earlier) are constrained by the Green's-function updates of constrain().
+  std::vector<Eigen::Index> outside;
+  for (std::size_t k = 0; k < handles_.size(); ++k)
+    if (!handle_in_region_[k]) outside.push_back(static_cast<Eigen::Index>(k));
+  Eigen::MatrixXd rhs(factor_->active, static_cast<Eigen::Index>(outside.size()));
+  for (std::size_t k = 0; k < outside.size(); ++k)
+    rhs.col(static_cast<Eigen::Index>(k)) = coupling(handles_[static_cast<std::size_t>(outside[k])]);
+  const Eigen::MatrixXd outside_basis = solve(rhs);
+  basis_.setZero(factor_->active, static_cast<Eigen::Index>(handles_.size()));
+  for (std::size_t k = 0; k < outside.size(); ++k)
+    basis_.col(outside[k]) = outside_basis.col(static_cast<Eigen::Index>(k));
+  // Handles inside the region: constrain them again, one by one, as add_handle() did.
   for (std::size_t k = 0; k < handles_.size(); ++k)
     if (handle_in_region_[k]) {
       handle_in_region_[k] = false;
@@ -153,17 +278,16 @@ void DragSession::build(std::vector<int> free) {
 }
 
 void DragSession::constrain(std::size_t k) {
-  const int row = solver_->free_index(handles_[k]);
+  const int row = region_index(handles_[k]);
   // g: the Green's function of the current constrained system at the handle. A^-1 e is
   // the unconstrained one; subtracting the current basis columns of the handles already
   // constrained inside the region (each 1 at its own handle, 0 at the others, harmonic
   // elsewhere) zeroes it at those handles and keeps A g = e on the remaining free rows.
-  Eigen::VectorXd e = Eigen::VectorXd::Zero(solver_->num_free());
-  e[row] = 1;
-  Eigen::VectorXd g = solver_->solve_rhs(e);
-  ++solves_;
+  Eigen::MatrixXd e = Eigen::MatrixXd::Zero(factor_->active, 1);
+  e(row, 0) = 1;
+  Eigen::VectorXd g = solve(e).col(0);
   for (std::size_t j = 0; j < handles_.size(); ++j)
-    if (handle_in_region_[j]) g -= g[solver_->free_index(handles_[j])] * basis_.col(static_cast<Eigen::Index>(j));
+    if (handle_in_region_[j]) g -= g[region_index(handles_[j])] * basis_.col(static_cast<Eigen::Index>(j));
   if (!(std::abs(g[row]) > 0))
     throw SolverError(
         fmt::format("vertex {} cannot become a handle: its Green's function vanishes there", handles_[k]));
@@ -177,7 +301,7 @@ void DragSession::constrain(std::size_t k) {
 }
 
 void DragSession::add_handle(int vertex) {
-  if (solver_->free_index(vertex) < 0 || std::find(handles_.begin(), handles_.end(), vertex) != handles_.end())
+  if (region_index(vertex) < 0 || std::find(handles_.begin(), handles_.end(), vertex) != handles_.end())
     throw InputError(fmt::format("vertex {} is not a free vertex of the drag region", vertex));
   handles_.push_back(vertex);
   handle_in_region_.push_back(false);
@@ -188,20 +312,26 @@ void DragSession::add_handle(int vertex) {
 
 void DragSession::grow(int rings) {
   if (rings < 1) throw InputError("grow by at least one ring");
-  std::vector<int> free = solver_->free_vertices();
-  std::vector<char> mark(static_cast<std::size_t>(mesh_.num_vertices()), 0);
-  for (int v : free) mark[static_cast<std::size_t>(v)] = 1;
+  if (rings == 1 && !margin_.empty()) {
+    // The margin ring was factored with the region, ordered after it: the grown
+    // region's factor is the leading block of rows the factor already has.
+    region_.insert(region_.end(), margin_.begin(), margin_.end());
+    factor_->active = static_cast<Eigen::Index>(region_.size());
+    margin_.clear();
+    compute_basis();
+    return;
+  }
+  std::vector<int> free = region_;
+  std::unordered_map<int, char> mark;
+  for (int v : free) mark.emplace(v, 1);
   for (std::size_t k = 0; k < handles_.size(); ++k)
-    if (!handle_in_region_[k]) mark[static_cast<std::size_t>(handles_[k])] = 1;
+    if (!handle_in_region_[k]) mark.emplace(handles_[k], 1);
   std::vector<int> front = free;
   for (int r = 0; r < rings; ++r) {
     std::vector<int> next;
     for (int v : front)
       for (int w : mesh_.neighbors(v))
-        if (!mark[static_cast<std::size_t>(w)] && ops_.mass[w] > 0) {
-          mark[static_cast<std::size_t>(w)] = 1;
-          next.push_back(w);
-        }
+        if (ops_.mass[w] > 0 && mark.emplace(w, 1).second) next.push_back(w);
     free.insert(free.end(), next.begin(), next.end());
     front = std::move(next);
   }
@@ -218,7 +348,7 @@ Eigen::MatrixXd DragSession::displacements(const Eigen::MatrixXd& d) const {
 Positions DragSession::positions(const Eigen::MatrixXd& d) const {
   const Eigen::MatrixXd x = displacements(d);
   Positions V = mesh_.positions();
-  const auto& free = region();
+  const auto& free = region_;
   for (std::size_t k = 0; k < free.size(); ++k) V.row(free[k]) += x.row(static_cast<Eigen::Index>(k));
   for (std::size_t k = 0; k < handles_.size(); ++k)
     V.row(handles_[k]) = mesh_.positions().row(handles_[k]) + d.row(static_cast<Eigen::Index>(k));
