@@ -4,8 +4,10 @@
 
 #include <chrono>
 #include <cmath>
+#include <memory>
 
 #include "meshpde/core/errors.h"
+#include "meshpde/solvers/multigrid.h"
 
 namespace meshpde {
 
@@ -35,8 +37,16 @@ GlobalBilaplacianResult solve_global_bilaplacian(const Mesh& mesh, const FemOper
   }
   Eigen::SparseMatrix<double> KFF(n, n);
   KFF.setFromTriplets(tf.begin(), tf.end());
+  GlobalBilaplacianResult res;
   SparseCholesky chol;
-  chol.factorize(KFF);
+  std::unique_ptr<AlgebraicMultigrid> amg;
+  if (p.inverse == LaplacianInverse::Cholesky) {
+    chol.factorize(KFF);
+  } else {
+    amg = std::make_unique<AlgebraicMultigrid>(KFF);
+    res.preconditioner_bytes = amg->bytes();
+    res.multigrid_levels = amg->levels();
+  }
   Eigen::VectorXd d(nv), mass_f(n);
   for (int i = 0; i < nv; ++i) d[i] = ops.D(i);
   for (int k = 0; k < n; ++k) mass_f[k] = ops.mass[free[k]];
@@ -68,10 +78,10 @@ GlobalBilaplacianResult solve_global_bilaplacian(const Mesh& mesh, const FemOper
     for (int k = 0; k < n; ++k) y.row(k) = p.g2 * kdkx.row(free[k]) + p.g1 * kx.row(free[k]);
     return y;
   };
+  auto inverse = [&](const Eigen::MatrixXd& r) -> Eigen::MatrixXd { return amg ? amg->apply(r) : chol.solve(r); };
   auto precondition = [&](const Eigen::MatrixXd& r) -> Eigen::MatrixXd {
-    return (chol.solve(mass_f.asDiagonal() * chol.solve(r))) / p.g2;
+    return inverse(mass_f.asDiagonal() * inverse(r)) / p.g2;
   };
-  GlobalBilaplacianResult res;
   res.setup_seconds = std::chrono::duration<double>(clock::now() - t0).count();
   const auto t1 = clock::now();
   // Block PCG: every component its own step lengths, one operator application for all.
