@@ -128,6 +128,10 @@ void add_bench_command(CLI::App& app) {
   auto json = std::make_shared<bool>(false);
   cmd->add_flag("--quick", *quick, "Fewer repetitions and steps (same meshes)");
   cmd->add_flag("--json", *json, "Print a JSON object");
+  auto large = std::make_shared<bool>(false);
+  cmd->add_flag("--large", *large,
+                "Also the million-vertex global solves: 655k and 2.6M icospheres, fertility-4k subdivided to 1.15M "
+                "(minutes, several GB)");
   auto threads = std::make_shared<int>(0);
   cmd->add_option("--threads", *threads, "Thread limit for the whole run (default: every core)");
   cmd->callback([=] {
@@ -336,9 +340,15 @@ void add_bench_command(CLI::App& app) {
     // Global steady bi-Laplacian (three right-hand sides; the handle moved, a far cap of
     // about 1 % of the vertices held): Laplacian-squared preconditioned CG against the
     // direct CHOLMOD factorization of K D K, same problem, same run.
-    for (const int level : {5, 6, 7}) {
+    std::vector<int> global_levels{5, 6, 7};
+    if (*large) global_levels.insert(global_levels.end(), {8, 9});
+    for (const int level : global_levels) {
       const int vertices = 10 * (1 << (2 * level)) + 2;
-      const std::string tag = level == 5 ? "10k" : (level == 6 ? "41k" : "164k");
+      const std::string tag = level == 5   ? "10k"
+                              : level == 6 ? "41k"
+                              : level == 7 ? "164k"
+                              : level == 8 ? "655k"
+                                           : "2600k";
       progress("global bi-Laplacian on " + tag);
       const GeneratedMesh g = icosphere(level);
       const Mesh m(g.V, g.F);
@@ -354,6 +364,8 @@ void add_bench_command(CLI::App& app) {
       const GlobalBilaplacianResult r = solve_global_bilaplacian(m, o, free, u);
       const double pcg_s = seconds_since(t_pcg);
       j["global_bilap_iters_" + tag] = r.iterations;
+      j["global_bilap_s_" + tag] = pcg_s;
+      j["global_bilap_bytes_per_vertex_" + tag] = r.bytes_per_vertex;
       if (level == 7) {
         // Both cores against one: the same solve with the thread limit at 1 (OpenMP
         // applies and the BLAS under CHOLMOD).
@@ -368,11 +380,43 @@ void add_bench_command(CLI::App& app) {
         const SteadyDirectSolver direct(m, o, PdeCoefficients{.g0 = 0, .g1 = 0, .g2 = 1}, free);
         const Field x = direct.solve(u);
         const double direct_s = seconds_since(t_direct);
-        j["global_bilap_s_164k"] = pcg_s;
         j["global_bilap_setup_s_164k"] = r.setup_seconds;
         j["global_bilap_direct_baseline_s_164k"] = direct_s;
         j["global_bilap_speedup_over_direct_164k"] = direct_s / pcg_s;
         j["global_bilap_max_difference_164k"] = (r.values - x).cwiseAbs().maxCoeff() / x.cwiseAbs().maxCoeff();
+      }
+    }
+
+    if (*large) {
+      // About a million vertices of a real mesh: fertility-4k (genus 4) midpoint-
+      // subdivided four times (1.15M vertices), the handle at its top, the lowest 2 %
+      // (by height) held.
+      const auto fertility = data_dir() / "fertility-4k.off";
+      if (std::filesystem::exists(fertility)) {
+        progress("global bi-Laplacian on fertility-4k subdivided 4 times");
+        MeshData d = read_mesh(fertility);
+        GeneratedMesh g{d.V, d.F};
+        for (int k = 0; k < 4; ++k) g = subdivide_midpoint(g.V, g.F);
+        const Mesh m(g.V, g.F);
+        const FemOperators o = build_operators(m);
+        int handle = 0;
+        m.positions().col(2).maxCoeff(&handle);
+        Field u = Field::Zero(m.num_vertices(), 3);
+        u.row(handle) = 0.01 * mean_edge_length(m) * Eigen::RowVector3d(1, 2, 10);
+        const double z0 = m.positions().col(2).minCoeff(), z1 = m.positions().col(2).maxCoeff();
+        std::vector<int> free;
+        for (int v = 0; v < m.num_vertices(); ++v)
+          if (v != handle && m.positions()(v, 2) > z0 + 0.02 * (z1 - z0)) free.push_back(v);
+        const auto t = clock_type::now();
+        const GlobalBilaplacianResult r = solve_global_bilaplacian(m, o, free, u);
+        j["global_bilap_s_1m"] = seconds_since(t);
+        j["global_bilap_iters_1m"] = r.iterations;
+        j["global_bilap_vertices_1m"] = m.num_vertices();
+        j["global_bilap_bytes_per_vertex_1m"] = r.bytes_per_vertex;
+        j["global_bilap_setup_s_1m"] = r.setup_seconds;
+        j["global_bilap_residual_1m"] = r.relative_residual;
+      } else {
+        fmt::print(stderr, "warning: {} not found; global_bilap_s_1m skipped\n", fertility.string());
       }
     }
 

@@ -4,10 +4,8 @@
 
 #include <chrono>
 #include <cmath>
-#include <memory>
 
 #include "meshpde/core/errors.h"
-#include "meshpde/solvers/multigrid.h"
 
 namespace meshpde {
 
@@ -39,14 +37,11 @@ GlobalBilaplacianResult solve_global_bilaplacian(const Mesh& mesh, const FemOper
   KFF.setFromTriplets(tf.begin(), tf.end());
   GlobalBilaplacianResult res;
   SparseCholesky chol;
-  std::unique_ptr<AlgebraicMultigrid> amg;
-  if (p.inverse == LaplacianInverse::Cholesky) {
-    chol.factorize(KFF);
-  } else {
-    amg = std::make_unique<AlgebraicMultigrid>(KFF);
-    res.preconditioner_bytes = amg->bytes();
-    res.multigrid_levels = amg->levels();
-  }
+  chol.factorize(KFF);
+  res.factor_nonzeros = chol.factor_nonzeros();
+  res.bytes_per_vertex =
+      (12.0 * res.factor_nonzeros + 12.0 * static_cast<double>(KFF.nonZeros()) + 8.0 * 5 * m * n + 8.0 * 4 * m * nv) /
+      nv;
   Eigen::VectorXd d(nv), mass_f(n);
   for (int i = 0; i < nv; ++i) d[i] = ops.D(i);
   for (int k = 0; k < n; ++k) mass_f[k] = ops.mass[free[k]];
@@ -78,9 +73,8 @@ GlobalBilaplacianResult solve_global_bilaplacian(const Mesh& mesh, const FemOper
     for (int k = 0; k < n; ++k) y.row(k) = p.g2 * kdkx.row(free[k]) + p.g1 * kx.row(free[k]);
     return y;
   };
-  auto inverse = [&](const Eigen::MatrixXd& r) -> Eigen::MatrixXd { return amg ? amg->apply(r) : chol.solve(r); };
   auto precondition = [&](const Eigen::MatrixXd& r) -> Eigen::MatrixXd {
-    return inverse(mass_f.asDiagonal() * inverse(r)) / p.g2;
+    return chol.solve(mass_f.asDiagonal() * chol.solve(r)) / p.g2;
   };
   res.setup_seconds = std::chrono::duration<double>(clock::now() - t0).count();
   const auto t1 = clock::now();

@@ -132,6 +132,16 @@ void SparseCholesky::factorize(const Eigen::SparseMatrix<double>& A_in) {
   d.factored = true;
 }
 
+double SparseCholesky::factor_nonzeros() const {
+  const Impl& d = *impl_;
+  if (!d.factored) return 0;
+#ifdef MESHPDE_HAVE_CHOLMOD
+  // CHOLMOD's common block records nnz(L) of the analysis in use.
+  if (d.backend == Backend::Cholmod) return const_cast<Impl&>(d).cholmod.cholmod().lnz;
+#endif
+  return static_cast<double>(d.eigen.matrixL().nestedExpression().nonZeros());
+}
+
 Eigen::MatrixXd SparseCholesky::solve(const Eigen::MatrixXd& B) const {
   const Impl& d = *impl_;
   if (!d.factored) throw SolverError("direct solve: solve() before a successful factorize()");

@@ -31,6 +31,8 @@ class SparseCholesky {
   Eigen::MatrixXd solve(const Eigen::MatrixXd& B) const;
 
   const char* backend_name() const;
+  /// Nonzeros of the factor L of the last factorization (memory: about 12 bytes each).
+  double factor_nonzeros() const;
   int analyses() const { return analyses_; }       ///< symbolic analyses performed
   int factorizations() const { return factors_; }  ///< numeric factorizations performed
   static bool cholmod_available();
