@@ -256,8 +256,13 @@ void add_bench_command(CLI::App& app) {
         const FemOperators mid_ops = build_operators(mid);
         int h = 0;
         mid.positions().col(2).maxCoeff(&h);
-        const double mid_s = best_of(*quick ? 2 : 4, [&] { DragSession s(mid, mid_ops, {h}, region_params); });
+        std::size_t mid_region = 0;
+        const double mid_s = best_of(*quick ? 2 : 4, [&] {
+          DragSession s(mid, mid_ops, {h}, region_params);
+          mid_region = s.region().size();
+        });
         j["drag_setup_ms_10k_region_on_164k"] = mid_s * 1e3;
+        j["drag_region_vertices_on_164k"] = mid_region;
       }
       const Eigen::Vector3d nrm = big.positions().row(handle).normalized();
       std::vector<double> us, solve_us;

@@ -167,15 +167,13 @@ void DragSession::build(std::vector<int> free) {
   auto f = std::make_unique<Factor>();
   // Fill-reducing order of the region by itself (AMD on its own matrix), the margin ring
   // after it: then the region's factor is the leading block of the whole factor.
-  {
-    const Eigen::SparseMatrix<double> AF = assemble_steady_matrix(mesh_, ops_, coef, free);
-    Eigen::AMDOrdering<int> amd;
-    Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> perm;
-    amd(AF, perm);  // perm.indices()[new position] = old position (Eigen's convention)
-    f->vertices.resize(free.size());
-    for (std::size_t k = 0; k < free.size(); ++k)
-      f->vertices[k] = free[static_cast<std::size_t>(perm.indices()[static_cast<Eigen::Index>(k)])];
-  }
+  const Eigen::SparseMatrix<double> AF = assemble_steady_matrix(mesh_, ops_, coef, free);
+  Eigen::AMDOrdering<int> amd;
+  Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> perm;
+  amd(AF, perm);  // perm.indices()[new position] = old position (Eigen's convention)
+  f->vertices.resize(free.size());
+  for (std::size_t k = 0; k < free.size(); ++k)
+    f->vertices[k] = free[static_cast<std::size_t>(perm.indices()[static_cast<Eigen::Index>(k)])];
   std::vector<int> margin;
   if (params_.margin) {
     std::unordered_map<int, char> in;
@@ -188,7 +186,13 @@ void DragSession::build(std::vector<int> free) {
   }
   f->vertices.insert(f->vertices.end(), margin.begin(), margin.end());
   for (std::size_t k = 0; k < f->vertices.size(); ++k) f->row.emplace(f->vertices[k], static_cast<int>(k));
-  f->A = assemble_steady_matrix(mesh_, ops_, coef, f->vertices);
+  if (margin.empty()) {
+    // The region's matrix in its new order: AF permuted (no second assembly).
+    // twistedBy(Q) puts entry (i, j) at (Q[i], Q[j]); Q = perm^-1 maps old to new.
+    f->A = AF.selfadjointView<Eigen::Lower>().twistedBy(perm.inverse());
+  } else {
+    f->A = assemble_steady_matrix(mesh_, ops_, coef, f->vertices);
+  }
   Eigen::SimplicialLLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::NaturalOrdering<int>> llt(f->A);
   if (llt.info() != Eigen::Success)
     throw SolverError(
