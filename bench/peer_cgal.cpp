@@ -28,8 +28,8 @@
 
 #include <chrono>
 #include <cstring>
-#include <random>
 #include <nlohmann/json.hpp>
+#include <random>
 #include <string>
 
 #include "meshpde/apps/fairing.h"
