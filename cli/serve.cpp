@@ -355,6 +355,15 @@ class EditorServer {
         if (c.stiffness.size() == 0) c.stiffness = Eigen::VectorXd::Ones(s.mesh().num_vertices());
         for (int u : geodesic_ball(s.mesh(), v, radius)) c.stiffness[u] = value;
         reply["brushed"] = true;
+      } else if (type == "drag_begin") {
+        const double radius = number(j, "radius", 8);
+        reply["setup_ms"] = s.drag_begin(vertex_of(j), radius);
+        reply["region_vertices"] = s.drag_region_vertices();
+      } else if (type == "drag_move") {
+        s.drag_move(vec3(j, "offset"));
+        return;  // many a second: no acknowledgement
+      } else if (type == "drag_end") {
+        s.drag_end();
       } else if (type == "correct") {
         CorrectionParams p;
         p.handles = {{vertex_of(j), vec3(j, "move")}};

@@ -462,3 +462,45 @@ TEST(Direct, ConditioningEstimateMatchesTheTrueConditionNumber) {
   EXPECT_FALSE(strict.sufficient);
   EXPECT_NE(strict.message.find("ill-conditioned"), std::string::npos);
 }
+
+#include "meshpde/apps/editor_session.h"
+
+TEST(DragSession, EditorPreviewFollowsTheHandleAndCorrectReplacesIt) {
+  const GeneratedMesh g = icosphere(4);
+  MeshData data;
+  data.V = g.V;
+  data.F = g.F;
+  EditorSession s(data);
+  const Mesh& mesh = s.mesh();
+  int handle = 0;
+  mesh.positions().col(2).maxCoeff(&handle);
+  const Positions rest = mesh.positions();
+  const double setup_ms = s.drag_begin(handle, 0.6);
+  EXPECT_GE(setup_ms, 0.0);
+  EXPECT_TRUE(s.dragging());
+  EXPECT_GT(s.drag_region_vertices(), 100);
+  const Eigen::Vector3d offset(0.02, 0, 0.15);
+  s.drag_move(offset);
+  const Positions P = s.display_positions();
+  // The handle is where it was dragged, the preview is the bi-Laplacian drag itself,
+  // and nothing outside the region moved.
+  EXPECT_LE((P.row(handle) - rest.row(handle) - offset.transpose()).norm(), 1e-12);
+  const DragResult ref =
+      drag_vertex(mesh, build_operators(mesh), DragParams{.vertex = handle, .displacement = offset, .radius = 0.6});
+  EXPECT_LE((P - rest - ref.displacement).cwiseAbs().maxCoeff(), 1e-9);
+  EXPECT_THROW(s.drag_move(Eigen::Vector3d(NAN, 0, 0)), InputError);
+  EXPECT_THROW(s.drag_begin(handle, -1), InputError);
+  EXPECT_TRUE(s.dragging());  // a refused request leaves the drag as it was
+  // Releasing with a correction: the corrected surface replaces the preview.
+  CorrectionParams p;
+  p.handles = {{handle, offset}};
+  p.radius = 0.6;
+  const CorrectionResult r = s.correct(p);
+  EXPECT_FALSE(s.dragging());
+  EXPECT_LE((s.display_positions() - r.V).cwiseAbs().maxCoeff(), 0.0);
+  // A drag let go without moving leaves the surface as it was.
+  s.drag_begin(handle, 0.6);
+  s.drag_end();
+  EXPECT_LE((s.display_positions() - r.V).cwiseAbs().maxCoeff(), 0.0);
+  EXPECT_THROW(s.drag_move(offset), InputError);
+}

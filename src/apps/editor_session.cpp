@@ -39,7 +39,48 @@ void EditorSession::check_vertex(int v) const {
 Positions EditorSession::display_positions() const {
   Positions V = mesh().positions();
   if (haptic_) V += haptic_->displacement();
+  if (drag_) {
+    const Eigen::MatrixXd d = drag_->displacements(drag_offset_.transpose());
+    const auto& region = drag_->region();
+    for (std::size_t k = 0; k < region.size(); ++k) V.row(region[k]) += d.row(static_cast<Eigen::Index>(k));
+    V.row(drag_->handles()[0]) += drag_offset_.transpose();
+  }
   return V;
+}
+
+double EditorSession::drag_begin(int vertex, double radius) {
+  check_vertex(vertex);
+  if (!(radius > 0) || !std::isfinite(radius)) throw InputError("drag radius must be a length > 0");
+  pause();
+  const auto t0 = std::chrono::steady_clock::now();
+  drag_.reset();
+  if (!drag_mesh_ || drag_version_ != version_) {
+    // The operators of the surface as it is now (intrinsic ones on badly shaped meshes,
+    // as correct() uses), kept until the surface changes.
+    MeshOperators mo = build_mesh_operators(mesh(), LaplacianKind::Auto);
+    drag_mesh_ = std::make_unique<Mesh>(std::move(mo.mesh));
+    drag_ops_ = std::make_unique<FemOperators>(std::move(mo.ops));
+    drag_version_ = version_;
+  }
+  drag_ = std::make_unique<DragSession>(*drag_mesh_, *drag_ops_, std::vector<int>{vertex},
+                                        DragSessionParams{.radius = radius});
+  drag_offset_.setZero();
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+
+void EditorSession::drag_move(const Eigen::Vector3d& offset) {
+  if (!drag_) throw InputError("drag_move without drag_begin");
+  if (!offset.allFinite()) throw InputError("drag offset is not finite");
+  drag_offset_ = offset;
+}
+
+void EditorSession::drag_end() {
+  drag_.reset();
+  drag_offset_.setZero();
+}
+
+int EditorSession::drag_region_vertices() const {
+  return drag_ ? static_cast<int>(drag_->region().size()) : 0;
 }
 
 void EditorSession::stop_poke() {
@@ -100,6 +141,7 @@ double EditorSession::poke_p99_us() const {
 CorrectionResult EditorSession::correct(CorrectionParams params) {
   stop_poke();
   pause();
+  drag_end();  // the correction replaces the preview
   if (edges_ && !params.image.edges && params.image.weight > 0) {
     params.image.edges = edges_;
     params.image.space = space_;
@@ -114,12 +156,14 @@ CorrectionResult EditorSession::correct(CorrectionParams params) {
 }
 
 void EditorSession::undo() {
+  drag_end();
   stop_poke();
   correction_.undo();
   ++version_;
 }
 
 void EditorSession::redo() {
+  drag_end();
   stop_poke();
   correction_.redo();
   ++version_;

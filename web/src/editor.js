@@ -201,6 +201,8 @@ ws.onmessage = (ev) => {
   } else if (m.type === 'stats') updateStats(m);
   else if (m.type === 'ok') {
     state.lastOk = m.request; state.oks += 1;
+    if (m.request === 'drag_begin')
+      status(`dragging: region of ${m.region_vertices} vertices ready in ${m.setup_ms.toFixed(1)} ms`);
     if (m.request === 'correct')
       status(`corrected: ${m.moved_vertices} vertices moved in ${m.time_ms.toFixed(1)} ms, ` +
              `${m.new_self_intersections} new self-intersections (${m.intersection_action})`);
@@ -292,6 +294,10 @@ renderer.domElement.addEventListener('pointerdown', (ev) => {
   drag = { vertex: hit.vertex, start: hit.point, plane: new THREE.Plane().setFromNormalAndCoplanarPoint(normal, hit.point) };
   renderer.domElement.setPointerCapture(ev.pointerId);
   if (t === 'poke') { state.poking = true; send({ type: 'poke_begin', vertex: hit.vertex, influence: +$('reach').value }); }
+  // The correct tool previews live: the server factors the region once, then each
+  // move is a product with its basis; releasing sends the real correction.
+  if (t === 'correct' && $('method').value === 'fem')
+    send({ type: 'drag_begin', vertex: hit.vertex, radius: +$('radius').value });
 });
 renderer.domElement.addEventListener('pointermove', (ev) => {
   if (!drag) return;
@@ -306,6 +312,12 @@ renderer.domElement.addEventListener('pointermove', (ev) => {
   } else {
     dragLine.geometry.setFromPoints([drag.start, p]);
     dragLine.visible = true;
+    if (tool() === 'correct' && $('method').value === 'fem') {
+      const now = performance.now();
+      if (now - lastMove < 8) return;
+      lastMove = now;
+      send({ type: 'drag_move', offset: offset.toArray() });
+    }
   }
 });
 function endDrag(ev) {
@@ -317,7 +329,8 @@ function endDrag(ev) {
     send({ type: 'paint_vector', vertex: drag.vertex, vector: offset.toArray(), g1: +$('g1').value, g2: +$('g2').value });
   else if (tool() === 'correct' && offset.length() > 0)
     send({ type: 'correct', vertex: drag.vertex, move: offset.toArray(), radius: +$('radius').value,
-          method: $('method').value, image: $('image').checked });
+          method: $('method').value, image: $('image').checked });  // replaces the preview
+  else if (tool() === 'correct') send({ type: 'drag_end' });
   state.poking = false;
   drag = null;
   dragLine.visible = false;

@@ -173,6 +173,18 @@ try {
   await page.fill('#radius', '6');
   const oks = await page.evaluate(() => meshpde.oks);
   await dragBy(page, centre, 40, -30);
+  // While the button is held the surface follows the handle (the drag preview: the
+  // region's factor built once, each move a product with its basis).
+  await page.mouse.move(centre.x + 41, centre.y - 30);
+  await page.waitForFunction((r) => {
+    const P = meshpde.positions;
+    let m = 0;
+    for (let i = 0; i < P.length; ++i) m = Math.max(m, Math.abs(P[i] - r[i]));
+    return m > 0.3;
+  }, rest, { timeout: 30000 }).catch(() => {});
+  const preview = await positions(page);
+  check('a correct drag previews the surface before release', maxDiff(preview, rest) > 0.3,
+        `max move ${maxDiff(preview, rest)}`);
   await page.mouse.up();
   await page.waitForFunction((n) => meshpde.oks > n && meshpde.lastOk === 'correct', oks, { timeout: 60000 });
   await page.waitForTimeout(300);

@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "meshpde/apps/haptics.h"
+#include "meshpde/apps/local_drag.h"
 #include "meshpde/apps/vessel_correction.h"
 #include "meshpde/io/mesh_io.h"
 #include "meshpde/pde/pde_session.h"
@@ -54,6 +55,18 @@ class EditorSession {
   int poke_active_vertices() const;
   int poke_misses() const;
   double poke_p99_us() const;  ///< over the last second of steps
+
+  // Drag preview: while the user drags a handle with the correct tool, the surface
+  // follows live (a DragSession: the region's factor and basis are built at
+  // drag_begin, every drag_move is a product with the basis, microseconds). The
+  // preview is the plain bi-Laplacian drag on the region; releasing runs correct(),
+  // whose answer (intersection-free, image-guided, tissue parameters) replaces it.
+  /// radius: the region of influence in mesh units. Returns the set-up time in ms.
+  double drag_begin(int vertex, double radius);
+  void drag_move(const Eigen::Vector3d& offset);
+  void drag_end();  ///< drops the preview (correct() drops it too)
+  bool dragging() const { return drag_ != nullptr; }
+  int drag_region_vertices() const;
 
   // Correct.
   CorrectionResult correct(CorrectionParams params);  ///< image guidance is filled in when a volume was given
@@ -109,6 +122,12 @@ class EditorSession {
   std::size_t poke_version_ = static_cast<std::size_t>(-1);
   double poke_influence_ = -1;
   std::size_t version_ = 0;  // bumped by every change of the corrected surface
+  // Drag preview state: operators of the surface as it is now (rebuilt when it changed).
+  std::unique_ptr<Mesh> drag_mesh_;
+  std::unique_ptr<FemOperators> drag_ops_;
+  std::size_t drag_version_ = static_cast<std::size_t>(-1);
+  std::unique_ptr<DragSession> drag_;
+  Eigen::Vector3d drag_offset_ = Eigen::Vector3d::Zero();
   // Fields.
   Eigen::VectorXd field_;
   std::string field_name_;
