@@ -215,20 +215,10 @@ int DragSession::region_index(int v) const {
 }
 
 Eigen::VectorXd DragSession::coupling(int v) const {
-  // -Kt_{F,v}: rows that Kt couples to v lie within its two rings.
   Eigen::VectorXd b = Eigen::VectorXd::Zero(factor_->active);
-  const PdeCoefficients c{.g0 = 0, .g1 = params_.g1, .g2 = params_.g2};
-  auto unit = [v](int j) { return j == v ? 1.0 : 0.0; };
-  std::vector<int> near{v};
-  for (int w : mesh_.neighbors(v)) near.push_back(w);
-  const std::size_t ring1 = near.size();
-  for (std::size_t k = 1; k < ring1; ++k)
-    for (int w : mesh_.neighbors(near[k])) near.push_back(w);
-  std::sort(near.begin(), near.end());
-  near.erase(std::unique(near.begin(), near.end()), near.end());
-  for (int i : near)
-    if (const int k = region_index(i); k >= 0)
-      b[k] = -(c.g1 * stiffness_row(mesh_, ops_, i, unit) + c.g2 * bilaplacian_row(mesh_, ops_, i, unit));
+  for (const auto& [i, value] :
+       steady_coupling(mesh_, ops_, PdeCoefficients{.g0 = 0, .g1 = params_.g1, .g2 = params_.g2}, v))
+    if (const int k = region_index(i); k >= 0) b[k] = value;
   return b;
 }
 

@@ -12,15 +12,15 @@
 namespace meshpde {
 
 Eigen::SparseMatrix<double> assemble_steady_matrix(const Mesh& mesh, const FemOperators& ops, const PdeCoefficients& c,
-                                                   const std::vector<int>& free_,
+                                                   const std::vector<int>& vertices,
                                                    const Eigen::VectorXd& extra_diagonal) {
-  const int n = static_cast<int>(free_.size());
+  const int n = static_cast<int>(vertices.size());
   const bool extra = extra_diagonal.size() > 0;
   const auto off = mesh.offsets();
   const auto nbr = mesh.neighbors();
   std::unordered_map<int, int> local;  // sized to the region, not the mesh
   local.reserve(2 * static_cast<std::size_t>(n));
-  for (int k = 0; k < n; ++k) local.emplace(free_[k], k);
+  for (int k = 0; k < n; ++k) local.emplace(vertices[k], k);
   auto local_index = [&](int v) {
     const auto it = local.find(v);
     return it == local.end() ? -1 : it->second;
@@ -31,14 +31,14 @@ Eigen::SparseMatrix<double> assemble_steady_matrix(const Mesh& mesh, const FemOp
   {
     std::unordered_map<int, int> s_index;
     s_index.reserve(4 * static_cast<std::size_t>(n));
-    for (int v : free_) {
+    for (int v : vertices) {
       if (s_index.emplace(v, static_cast<int>(S.size())).second) S.push_back(v);
       for (int q = off[v]; q < off[v + 1]; ++q)
         if (s_index.emplace(nbr[q], static_cast<int>(S.size())).second) S.push_back(nbr[q]);
     }
   }
   for (int k = 0; k < n; ++k) {
-    const int v = free_[k];
+    const int v = vertices[k];
     t.emplace_back(k, k, c.g0 * ops.mass[v] + c.g1 * ops.Kii[v] + (extra ? extra_diagonal[v] : 0.0));
     if (c.g1 != 0)
       for (int q = off[v]; q < off[v + 1]; ++q)
@@ -191,27 +191,35 @@ Eigen::MatrixXd SteadyDirectSolver::solve_rhs(const Eigen::MatrixXd& b) const {
   return x;
 }
 
-Eigen::VectorXd SteadyDirectSolver::coupling(int v) const {
-  const int nv = mesh_.num_vertices();
+std::vector<std::pair<int, double>> steady_coupling(const Mesh& mesh, const FemOperators& ops, const PdeCoefficients& c,
+                                                    int v) {
+  const int nv = mesh.num_vertices();
   if (v < 0 || v >= nv) throw InputError(fmt::format("vertex {} does not exist (the mesh has {})", v, nv));
-  if (local_index(v) >= 0) throw InputError(fmt::format("vertex {} is free, not held", v));
-  Eigen::VectorXd b = Eigen::VectorXd::Zero(num_free());
   auto unit = [v](int j) { return j == v ? 1.0 : 0.0; };
-  // Rows that Kt couples to v: v's one ring (K) and two rings (K D K).
+  // Rows that Kt couples to v: v's one ring (M, K) and two rings (K D K).
   std::vector<int> near{v};
-  for (int w : mesh_.neighbors(v)) near.push_back(w);
+  for (int w : mesh.neighbors(v)) near.push_back(w);
   const std::size_t ring1 = near.size();
   for (std::size_t k = 1; k < ring1; ++k)
-    for (int w : mesh_.neighbors(near[k])) near.push_back(w);
+    for (int w : mesh.neighbors(near[k])) near.push_back(w);
   std::sort(near.begin(), near.end());
   near.erase(std::unique(near.begin(), near.end()), near.end());
+  std::vector<std::pair<int, double>> out;
+  out.reserve(near.size());
   for (int i : near) {
-    const int k = local_index(i);
-    if (k < 0) continue;
-    double kt = c_.g1 * stiffness_row(mesh_, ops_, i, unit);
-    if (c_.g2 != 0) kt += c_.g2 * bilaplacian_row(mesh_, ops_, i, unit);
-    b[k] = -kt;
+    double kt = (i == v ? c.g0 * ops.mass[i] : 0.0) + c.g1 * stiffness_row(mesh, ops, i, unit);
+    if (c.g2 != 0) kt += c.g2 * bilaplacian_row(mesh, ops, i, unit);
+    out.emplace_back(i, -kt);
   }
+  return out;
+}
+
+Eigen::VectorXd SteadyDirectSolver::coupling(int v) const {
+  if (v >= 0 && v < mesh_.num_vertices() && local_index(v) >= 0)
+    throw InputError(fmt::format("vertex {} is free, not held", v));
+  Eigen::VectorXd b = Eigen::VectorXd::Zero(num_free());
+  for (const auto& [i, value] : steady_coupling(mesh_, ops_, c_, v))
+    if (const int k = local_index(i); k >= 0) b[k] = value;
   return b;
 }
 

@@ -4,9 +4,11 @@
 //
 // preconditioned by P^-1 = K_FF^-1 M_FF K_FF^-1 / g2, i.e. the bi-Laplacian written as
 // the square of the Laplacian (K D K = K M^-1 K), with one sparse Cholesky factor of
-// K_FF (about as sparse as K itself, where a factor of K D K has three times the fill). Jacobi-CG's iteration count
-// grows like h^-2 under refinement; this one stays nearly flat (tested on three resolutions). The g1 term is left out
-// of the preconditioner (it is a lower-order perturbation of g2 K D K).
+// K_FF (about as sparse as K itself, where a factor of K D K has three times the
+// fill). K D K is applied matrix-free on both cores. Jacobi-CG's iteration count grows
+// like h^-2 under refinement; this one stays nearly flat (10, 13, 17, 20, 27 at 10k,
+// 41k, 164k, 655k, 2.6M vertices; docs/solvers.md). The g1 term is left out of the
+// preconditioner (it is a lower-order perturbation of g2 K D K).
 #pragma once
 
 #include <vector>
@@ -29,7 +31,7 @@ struct GlobalBilaplacianResult {
   int iterations = 0;
   double relative_residual = 0;  ///< worst component
   bool converged = false;
-  double setup_seconds = 0;    ///< assembly and factorization (or hierarchy) of K_FF
+  double setup_seconds = 0;    ///< assembly and factorization of K_FF
   double solve_seconds = 0;    ///< the iterations
   double factor_nonzeros = 0;  ///< nonzeros of the Cholesky factor of K_FF
   /// Memory of the solve per vertex: the factor (12 bytes a nonzero), K_FF, and the

@@ -9,6 +9,7 @@
 
 #include <string>
 #include <unordered_map>
+#include <utility>
 #include <vector>
 
 #include "meshpde/mesh/mesh.h"
@@ -28,6 +29,12 @@ enum class SteadySolver { Direct, Iterative };
 Eigen::SparseMatrix<double> assemble_steady_matrix(const Mesh& mesh, const FemOperators& ops,
                                                    const PdeCoefficients& coefficients, const std::vector<int>& free,
                                                    const Eigen::VectorXd& extra_diagonal = Eigen::VectorXd());
+
+/// -Kt_{i,v} for every vertex i that Kt couples to v (v and its two rings), as
+/// (i, value) pairs: the right-hand side a unit value held at v puts on row i.
+/// \throw InputError for a bad vertex.
+std::vector<std::pair<int, double>> steady_coupling(const Mesh& mesh, const FemOperators& ops,
+                                                    const PdeCoefficients& coefficients, int v);
 
 class SteadyDirectSolver {
  public:
