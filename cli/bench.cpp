@@ -316,9 +316,6 @@ void add_bench_command(CLI::App& app) {
       auto t_add = clock_type::now();
       session->add_handle(second);
       j["drag_add_handle_ms"] = seconds_since(t_add) * 1e3;
-      std::vector<int> free2;
-      for (int v : free)
-        if (v != second) free2.push_back(v);
       j["drag_add_handle_baseline_ms_refactor"] =
           best_of(1,
                   [&] {

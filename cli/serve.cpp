@@ -360,7 +360,10 @@ class EditorServer {
         reply["setup_ms"] = s.drag_begin(vertex_of(j), radius);
         reply["region_vertices"] = s.drag_region_vertices();
       } else if (type == "drag_move") {
-        s.drag_move(vec3(j, "offset"));
+        // Moves after a refused drag_begin (a region too large to preview) are dropped
+        // quietly: the page already showed why, and releasing still corrects.
+        const Eigen::Vector3d offset = vec3(j, "offset");
+        if (s.dragging()) s.drag_move(offset);
         return;  // many a second: no acknowledgement
       } else if (type == "drag_end") {
         s.drag_end();

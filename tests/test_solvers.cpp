@@ -503,4 +503,17 @@ TEST(DragSession, EditorPreviewFollowsTheHandleAndCorrectReplacesIt) {
   s.drag_end();
   EXPECT_LE((s.display_positions() - r.V).cwiseAbs().maxCoeff(), 0.0);
   EXPECT_THROW(s.drag_move(offset), InputError);
+  // A region too large to factor while the user waits is refused in words.
+  const GeneratedMesh big = icosphere(6);  // 40,962 vertices
+  MeshData big_data;
+  big_data.V = big.V;
+  big_data.F = big.F;
+  EditorSession b(big_data);
+  try {
+    b.drag_begin(0, 10.0);
+    ADD_FAILURE() << "a whole-mesh preview region was accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("too large for a live preview"), std::string::npos) << e.what();
+  }
+  EXPECT_FALSE(b.dragging());
 }

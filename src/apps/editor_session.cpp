@@ -51,6 +51,14 @@ Positions EditorSession::display_positions() const {
 double EditorSession::drag_begin(int vertex, double radius) {
   check_vertex(vertex);
   if (!(radius > 0) || !std::isfinite(radius)) throw InputError("drag radius must be a length > 0");
+  // A live preview factors the region on the server's one thread: keep it to regions
+  // whose set-up takes a fraction of a second (about 0.3 s at 20k vertices here).
+  constexpr std::size_t kPreviewLimit = 20000;
+  if (const std::size_t n = geodesic_ball(mesh(), vertex, radius).size(); n > kPreviewLimit)
+    throw InputError(
+        fmt::format("a region of {} vertices is too large for a live preview (at most {}); the "
+                    "correction still runs when you let go",
+                    n, kPreviewLimit));
   pause();
   const auto t0 = std::chrono::steady_clock::now();
   drag_.reset();
