@@ -54,7 +54,8 @@ double EditorSession::drag_begin(int vertex, double radius) {
   // A live preview factors the region on the server's one thread: keep it to regions
   // whose set-up takes a fraction of a second (about 0.3 s at 20k vertices here).
   constexpr std::size_t kPreviewLimit = 20000;
-  if (const std::size_t n = geodesic_ball(mesh(), vertex, radius).size(); n > kPreviewLimit)
+  const std::vector<int> region = geodesic_ball(mesh(), vertex, radius);
+  if (const std::size_t n = region.size(); n > kPreviewLimit)
     throw InputError(
         fmt::format("a region of {} vertices is too large for a live preview (at most {}); the "
                     "correction still runs when you let go",
@@ -70,8 +71,7 @@ double EditorSession::drag_begin(int vertex, double radius) {
     drag_ops_ = std::make_unique<FemOperators>(std::move(mo.ops));
     drag_version_ = version_;
   }
-  drag_ = std::make_unique<DragSession>(*drag_mesh_, *drag_ops_, std::vector<int>{vertex},
-                                        DragSessionParams{.radius = radius});
+  drag_ = std::make_unique<DragSession>(*drag_mesh_, *drag_ops_, std::vector<int>{vertex}, region, DragSessionParams{});
   drag_offset_.setZero();
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 }

@@ -7,9 +7,11 @@
 #include <algorithm>
 #include <queue>
 #include <unordered_map>
+#include <unordered_set>
 
 #include "meshpde/core/errors.h"
 #include "meshpde/pde/pde_session.h"
+#include "meshpde/solvers/refinement.h"
 
 namespace meshpde {
 
@@ -138,8 +140,25 @@ struct DragSession::Factor {
 DragSession::~DragSession() = default;
 DragSession::DragSession(DragSession&&) noexcept = default;
 
+namespace {
+
+std::vector<int> region_of(const Mesh& mesh, const std::vector<int>& handles, const DragSessionParams& p) {
+  if (handles.empty()) throw InputError("a drag session needs at least one handle");
+  if (handles[0] < 0 || handles[0] >= mesh.num_vertices())
+    throw InputError(
+        fmt::format("handle vertex {} does not exist (the mesh has {} vertices)", handles[0], mesh.num_vertices()));
+  if (p.radius <= 0 && p.rings <= 0) throw InputError("give a region of influence: a radius > 0 or rings > 0");
+  return p.radius > 0 ? geodesic_ball(mesh, handles[0], p.radius) : ring_ball(mesh, handles[0], p.rings);
+}
+
+}  // namespace
+
 DragSession::DragSession(const Mesh& mesh, const FemOperators& ops, std::vector<int> handles,
                          const DragSessionParams& params)
+    : DragSession(mesh, ops, handles, region_of(mesh, handles, params), params) {}
+
+DragSession::DragSession(const Mesh& mesh, const FemOperators& ops, std::vector<int> handles,
+                         const std::vector<int>& region, const DragSessionParams& params)
     : mesh_(mesh), ops_(ops), params_(params), handles_(std::move(handles)) {
   const int nv = mesh.num_vertices();
   if (handles_.empty()) throw InputError("a drag session needs at least one handle");
@@ -150,16 +169,33 @@ DragSession::DragSession(const Mesh& mesh, const FemOperators& ops, std::vector<
     if (std::count(handles_.begin(), handles_.end(), h) > 1)
       throw InputError(fmt::format("handle vertex {} is listed twice", h));
   }
-  if (params.radius <= 0 && params.rings <= 0)
-    throw InputError("give a region of influence: a radius > 0 or rings > 0");
-  std::vector<int> region =
-      params.radius > 0 ? geodesic_ball(mesh, handles_[0], params.radius) : ring_ball(mesh, handles_[0], params.rings);
   auto handle = [&](int v) { return std::find(handles_.begin(), handles_.end(), v) != handles_.end(); };
   std::vector<int> free;
-  for (int v : region)
+  for (int v : region) {
+    if (v < 0 || v >= nv) throw InputError(fmt::format("region vertex {} does not exist (the mesh has {})", v, nv));
     if (!handle(v) && ops.mass[v] > 0) free.push_back(v);
+  }
+  if (free.empty()) throw InputError("the drag region has no free vertex");
   handle_in_region_.assign(handles_.size(), false);
   build(std::move(free));
+}
+
+std::vector<int> DragSession::rings_around(const std::vector<int>& from, int rings) const {
+  // Not the vertices themselves, nor a handle outside the region (held), nor a vertex
+  // without area (held by every solver).
+  std::unordered_set<int> taken(from.begin(), from.end());
+  for (std::size_t k = 0; k < handles_.size(); ++k)
+    if (!handle_in_region_[k]) taken.insert(handles_[k]);
+  std::vector<int> out, front = from;
+  for (int r = 0; r < rings; ++r) {
+    std::vector<int> next;
+    for (int v : front)
+      for (int w : mesh_.neighbors(v))
+        if (ops_.mass[w] > 0 && taken.insert(w).second) next.push_back(w);
+    out.insert(out.end(), next.begin(), next.end());
+    front = std::move(next);
+  }
+  return out;
 }
 
 void DragSession::build(std::vector<int> free) {
@@ -174,16 +210,7 @@ void DragSession::build(std::vector<int> free) {
   f->vertices.resize(free.size());
   for (std::size_t k = 0; k < free.size(); ++k)
     f->vertices[k] = free[static_cast<std::size_t>(perm.indices()[static_cast<Eigen::Index>(k)])];
-  std::vector<int> margin;
-  if (params_.margin) {
-    std::unordered_map<int, char> in;
-    for (int v : free) in.emplace(v, 1);
-    for (std::size_t k = 0; k < handles_.size(); ++k)
-      if (!handle_in_region_[k]) in.emplace(handles_[k], 1);
-    for (int v : free)
-      for (int w : mesh_.neighbors(v))
-        if (ops_.mass[w] > 0 && in.emplace(w, 1).second) margin.push_back(w);
-  }
+  std::vector<int> margin = params_.margin ? rings_around(free, 1) : std::vector<int>();
   f->vertices.insert(f->vertices.end(), margin.begin(), margin.end());
   for (std::size_t k = 0; k < f->vertices.size(); ++k) f->row.emplace(f->vertices[k], static_cast<int>(k));
   if (margin.empty()) {
@@ -223,31 +250,23 @@ Eigen::VectorXd DragSession::coupling(int v) const {
 }
 
 Eigen::MatrixXd DragSession::solve(const Eigen::MatrixXd& b) {
-  Eigen::MatrixXd x = b;
-  residual_ = 0;
-  for (Eigen::Index c = 0; c < b.cols(); ++c) {
-    factor_->solve_leading(x.col(c));
-    // Iterative refinement, as SteadyDirectSolver does: at most five steps while the
-    // relative residual exceeds 1e-12 and keeps falling.
-    const double bn = b.col(c).norm();
-    if (bn == 0) continue;
-    Eigen::VectorXd r = b.col(c) - factor_->multiply_leading(x.col(c));
-    double res = r.norm() / bn;
-    for (int step = 0; step < 5 && res > 1e-12; ++step) {
-      Eigen::VectorXd dx = r;
-      factor_->solve_leading(dx);
-      const Eigen::VectorXd x_new = x.col(c) + dx;
-      const Eigen::VectorXd r_new = b.col(c) - factor_->multiply_leading(x_new);
-      const double res_new = r_new.norm() / bn;
-      if (!(res_new < res)) break;
-      x.col(c) = x_new;
-      r = r_new;
-      res = res_new;
-    }
-    residual_ = std::max(residual_, res);
-  }
+  const Factor& f = *factor_;
+  auto solve_columns = [&](const Eigen::MatrixXd& r) {
+    Eigen::MatrixXd x = r;
+    for (Eigen::Index c = 0; c < x.cols(); ++c) f.solve_leading(x.col(c));
+    return x;
+  };
+  auto multiply_columns = [&](const Eigen::MatrixXd& x) {
+    Eigen::MatrixXd y(x.rows(), x.cols());
+    for (Eigen::Index c = 0; c < x.cols(); ++c) y.col(c) = f.multiply_leading(x.col(c));
+    return y;
+  };
+  // Refined as SteadyDirectSolver refines: at most five steps while the relative
+  // residual exceeds 1e-12 and keeps falling.
+  RefinedSolve r = refined_solve(b, solve_columns, multiply_columns, 1e-12, 5);
+  residual_ = r.relative_residual;
   ++solves_;
-  return x;
+  return std::move(r.x);
 }
 
 void DragSession::compute_basis() {
@@ -316,19 +335,8 @@ void DragSession::grow(int rings) {
     return;
   }
   std::vector<int> free = region_;
-  std::unordered_map<int, char> mark;
-  for (int v : free) mark.emplace(v, 1);
-  for (std::size_t k = 0; k < handles_.size(); ++k)
-    if (!handle_in_region_[k]) mark.emplace(handles_[k], 1);
-  std::vector<int> front = free;
-  for (int r = 0; r < rings; ++r) {
-    std::vector<int> next;
-    for (int v : front)
-      for (int w : mesh_.neighbors(v))
-        if (ops_.mass[w] > 0 && mark.emplace(w, 1).second) next.push_back(w);
-    free.insert(free.end(), next.begin(), next.end());
-    front = std::move(next);
-  }
+  const std::vector<int> added = rings_around(region_, rings);
+  free.insert(free.end(), added.begin(), added.end());
   build(std::move(free));
 }
 

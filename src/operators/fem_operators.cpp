@@ -148,6 +148,12 @@ void apply_bilaplacian_scalar(const Mesh& mesh, const FemOperators& ops, const d
   const double* kii = ops.Kii.data();
   const double* mass = ops.mass.data();
   [[maybe_unused]] const bool parallel = n >= kParallelRows;
+  auto k_row = [&](const double* x, int i) {  // (K x)_i
+    prefetch_row(off[i], kij, nbr);
+    double y = kii[i] * x[i];
+    for (int s = off[i]; s < off[i + 1]; ++s) y += kij[s] * x[nbr[s]];
+    return y;
+  };
   // Two sweeps; the second reads T of neighbours, so all of T must be written first
   // (the barrier at the end of the first omp for).
 #ifdef MESHPDE_HAVE_OPENMP
@@ -157,21 +163,11 @@ void apply_bilaplacian_scalar(const Mesh& mesh, const FemOperators& ops, const d
 #ifdef MESHPDE_HAVE_OPENMP
 #pragma omp for schedule(static)
 #endif
-    for (int i = 0; i < n; ++i) {
-      prefetch_row(off[i], kij, nbr);
-      double y = kii[i] * u[i];
-      for (int s = off[i]; s < off[i + 1]; ++s) y += kij[s] * u[nbr[s]];
-      T[i] = mass[i] > 0 ? y / mass[i] : 0.0;
-    }
+    for (int i = 0; i < n; ++i) T[i] = mass[i] > 0 ? k_row(u, i) / mass[i] : 0.0;
 #ifdef MESHPDE_HAVE_OPENMP
 #pragma omp for schedule(static)
 #endif
-    for (int i = 0; i < n; ++i) {
-      prefetch_row(off[i], kij, nbr);
-      double y = kii[i] * T[i];
-      for (int s = off[i]; s < off[i + 1]; ++s) y += kij[s] * T[nbr[s]];
-      Y[i] = y;
-    }
+    for (int i = 0; i < n; ++i) Y[i] = k_row(T, i);
   }
 }
 

@@ -57,7 +57,7 @@ GlobalBilaplacianResult solve_global_bilaplacian(const Mesh& mesh, const FemOper
   // (g1 K + g2 K D K)_FF x, matrix-free over the whole mesh (the free set is nearly all
   // of it here): scatter x into a field that is zero on held vertices, apply K (both
   // cores for large meshes), scale by D, apply K again, gather the free rows.
-  Field full = Field::Zero(nv, m), kx(nv, m), kdkx(nv, m);
+  Field full = Field::Zero(nv, m), kx(nv, m), dkx(nv, m), kdkx(nv, m);
   const std::vector<int> all = [&] {
     std::vector<int> a(static_cast<std::size_t>(nv));
     for (int i = 0; i < nv; ++i) a[static_cast<std::size_t>(i)] = i;
@@ -66,8 +66,7 @@ GlobalBilaplacianResult solve_global_bilaplacian(const Mesh& mesh, const FemOper
   auto apply = [&](const Eigen::MatrixXd& x) -> Eigen::MatrixXd {
     for (int k = 0; k < n; ++k) full.row(free[k]) = x.row(k);
     apply_stiffness_rows(mesh, ops, full.data(), kx.data(), m, all);
-    Field dkx = kx;
-    for (int i = 0; i < nv; ++i) dkx.row(i) *= d[i];
+    dkx.noalias() = d.asDiagonal() * kx;
     apply_stiffness_rows(mesh, ops, dkx.data(), kdkx.data(), m, all);
     Eigen::MatrixXd y(n, m);
     for (int k = 0; k < n; ++k) y.row(k) = p.g2 * kdkx.row(free[k]) + p.g1 * kx.row(free[k]);

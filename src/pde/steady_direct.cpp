@@ -8,6 +8,7 @@
 #include <numeric>
 
 #include "meshpde/core/errors.h"
+#include "meshpde/solvers/refinement.h"
 
 namespace meshpde {
 
@@ -113,6 +114,11 @@ SteadyDirectSolver::SteadyDirectSolver(const Mesh& mesh, const FemOperators& ops
     }
   }
   A_ = assemble_steady_matrix(mesh, ops, c, free_, extra_diagonal);
+  for (Eigen::Index k = 0; k < A_.outerSize(); ++k) {  // ||A||_inf = ||A||_1 (symmetric)
+    double sum = 0;
+    for (Eigen::SparseMatrix<double>::InnerIterator it(A_, k); it; ++it) sum += std::abs(it.value());
+    a_norm_inf_ = std::max(a_norm_inf_, sum);
+  }
   chol_.factorize(A_);
 }
 
@@ -145,50 +151,19 @@ Eigen::MatrixXd SteadyDirectSolver::solve_free(const Field& u, const Field* f) c
 Eigen::MatrixXd SteadyDirectSolver::solve_rhs(const Eigen::MatrixXd& b) const {
   if (b.rows() != num_free())
     throw InputError(fmt::format("right-hand side has {} rows for {} free vertices", b.rows(), num_free()));
-  const auto m = b.cols();
-  Eigen::MatrixXd x = chol_.solve(b);
-  // Iterative refinement: on badly shaped meshes K D K is ill-conditioned enough that
-  // one triangular solve leaves a visible residual; each step x += A^-1 (b - A x)
-  // costs one sparse product and one solve and shrinks it by about cond * eps.
-  auto worst_residual = [&](const Eigen::MatrixXd& r) {
-    double worst = 0;
-    for (Eigen::Index c = 0; c < m; ++c) {
-      const double bn = b.col(c).norm();
-      if (bn > 0) worst = std::max(worst, r.col(c).norm() / bn);
-    }
-    return worst;
-  };
-  Eigen::MatrixXd r = b - A_ * x;
-  residual_ = worst_residual(r);
-  double a_inf = 0;  // ||A||_inf = ||A||_1 (symmetric), for the backward error below
-  for (Eigen::Index k = 0; k < A_.outerSize(); ++k) {
-    double sum = 0;
-    for (Eigen::SparseMatrix<double>::InnerIterator it(A_, k); it; ++it) sum += std::abs(it.value());
-    a_inf = std::max(a_inf, sum);
-  }
+  RefinedSolve s = refined_solve(
+      b, [&](const Eigen::MatrixXd& r) { return chol_.solve(r); },
+      [&](const Eigen::MatrixXd& x) -> Eigen::MatrixXd { return A_ * x; }, refine_tolerance, max_refinements);
+  residual_ = s.relative_residual;
+  refinements_ = s.steps;
   // Normwise backward error (Rigal and Gaches): the smallest relative change of A and b
   // that makes x exact; the forward error is about cond times this.
-  auto backward = [&](const Eigen::MatrixXd& xx, const Eigen::MatrixXd& rr) {
-    double worst = 0;
-    for (Eigen::Index c = 0; c < m; ++c) {
-      const double den = a_inf * xx.col(c).cwiseAbs().maxCoeff() + b.col(c).cwiseAbs().maxCoeff();
-      if (den > 0) worst = std::max(worst, rr.col(c).cwiseAbs().maxCoeff() / den);
-    }
-    return worst;
-  };
-  refinements_ = 0;
-  while (residual_ > refine_tolerance && refinements_ < max_refinements) {
-    const Eigen::MatrixXd x_new = x + chol_.solve(r);
-    const Eigen::MatrixXd r_new = b - A_ * x_new;
-    const double res_new = worst_residual(r_new);
-    ++refinements_;
-    if (!(res_new < residual_)) break;  // stagnated: keep the better iterate
-    x = x_new;
-    r = r_new;
-    residual_ = res_new;
+  backward_error_ = 0;
+  for (Eigen::Index c = 0; c < b.cols(); ++c) {
+    const double den = a_norm_inf_ * s.x.col(c).cwiseAbs().maxCoeff() + b.col(c).cwiseAbs().maxCoeff();
+    if (den > 0) backward_error_ = std::max(backward_error_, s.residual.col(c).cwiseAbs().maxCoeff() / den);
   }
-  backward_error_ = backward(x, r);
-  return x;
+  return std::move(s.x);
 }
 
 std::vector<std::pair<int, double>> steady_coupling(const Mesh& mesh, const FemOperators& ops, const PdeCoefficients& c,

@@ -87,6 +87,10 @@ class DragSession {
   /// \throw InputError for bad handles or region; SolverError if the region's system
   ///        cannot be factored.
   DragSession(const Mesh& mesh, const FemOperators& ops, std::vector<int> handles, const DragSessionParams& params);
+  /// The same on a region given as a vertex list (handles in it are skipped; its
+  /// vertices without area too); params.radius and params.rings are not used.
+  DragSession(const Mesh& mesh, const FemOperators& ops, std::vector<int> handles, const std::vector<int>& region,
+              const DragSessionParams& params);
   ~DragSession();
   DragSession(DragSession&&) noexcept;
   DragSession& operator=(DragSession&&) = delete;
@@ -121,6 +125,9 @@ class DragSession {
   void build(std::vector<int> free);
   void compute_basis();
   void constrain(std::size_t k);  // handle k (a free row) gets its own column, 0 in the others
+  // Up to `rings` rings of neighbours around `from`, leaving out `from` itself, handles
+  // outside the region and vertices without area (nearest ring first).
+  std::vector<int> rings_around(const std::vector<int>& from, int rings) const;
   Eigen::VectorXd coupling(int v) const;
   Eigen::MatrixXd solve(const Eigen::MatrixXd& b);
 

@@ -112,6 +112,7 @@ class SteadyDirectSolver {
   SparseCholesky chol_;
   mutable double residual_ = 0;
   mutable int refinements_ = 0;
+  double a_norm_inf_ = 0;               // ||Kt_FF||_inf, for the backward error
   mutable double backward_error_ = 0;   // normwise backward error of the last solve
   mutable double inverse_norm_1_ = -1;  // estimate of ||A^-1||_1, computed on demand
 };
