@@ -291,6 +291,51 @@ TEST(Direct, AFloatingPartIsNamed) {
 
 // The Laplacian-squared preconditioner keeps iteration counts nearly flat under
 // refinement (Jacobi-CG's grow like h^-2) and agrees with the direct solve.
+#include <Eigen/SparseCholesky>
+
+#include "meshpde/solvers/refinement.h"
+
+TEST(Refinement, StopsWhenBackwardStableAndRefinesAnInexactSolve) {
+  // A shifted 1-D Laplacian: SPD, condition number about 3,000.
+  const int n = 200;
+  std::vector<Eigen::Triplet<double>> t;
+  for (int i = 0; i < n; ++i) {
+    t.emplace_back(i, i, 2.001);
+    if (i > 0) {
+      t.emplace_back(i, i - 1, -1.0);
+      t.emplace_back(i - 1, i, -1.0);
+    }
+  }
+  Eigen::SparseMatrix<double> A(n, n);
+  A.setFromTriplets(t.begin(), t.end());
+  const double a_norm_inf = 4.001;
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> uni(-1, 1);
+  const Eigen::MatrixXd b = Eigen::MatrixXd::NullaryExpr(n, 2, [&] { return uni(rng); });
+  auto multiply = [&](const Eigen::MatrixXd& x) -> Eigen::MatrixXd { return A * x; };
+  const Eigen::SimplicialLLT<Eigen::SparseMatrix<double>> exact(A);
+  // With tolerance 0 only the backward-error test can stop it: a Cholesky solve of a
+  // well-conditioned system is already backward stable, so no step is spent.
+  const RefinedSolve s = refined_solve(
+      b, [&](const Eigen::MatrixXd& r) -> Eigen::MatrixXd { return exact.solve(r); }, multiply, a_norm_inf, 0.0, 5);
+  EXPECT_EQ(s.steps, 0);
+  EXPECT_LE(s.backward_error, kStableBackwardError);
+  // The factor of a slightly different matrix (shift 1e-5 against a smallest eigenvalue
+  // of 1.25e-3): its first answer is visibly off, and refinement must recover the exact
+  // one to the requested residual.
+  Eigen::SparseMatrix<double> shifted = A;
+  for (int i = 0; i < n; ++i) shifted.coeffRef(i, i) += 1e-5;
+  const Eigen::SimplicialLLT<Eigen::SparseMatrix<double>> inexact(shifted);
+  const RefinedSolve r = refined_solve(
+      b, [&](const Eigen::MatrixXd& x) -> Eigen::MatrixXd { return inexact.solve(x); }, multiply, a_norm_inf, 1e-12,
+      20);
+  EXPECT_GE(r.steps, 2);
+  EXPECT_LE(r.relative_residual, 1e-12);
+  const Eigen::MatrixXd x = exact.solve(b);
+  EXPECT_LE((r.x - x).norm(), 1e-9 * x.norm());
+  EXPECT_GT((inexact.solve(b) - x).norm(), 1e-4 * x.norm());  // the unrefined answer was off
+}
+
 TEST(GlobalBilaplacian, IterationsStayFlatUnderRefinementAndMatchTheDirectSolve) {
   std::vector<int> iterations;
   for (int level : {3, 4, 5}) {

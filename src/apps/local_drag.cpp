@@ -106,34 +106,119 @@ struct DragSession::Factor {
   std::vector<int> vertices;         // factored rows: the region (AMD order), then the margin
   std::unordered_map<int, int> row;  // vertex -> row of `vertices`
   Eigen::SparseMatrix<double> A;     // Kt on `vertices`, symmetric, both triangles
-  Eigen::SparseMatrix<double> L;     // lower Cholesky factor (column-major, rows sorted)
-  Eigen::Index active = 0;           // leading rows in use (the region)
+  // Cholesky factor, read in place: L is column-major and compressed, each column's
+  // diagonal first and its rows ascending (Eigen's up-looking factorization fills the
+  // columns row by row).
+  Eigen::SimplicialLLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::NaturalOrdering<int>> llt;
+  Eigen::Index active = 0;  // leading rows in use (the region)
+  double norm_inf = 0;      // |A_aa|_inf of the leading block (set_active)
 
-  // x = A_aa^-1 b for the leading `active` rows, with the leading block of L: a
-  // forward and a backward sweep that skip every entry below row `active`.
-  void solve_leading(Eigen::Ref<Eigen::VectorXd> x) const {
+  void set_active(Eigen::Index n) {
+    active = n;
+    norm_inf = 0;  // |A_aa|_inf = |A_aa|_1 (symmetric)
+    for (Eigen::Index j = 0; j < n; ++j) {
+      double sum = 0;
+      for (Eigen::SparseMatrix<double>::InnerIterator it(A, j); it; ++it)
+        if (it.row() < n) sum += std::abs(it.value());
+      norm_inf = std::max(norm_inf, sum);
+    }
+  }
+
+  // X = A_aa^-1 X for the leading `active` rows, with the leading block of L: a
+  // forward and a backward sweep that skip every entry below row `active`. The
+  // columns are swept together (row-major copy): L is read once for all of them, and
+  // reading L is what a sweep costs (about 1 M entries for a 10k-vertex region).
+  void solve_leading(Eigen::MatrixXd& X) const {
+    RowMajor Y = X;
+    switch (Y.cols()) {
+      case 1:
+        sweep<1>(Y);
+        break;
+      case 2:
+        sweep<2>(Y);
+        break;
+      case 3:
+        sweep<3>(Y);
+        break;
+      case 4:
+        sweep<4>(Y);
+        break;
+      default:
+        sweep<Eigen::Dynamic>(Y);
+    }
+    X = Y;
+  }
+  // Y = A_aa X on the leading rows.
+  Eigen::MatrixXd multiply_leading(const Eigen::MatrixXd& X) const {
+    const RowMajor Xr = X;
+    RowMajor Y = RowMajor::Zero(active, X.cols());
+    const Eigen::Index m = X.cols();
+    const int* outer = A.outerIndexPtr();
+    const int* inner = A.innerIndexPtr();
+    const double* val = A.valuePtr();
+    for (Eigen::Index j = 0; j < active; ++j) {
+      const double* xj = Xr.data() + j * m;
+      for (int q = outer[j]; q < outer[j + 1]; ++q)
+        if (inner[q] < active) {
+          double* yi = Y.data() + static_cast<Eigen::Index>(inner[q]) * m;
+          for (Eigen::Index c = 0; c < m; ++c) yi[c] += val[q] * xj[c];
+        }
+    }
+    return Y;
+  }
+
+ private:
+  using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+  // The sweeps, with the column count M fixed at compile time where it is small. Row
+  // j's values are held in locals while its column is applied (the stores into other
+  // rows could alias them otherwise, and every entry would reload them).
+  template <int M>
+  void sweep(RowMajor& Y) const {
+    const Eigen::Index m = M == Eigen::Dynamic ? Y.cols() : M;
+    constexpr int kLocal = M == Eigen::Dynamic ? 1 : M;
+    double* y = Y.data();
+    const Eigen::SparseMatrix<double>& L = llt.matrixL().nestedExpression();
     const int* outer = L.outerIndexPtr();
     const int* inner = L.innerIndexPtr();
     const double* val = L.valuePtr();
     const auto n = static_cast<int>(active);
     for (int j = 0; j < n; ++j) {
-      x[j] /= val[outer[j]];  // the diagonal is the first entry of its column
-      const double xj = x[j];
-      for (int q = outer[j] + 1; q < outer[j + 1] && inner[q] < n; ++q) x[inner[q]] -= val[q] * xj;
+      double* yj = y + j * m;
+      const double d = val[outer[j]];  // the diagonal is the first entry of its column
+      for (Eigen::Index c = 0; c < m; ++c) yj[c] /= d;
+      if constexpr (M == Eigen::Dynamic) {
+        for (int q = outer[j] + 1; q < outer[j + 1] && inner[q] < n; ++q) {
+          double* yi = y + static_cast<Eigen::Index>(inner[q]) * m;
+          for (Eigen::Index c = 0; c < m; ++c) yi[c] -= val[q] * yj[c];
+        }
+      } else {
+        double xj[kLocal];
+        for (int c = 0; c < M; ++c) xj[c] = yj[c];
+        for (int q = outer[j] + 1; q < outer[j + 1] && inner[q] < n; ++q) {
+          double* yi = y + static_cast<Eigen::Index>(inner[q]) * M;
+          for (int c = 0; c < M; ++c) yi[c] -= val[q] * xj[c];
+        }
+      }
     }
     for (int j = n - 1; j >= 0; --j) {
-      double s = x[j];
-      for (int q = outer[j] + 1; q < outer[j + 1] && inner[q] < n; ++q) s -= val[q] * x[inner[q]];
-      x[j] = s / val[outer[j]];
+      double* yj = y + j * m;
+      if constexpr (M == Eigen::Dynamic) {
+        for (int q = outer[j] + 1; q < outer[j + 1] && inner[q] < n; ++q) {
+          const double* yi = y + static_cast<Eigen::Index>(inner[q]) * m;
+          for (Eigen::Index c = 0; c < m; ++c) yj[c] -= val[q] * yi[c];
+        }
+      } else {
+        double sum[kLocal];
+        for (int c = 0; c < M; ++c) sum[c] = yj[c];
+        for (int q = outer[j] + 1; q < outer[j + 1] && inner[q] < n; ++q) {
+          const double* yi = y + static_cast<Eigen::Index>(inner[q]) * M;
+          for (int c = 0; c < M; ++c) sum[c] -= val[q] * yi[c];
+        }
+        for (int c = 0; c < M; ++c) yj[c] = sum[c];
+      }
+      const double d = val[outer[j]];
+      for (Eigen::Index c = 0; c < m; ++c) yj[c] /= d;
     }
-  }
-  // y = A_aa x on the leading rows.
-  Eigen::VectorXd multiply_leading(const Eigen::VectorXd& x) const {
-    Eigen::VectorXd y = Eigen::VectorXd::Zero(active);
-    for (Eigen::Index j = 0; j < active; ++j)
-      for (Eigen::SparseMatrix<double>::InnerIterator it(A, j); it; ++it)
-        if (it.row() < active) y[it.row()] += it.value() * x[j];
-    return y;
   }
 };
 
@@ -220,15 +305,14 @@ void DragSession::build(std::vector<int> free) {
   } else {
     f->A = assemble_steady_matrix(mesh_, ops_, coef, f->vertices);
   }
-  Eigen::SimplicialLLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::NaturalOrdering<int>> llt(f->A);
-  if (llt.info() != Eigen::Success)
+  f->A.makeCompressed();  // the products read its arrays directly
+  f->llt.compute(f->A);
+  if (f->llt.info() != Eigen::Success)
     throw SolverError(
         fmt::format("the drag region's system ({} vertices) is not positive definite: does the region cover a "
                     "whole closed part of the mesh, or is a coefficient negative?",
                     f->vertices.size()));
-  f->L = llt.matrixL();
-  f->L.makeCompressed();
-  f->active = static_cast<Eigen::Index>(free.size());
+  f->set_active(static_cast<Eigen::Index>(free.size()));
   region_.assign(f->vertices.begin(), f->vertices.begin() + static_cast<std::ptrdiff_t>(free.size()));
   margin_ = std::move(margin);
   factor_ = std::move(f);
@@ -253,17 +337,13 @@ Eigen::MatrixXd DragSession::solve(const Eigen::MatrixXd& b) {
   const Factor& f = *factor_;
   auto solve_columns = [&](const Eigen::MatrixXd& r) {
     Eigen::MatrixXd x = r;
-    for (Eigen::Index c = 0; c < x.cols(); ++c) f.solve_leading(x.col(c));
+    f.solve_leading(x);
     return x;
   };
-  auto multiply_columns = [&](const Eigen::MatrixXd& x) {
-    Eigen::MatrixXd y(x.rows(), x.cols());
-    for (Eigen::Index c = 0; c < x.cols(); ++c) y.col(c) = f.multiply_leading(x.col(c));
-    return y;
-  };
+  auto multiply_columns = [&](const Eigen::MatrixXd& x) { return f.multiply_leading(x); };
   // Refined as SteadyDirectSolver refines: at most five steps while the relative
-  // residual exceeds 1e-12 and keeps falling.
-  RefinedSolve r = refined_solve(b, solve_columns, multiply_columns, 1e-12, 5);
+  // residual exceeds 1e-12, keeps falling and is above the backward-stable level.
+  RefinedSolve r = refined_solve(b, solve_columns, multiply_columns, f.norm_inf, 1e-12, 5);
   residual_ = r.relative_residual;
   ++solves_;
   return std::move(r.x);
@@ -271,34 +351,33 @@ Eigen::MatrixXd DragSession::solve(const Eigen::MatrixXd& b) {
 
 void DragSession::compute_basis() {
   // Handles outside the region couple through the right-hand side; handles inside it
-  // (added earlier) are constrained by the Green's-function updates of constrain().
-  std::vector<Eigen::Index> outside;
+  // (added earlier) are constrained again by constrain(), which needs their Green's
+  // functions A^-1 e. All of them come from one multi-column solve (one pass over L).
+  std::vector<Eigen::Index> outside, inside;
   for (std::size_t k = 0; k < handles_.size(); ++k)
-    if (!handle_in_region_[k]) outside.push_back(static_cast<Eigen::Index>(k));
-  Eigen::MatrixXd rhs(factor_->active, static_cast<Eigen::Index>(outside.size()));
-  for (std::size_t k = 0; k < outside.size(); ++k)
-    rhs.col(static_cast<Eigen::Index>(k)) = coupling(handles_[static_cast<std::size_t>(outside[k])]);
-  const Eigen::MatrixXd outside_basis = solve(rhs);
+    (handle_in_region_[k] ? inside : outside).push_back(static_cast<Eigen::Index>(k));
+  const auto no = static_cast<Eigen::Index>(outside.size());
+  Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(factor_->active, no + static_cast<Eigen::Index>(inside.size()));
+  for (Eigen::Index k = 0; k < no; ++k) rhs.col(k) = coupling(handles_[static_cast<std::size_t>(outside[k])]);
+  for (std::size_t k = 0; k < inside.size(); ++k)
+    rhs(region_index(handles_[static_cast<std::size_t>(inside[k])]), no + static_cast<Eigen::Index>(k)) = 1;
+  const Eigen::MatrixXd x = solve(rhs);
   basis_.setZero(factor_->active, static_cast<Eigen::Index>(handles_.size()));
-  for (std::size_t k = 0; k < outside.size(); ++k)
-    basis_.col(outside[k]) = outside_basis.col(static_cast<Eigen::Index>(k));
-  // Handles inside the region: constrain them again, one by one, as add_handle() did.
-  for (std::size_t k = 0; k < handles_.size(); ++k)
-    if (handle_in_region_[k]) {
-      handle_in_region_[k] = false;
-      constrain(k);
-    }
+  for (Eigen::Index k = 0; k < no; ++k) basis_.col(outside[k]) = x.col(k);
+  // Handles inside the region: constrained again, one by one, as add_handle() did.
+  for (std::size_t k = 0; k < inside.size(); ++k) {
+    const auto h = static_cast<std::size_t>(inside[k]);
+    handle_in_region_[h] = false;
+    constrain(h, x.col(no + static_cast<Eigen::Index>(k)));
+  }
 }
 
-void DragSession::constrain(std::size_t k) {
+void DragSession::constrain(std::size_t k, Eigen::VectorXd g) {
   const int row = region_index(handles_[k]);
-  // g: the Green's function of the current constrained system at the handle. A^-1 e is
-  // the unconstrained one; subtracting the current basis columns of the handles already
+  // g: on entry A^-1 e, the Green's function at the handle with only the region's
+  // outer handles held. Subtracting the current basis columns of the handles already
   // constrained inside the region (each 1 at its own handle, 0 at the others, harmonic
   // elsewhere) zeroes it at those handles and keeps A g = e on the remaining free rows.
-  Eigen::MatrixXd e = Eigen::MatrixXd::Zero(factor_->active, 1);
-  e(row, 0) = 1;
-  Eigen::VectorXd g = solve(e).col(0);
   for (std::size_t j = 0; j < handles_.size(); ++j)
     if (handle_in_region_[j]) g -= g[region_index(handles_[j])] * basis_.col(static_cast<Eigen::Index>(j));
   if (!(std::abs(g[row]) > 0))
@@ -320,7 +399,9 @@ void DragSession::add_handle(int vertex) {
   handle_in_region_.push_back(false);
   basis_.conservativeResize(Eigen::NoChange, basis_.cols() + 1);
   basis_.col(basis_.cols() - 1).setZero();
-  constrain(handles_.size() - 1);
+  Eigen::MatrixXd e = Eigen::MatrixXd::Zero(factor_->active, 1);
+  e(region_index(vertex), 0) = 1;
+  constrain(handles_.size() - 1, solve(e).col(0));
 }
 
 void DragSession::grow(int rings) {
@@ -329,7 +410,7 @@ void DragSession::grow(int rings) {
     // The margin ring was factored with the region, ordered after it: the grown
     // region's factor is the leading block of rows the factor already has.
     region_.insert(region_.end(), margin_.begin(), margin_.end());
-    factor_->active = static_cast<Eigen::Index>(region_.size());
+    factor_->set_active(static_cast<Eigen::Index>(region_.size()));
     margin_.clear();
     compute_basis();
     return;

@@ -124,7 +124,8 @@ class DragSession {
   struct Factor;
   void build(std::vector<int> free);
   void compute_basis();
-  void constrain(std::size_t k);  // handle k (a free row) gets its own column, 0 in the others
+  // Handle k (a free row) gets its own column, 0 in the others; g = A^-1 e_k.
+  void constrain(std::size_t k, Eigen::VectorXd g);
   // Up to `rings` rings of neighbours around `from`, leaving out `from` itself, handles
   // outside the region and vertices without area (nearest ring first).
   std::vector<int> rings_around(const std::vector<int>& from, int rings) const;
