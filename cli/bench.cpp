@@ -343,6 +343,31 @@ void add_bench_command(CLI::App& app) {
       const auto t_refactor = clock_type::now();
       session->grow(1);
       j["drag_grow_ring_baseline_ms_refactor"] = seconds_since(t_refactor) * 1e3;
+      // Shrink by one ring: with the region's outer ring ordered last at set-up
+      // (inner_margin) against a session without it (a new factor), same run.
+      std::vector<double> shrink_ms, inner_setup_ms;
+      for (int k = 0; k < (*quick ? 3 : 5); ++k) {
+        const auto t_setup = clock_type::now();
+        DragSession inner(big, big_ops, {handle}, DragSessionParams{.radius = 59.0, .inner_margin = true});
+        inner_setup_ms.push_back(seconds_since(t_setup) * 1e3);
+        inner.add_handle(second);
+        const auto t_shrink = clock_type::now();
+        inner.shrink(1);
+        shrink_ms.push_back(seconds_since(t_shrink) * 1e3);
+        if (k == 0) j["drag_shrunk_region_vertices"] = inner.region().size();
+      }
+      j["drag_shrink_ring_ms"] = percentiles(shrink_ms).p50;
+      j["drag_setup_ms_10k_region_with_inner_margin"] = percentiles(inner_setup_ms).p50;
+      const auto t_shrink_refactor = clock_type::now();
+      session->shrink(1);
+      j["drag_shrink_ring_baseline_ms_refactor"] = seconds_since(t_shrink_refactor) * 1e3;
+      j["drag_setup_ms_10k_region_with_both_margins"] =
+          best_of(*quick ? 1 : 2,
+                  [&] {
+                    DragSession both(big, big_ops, {handle},
+                                     DragSessionParams{.radius = 59.0, .margin = true, .inner_margin = true});
+                  }) *
+          1e3;
       j["drag_setup_ms_2k_region"] =
           best_of(*quick ? 2 : 4, [&] { DragSession s(big, big_ops, {handle}, DragSessionParams{.radius = 26.0}); }) *
           1e3;

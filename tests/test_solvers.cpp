@@ -3,6 +3,7 @@
 
 #include <Eigen/SparseCore>
 #include <random>
+#include <unordered_set>
 
 #include "meshpde/core/errors.h"
 #include "meshpde/mesh/generators.h"
@@ -465,6 +466,61 @@ TEST(DragSession, AddedHandlesAndGrownRegionsMatchFreshFactorizations) {
   DragSession plain(mesh, ops, {h0}, DragSessionParams{.radius = 0.7});
   plain.grow(1);
   EXPECT_EQ(plain.factorizations(), 2);
+}
+
+TEST(DragSession, ShrunkRegionsReuseTheFactorAndMatchFreshFactorizations) {
+  const GeneratedMesh g = icosphere(4);
+  const Mesh mesh(g.V, g.F);
+  const FemOperators ops = build_operators(mesh);
+  int h0 = 0;
+  mesh.positions().col(2).maxCoeff(&h0);
+  DragSession s(mesh, ops, {h0}, DragSessionParams{.radius = 0.7, .margin = true, .inner_margin = true});
+  const std::vector<int> region0 = s.region();
+  // A second handle on the region's outermost ring: shrinking holds it, as a handle.
+  const std::unordered_set<int> inside(region0.begin(), region0.end());
+  int edge = -1;
+  for (int v : region0)
+    for (int w : mesh.neighbors(v))
+      if (edge < 0 && w != h0 && !inside.count(w)) edge = v;
+  ASSERT_GE(edge, 0);
+  s.add_handle(edge);
+  Eigen::MatrixXd moves(2, 3);
+  moves << 0, 0, 0.2, 0.03, -0.02, 0.05;
+  const double tol = 1e-9 * moves.norm();
+  auto matches_fresh = [&] {
+    const Field ref = fresh_solve(mesh, ops, s.handles(), moves, s.region());
+    EXPECT_LE((session_field(mesh, s, moves) - ref).cwiseAbs().maxCoeff(), tol);
+    const Positions P = s.positions(moves);
+    EXPECT_LE((P.row(edge) - mesh.positions().row(edge) - moves.row(1)).norm(), 1e-12);
+  };
+  s.shrink(1);  // the inner margin: a leading block of the same factor
+  const std::size_t shrunk = s.region().size();
+  EXPECT_LT(shrunk, region0.size());
+  EXPECT_EQ(s.region_index(edge), -1);
+  EXPECT_EQ(s.factorizations(), 1);
+  matches_fresh();
+  s.grow(1);  // the ring given up comes back, the handle inside it again
+  EXPECT_EQ(s.region().size(), region0.size());
+  EXPECT_GE(s.region_index(edge), 0);
+  matches_fresh();
+  s.grow(1);  // the outer margin
+  EXPECT_GT(s.region().size(), region0.size());
+  matches_fresh();
+  s.shrink(1);
+  EXPECT_EQ(s.region().size(), region0.size());
+  EXPECT_EQ(s.factorizations(), 1);
+  matches_fresh();
+  s.shrink(2);  // beyond the factored rings: a new factor
+  EXPECT_EQ(s.factorizations(), 2);
+  EXPECT_LT(s.region().size(), shrunk);
+  matches_fresh();
+  // Without margins the same shrink refactors and peels the same ring.
+  DragSession plain(mesh, ops, {h0}, DragSessionParams{.radius = 0.7});
+  plain.shrink(1);
+  EXPECT_EQ(plain.factorizations(), 2);
+  EXPECT_EQ(plain.region().size(), shrunk);
+  EXPECT_THROW(plain.shrink(0), InputError);
+  EXPECT_THROW(plain.shrink(1000), InputError);
 }
 
 TEST(DragSession, BadRequestsAreRefused) {

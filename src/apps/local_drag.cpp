@@ -103,15 +103,20 @@ DragResult drag_vertex(const Mesh& mesh, const FemOperators& ops, const DragPara
 }
 
 struct DragSession::Factor {
-  std::vector<int> vertices;         // factored rows: the region (AMD order), then the margin
+  // Factored rows: the core of the region (AMD order), then, with a margin, the
+  // region's outermost ring and one ring outside it. Every `levels` entry is a leading
+  // block that can be the region (its factor is the leading block of L).
+  std::vector<int> vertices;
   std::unordered_map<int, int> row;  // vertex -> row of `vertices`
   Eigen::SparseMatrix<double> A;     // Kt on `vertices`, symmetric, both triangles
   // Cholesky factor, read in place: L is column-major and compressed, each column's
   // diagonal first and its rows ascending (Eigen's up-looking factorization fills the
   // columns row by row).
   Eigen::SimplicialLLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::NaturalOrdering<int>> llt;
-  Eigen::Index active = 0;  // leading rows in use (the region)
-  double norm_inf = 0;      // |A_aa|_inf of the leading block (set_active)
+  std::vector<Eigen::Index> levels;  // possible region sizes, ascending
+  std::size_t level = 0;             // levels[level] == active
+  Eigen::Index active = 0;           // leading rows in use (the region)
+  double norm_inf = 0;               // |A_aa|_inf of the leading block (set_active)
 
   void set_active(Eigen::Index n) {
     active = n;
@@ -283,25 +288,62 @@ std::vector<int> DragSession::rings_around(const std::vector<int>& from, int rin
   return out;
 }
 
+std::vector<int> DragSession::outer_ring(const std::vector<int>& set) const {
+  // Outside: not in the set, not a handle (held, often inside: the first handle is the
+  // region's centre) and not a vertex without area (held by every solver).
+  std::unordered_set<int> in(set.begin(), set.end());
+  in.insert(handles_.begin(), handles_.end());
+  std::vector<int> out;
+  for (int v : set)
+    for (int w : mesh_.neighbors(v))
+      if (ops_.mass[w] > 0 && !in.count(w)) {
+        out.push_back(v);
+        break;
+      }
+  return out;
+}
+
 void DragSession::build(std::vector<int> free) {
   const PdeCoefficients coef{.g0 = 0, .g1 = params_.g1, .g2 = params_.g2};
   auto f = std::make_unique<Factor>();
-  // Fill-reducing order of the region by itself (AMD on its own matrix), the margin ring
-  // after it: then the region's factor is the leading block of the whole factor.
-  const Eigen::SparseMatrix<double> AF = assemble_steady_matrix(mesh_, ops_, coef, free);
+  // The region's outermost ring (inner_margin) and one ring outside it (margin) are
+  // factored last, in that order: the leading blocks are then the region without its
+  // outer ring (shrink), the region, and the region with one more ring (grow).
+  std::vector<int> inner, outer;
+  if (params_.inner_margin) {
+    inner = outer_ring(free);
+    if (inner.size() == free.size()) inner.clear();  // no core would be left
+  }
+  if (params_.margin) outer = rings_around(free, 1);
+  std::vector<int> core;
+  if (inner.empty()) {
+    core = std::move(free);
+  } else {
+    const std::unordered_set<int> ring(inner.begin(), inner.end());
+    for (int v : free)
+      if (!ring.count(v)) core.push_back(v);
+  }
+  // Fill-reducing order of the core by itself (AMD on its own matrix).
+  const Eigen::SparseMatrix<double> AC = assemble_steady_matrix(mesh_, ops_, coef, core);
   Eigen::AMDOrdering<int> amd;
   Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> perm;
-  amd(AF, perm);  // perm.indices()[new position] = old position (Eigen's convention)
-  f->vertices.resize(free.size());
-  for (std::size_t k = 0; k < free.size(); ++k)
-    f->vertices[k] = free[static_cast<std::size_t>(perm.indices()[static_cast<Eigen::Index>(k)])];
-  std::vector<int> margin = params_.margin ? rings_around(free, 1) : std::vector<int>();
-  f->vertices.insert(f->vertices.end(), margin.begin(), margin.end());
+  amd(AC, perm);  // perm.indices()[new position] = old position (Eigen's convention)
+  f->vertices.resize(core.size());
+  for (std::size_t k = 0; k < core.size(); ++k)
+    f->vertices[k] = core[static_cast<std::size_t>(perm.indices()[static_cast<Eigen::Index>(k)])];
+  f->vertices.insert(f->vertices.end(), inner.begin(), inner.end());
+  f->vertices.insert(f->vertices.end(), outer.begin(), outer.end());
   for (std::size_t k = 0; k < f->vertices.size(); ++k) f->row.emplace(f->vertices[k], static_cast<int>(k));
-  if (margin.empty()) {
-    // The region's matrix in its new order: AF permuted (no second assembly).
+  const auto n_core = static_cast<Eigen::Index>(core.size());
+  const auto n_region = n_core + static_cast<Eigen::Index>(inner.size());
+  if (!inner.empty()) f->levels.push_back(n_core);
+  f->levels.push_back(n_region);
+  if (!outer.empty()) f->levels.push_back(n_region + static_cast<Eigen::Index>(outer.size()));
+  f->level = inner.empty() ? 0 : 1;
+  if (inner.empty() && outer.empty()) {
+    // The region's matrix in its new order: AC permuted (no second assembly).
     // twistedBy(Q) puts entry (i, j) at (Q[i], Q[j]); Q = perm^-1 maps old to new.
-    f->A = AF.selfadjointView<Eigen::Lower>().twistedBy(perm.inverse());
+    f->A = AC.selfadjointView<Eigen::Lower>().twistedBy(perm.inverse());
   } else {
     f->A = assemble_steady_matrix(mesh_, ops_, coef, f->vertices);
   }
@@ -312,11 +354,18 @@ void DragSession::build(std::vector<int> free) {
         fmt::format("the drag region's system ({} vertices) is not positive definite: does the region cover a "
                     "whole closed part of the mesh, or is a coefficient negative?",
                     f->vertices.size()));
-  f->set_active(static_cast<Eigen::Index>(free.size()));
-  region_.assign(f->vertices.begin(), f->vertices.begin() + static_cast<std::ptrdiff_t>(free.size()));
-  margin_ = std::move(margin);
   factor_ = std::move(f);
   ++factorizations_;
+  activate();
+}
+
+void DragSession::activate() {
+  Factor& f = *factor_;
+  f.set_active(f.levels[f.level]);
+  region_.assign(f.vertices.begin(), f.vertices.begin() + static_cast<std::ptrdiff_t>(f.active));
+  // Handles among the region's rows are constrained inside it; the others (outside the
+  // factor, or in rows beyond the region) are held and enter through the right-hand side.
+  for (std::size_t k = 0; k < handles_.size(); ++k) handle_in_region_[k] = region_index(handles_[k]) >= 0;
   compute_basis();
 }
 
@@ -406,18 +455,35 @@ void DragSession::add_handle(int vertex) {
 
 void DragSession::grow(int rings) {
   if (rings < 1) throw InputError("grow by at least one ring");
-  if (rings == 1 && !margin_.empty()) {
-    // The margin ring was factored with the region, ordered after it: the grown
-    // region's factor is the leading block of rows the factor already has.
-    region_.insert(region_.end(), margin_.begin(), margin_.end());
-    factor_->set_active(static_cast<Eigen::Index>(region_.size()));
-    margin_.clear();
-    compute_basis();
+  if (rings == 1 && factor_->level + 1 < factor_->levels.size()) {
+    // The next ring was factored with the region, ordered after it: the grown region's
+    // factor is a leading block of rows the factor already has.
+    ++factor_->level;
+    activate();
     return;
   }
   std::vector<int> free = region_;
   const std::vector<int> added = rings_around(region_, rings);
   free.insert(free.end(), added.begin(), added.end());
+  build(std::move(free));
+}
+
+void DragSession::shrink(int rings) {
+  if (rings < 1) throw InputError("shrink by at least one ring");
+  if (rings == 1 && factor_->level > 0) {
+    // The region's outermost ring was factored last: the smaller region's factor is
+    // the leading block without it.
+    --factor_->level;
+    activate();
+    return;
+  }
+  std::vector<int> free = region_;
+  for (int r = 0; r < rings && !free.empty(); ++r) {
+    const std::vector<int> ring = outer_ring(free);
+    const std::unordered_set<int> drop(ring.begin(), ring.end());
+    std::erase_if(free, [&](int v) { return drop.count(v) > 0; });
+  }
+  if (free.empty()) throw InputError(fmt::format("shrinking the drag region by {} rings leaves no free vertex", rings));
   build(std::move(free));
 }
 

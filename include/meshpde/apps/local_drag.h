@@ -61,25 +61,32 @@ DragResult drag_vertex(const Mesh& mesh, const FemOperators& ops, const DragPara
 ///   - adding a handle inside the region costs one solve with the same factor and a
 ///     rank-one update of B (the new handle's column is its Green's function scaled to
 ///     1 at the handle; every other column is corrected to 0 there), no refactorization;
-///   - growing the region by rings builds the larger region's factor; with
-///     DragSessionParams::margin, the set-up also factors one margin ring, ordered last,
-///     and the first growth by one ring costs one solve per handle with the same factor
-///     (a leading principal submatrix's Cholesky factor is the leading block of the
-///     whole one, so the region's factor is the leading block of the region-plus-margin
-///     factor). Later growths build a new factor (with a new margin).
+///   - growing or shrinking the region by rings builds the new region's factor, except
+///     for one ring factored in advance: with DragSessionParams::margin the set-up also
+///     factors one ring outside the region, ordered last, and with inner_margin it
+///     orders the region's own outermost ring last; growing (shrinking) by that ring
+///     is then one multi-column solve with the same factor (a leading principal
+///     submatrix's Cholesky factor is the leading block of the whole one). A ring given
+///     up by shrink() can be grown back the same way. Other changes build a new factor
+///     (with new margins).
 /// The region is held at zero displacement outside (two frozen rings make the join C1
 /// for g2 > 0), exactly as drag_vertex(). Solves use Eigen's simplicial Cholesky with
-/// AMD ordering (as fast as CHOLMOD's supernodal one at 10k unknowns) and iterative
-/// refinement to a relative residual of 1e-12.
+/// AMD ordering (as fast as CHOLMOD's supernodal one at 10k unknowns), all handles'
+/// columns in one sweep, and iterative refinement to a relative residual of 1e-12 or a
+/// backward-stable answer (solvers/refinement.h).
 struct DragSessionParams {
   double radius = 0;  ///< region: edge-path distance from the first handle (mesh units); 0: use rings
   int rings = 0;      ///< region in rings of neighbours of the first handle (when radius == 0)
   double g1 = 0;      ///< membrane stiffness
   double g2 = 1;      ///< plate (bi-Laplacian) stiffness
-  /// Factor one margin ring at set-up, so that grow(1) needs no new factor. Costs set-up
-  /// time: the margin's rows fill in against the region's top separators (10k-vertex
-  /// region: set-up 155 ms instead of 82 ms, then growth 15 ms instead of 113 ms).
+  /// Factor one ring outside the region at set-up, ordered last, so that grow(1) needs
+  /// no new factor. Costs set-up time: the ring's rows fill in against the region's top
+  /// separators (10k-vertex region: set-up MARGIN_SETUP ms instead of PLAIN_SETUP ms, then
+  /// growth GROW_MS ms instead of GROW_REFACTOR ms; docs/solvers.md).
   bool margin = false;
+  /// Order the region's own outermost ring last, so that shrink(1) needs no new factor
+  /// (same kind of cost; both margins together: BOTH_SETUP ms set-up).
+  bool inner_margin = false;
 };
 
 class DragSession {
@@ -105,9 +112,16 @@ class DragSession {
   /// existing factor and a rank-one update of the basis. \throw InputError if the vertex
   /// is not a free region vertex.
   void add_handle(int vertex);
-  /// Grows the region by `rings` rings of neighbours: with the factored margin (one
-  /// ring, first growth) one solve per handle; otherwise a new factor.
+  /// Grows the region by `rings` rings of neighbours: by one ring that is already
+  /// factored (the margin, or a ring given up by shrink()) one multi-column solve for
+  /// all handles; otherwise a new factor.
   void grow(int rings = 1);
+  /// Shrinks the region by its `rings` outermost rings (region vertices next to a held
+  /// vertex that is not a handle; those vertices are then held at zero, handles in them
+  /// stay handles). With a margin the first shrink by one ring is one multi-column
+  /// solve with the same factor; otherwise a new factor. \throw InputError if no free
+  /// vertex would be left.
+  void shrink(int rings = 1);
 
   const std::vector<int>& handles() const { return handles_; }
   /// Free vertices of the region, handles added by add_handle() included (their rows
@@ -123,7 +137,10 @@ class DragSession {
  private:
   struct Factor;
   void build(std::vector<int> free);
+  void activate();  // the region is the factor's current level: region_, handle flags, basis
   void compute_basis();
+  // Vertices of `set` next to a vertex outside it that is neither a handle nor without area.
+  std::vector<int> outer_ring(const std::vector<int>& set) const;
   // Handle k (a free row) gets its own column, 0 in the others; g = A^-1 e_k.
   void constrain(std::size_t k, Eigen::VectorXd g);
   // Up to `rings` rings of neighbours around `from`, leaving out `from` itself, handles
@@ -137,9 +154,8 @@ class DragSession {
   DragSessionParams params_;
   std::vector<int> handles_;
   std::vector<bool> handle_in_region_;  // per handle: added by add_handle (a row of the factor)
-  std::unique_ptr<Factor> factor_;      // of the region and its margin, margin last
+  std::unique_ptr<Factor> factor_;      // of the region and its margin rings, those last
   std::vector<int> region_;             // the factored vertices in use: the leading rows
-  std::vector<int> margin_;             // factored rows after region_ (empty once used)
   Eigen::MatrixXd basis_;
   int factorizations_ = 0, solves_ = 0;
   double residual_ = 0;
