@@ -6,6 +6,7 @@
 #include <cmath>
 
 #include "meshpde/core/errors.h"
+#include "meshpde/solvers/surface_multigrid.h"
 
 namespace meshpde {
 
@@ -23,6 +24,34 @@ GlobalBilaplacianResult solve_global_bilaplacian(const Mesh& mesh, const FemOper
     if (v < 0 || v >= nv || local[v] >= 0) throw InputError(fmt::format("free vertex {} is invalid or repeated", v));
     local[v] = k;
   }
+  Eigen::VectorXd d(nv);
+  for (int i = 0; i < nv; ++i) d[i] = ops.D(i);
+  // Right-hand side: -(Kt w)_F with w the held values (free entries zero).
+  Field w = u;
+  for (int v : free) w.row(v).setZero();
+  const Field Kw = apply_stiffness(mesh, ops, w);
+  Field DKw = Kw;
+  for (int i = 0; i < nv; ++i) DKw.row(i) *= d[i];
+  const Field KDKw = apply_stiffness(mesh, ops, DKw);
+  Eigen::MatrixXd b(n, m);
+  for (int k = 0; k < n; ++k) b.row(k) = -(p.g1 * Kw.row(free[k]) + p.g2 * KDKw.row(free[k]));
+  GlobalBilaplacianResult res;
+  if (p.preconditioner == GlobalBilaplacianParams::Preconditioner::Multigrid) {
+    const BilaplacianMultigrid mg(mesh, ops, free, p.g1, p.g2, p.multigrid);
+    res.level_unknowns = mg.level_unknowns();
+    res.bytes_per_vertex = (mg.bytes(m) + 8.0 * 5 * m * n) / nv;
+    res.setup_seconds = std::chrono::duration<double>(clock::now() - t0).count();
+    const auto t1 = clock::now();
+    Block x = Block::Zero(n, m);
+    const MultigridSolveResult r = mg.solve(Block(b), x, p.tolerance, p.max_iterations);
+    res.iterations = r.iterations;
+    res.relative_residual = r.relative_residual;
+    res.converged = r.converged;
+    res.values = u;
+    for (int k = 0; k < n; ++k) res.values.row(free[k]) = x.row(k);
+    res.solve_seconds = std::chrono::duration<double>(clock::now() - t1).count();
+    return res;
+  }
   const auto off = mesh.offsets();
   const auto nbr = mesh.neighbors();
   // K_FF: the free rows and columns of K, for the preconditioner.
@@ -35,25 +64,14 @@ GlobalBilaplacianResult solve_global_bilaplacian(const Mesh& mesh, const FemOper
   }
   Eigen::SparseMatrix<double> KFF(n, n);
   KFF.setFromTriplets(tf.begin(), tf.end());
-  GlobalBilaplacianResult res;
   SparseCholesky chol;
   chol.factorize(KFF);
   res.factor_nonzeros = chol.factor_nonzeros();
   res.bytes_per_vertex =
       (12.0 * res.factor_nonzeros + 12.0 * static_cast<double>(KFF.nonZeros()) + 8.0 * 5 * m * n + 8.0 * 4 * m * nv) /
       nv;
-  Eigen::VectorXd d(nv), mass_f(n);
-  for (int i = 0; i < nv; ++i) d[i] = ops.D(i);
+  Eigen::VectorXd mass_f(n);
   for (int k = 0; k < n; ++k) mass_f[k] = ops.mass[free[k]];
-  // Right-hand side: -(Kt w)_F with w the held values (free entries zero).
-  Field w = u;
-  for (int v : free) w.row(v).setZero();
-  const Field Kw = apply_stiffness(mesh, ops, w);
-  Field DKw = Kw;
-  for (int i = 0; i < nv; ++i) DKw.row(i) *= d[i];
-  const Field KDKw = apply_stiffness(mesh, ops, DKw);
-  Eigen::MatrixXd b(n, m);
-  for (int k = 0; k < n; ++k) b.row(k) = -(p.g1 * Kw.row(free[k]) + p.g2 * KDKw.row(free[k]));
   // (g1 K + g2 K D K)_FF x, matrix-free over the whole mesh (the free set is nearly all
   // of it here): scatter x into a field that is zero on held vertices, apply K (both
   // cores for large meshes), scale by D, apply K again, gather the free rows.

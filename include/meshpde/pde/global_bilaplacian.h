@@ -2,13 +2,21 @@
 //
 //     (g1 K + g2 K D K)_FF u_F = -(Kt u_held)_F
 //
-// preconditioned by P^-1 = K_FF^-1 M_FF K_FF^-1 / g2, i.e. the bi-Laplacian written as
-// the square of the Laplacian (K D K = K M^-1 K), with one sparse Cholesky factor of
-// K_FF (about as sparse as K itself, where a factor of K D K has three times the
-// fill). K D K is applied matrix-free on both cores. Jacobi-CG's iteration count grows
-// like h^-2 under refinement; this one stays nearly flat (10, 13, 17, 20, 27 at 10k,
-// 41k, 164k, 655k, 2.6M vertices; docs/solvers.md). The g1 term is left out of the
-// preconditioner (it is a lower-order perturbation of g2 K D K).
+// Two preconditioners (docs/solvers.md has the measured tables):
+//  - LaplacianFactor (the default): P^-1 = K_FF^-1 M_FF K_FF^-1 / g2, the bi-Laplacian written as the
+//    square of the Laplacian (K D K = K M^-1 K), with one sparse Cholesky factor of
+//    K_FF (about as sparse as K itself, where a factor of K D K has three times the
+//    fill). Few iterations, but each costs four triangular sweeps over a factor that
+//    grows like n log n, and the factorization like n^1.5. The g1 term is left out of
+//    this preconditioner (a lower-order perturbation of g2 K D K). Robust on any mesh.
+//  - Multigrid: one W-cycle of the geometric surface multigrid of
+//    solvers/surface_multigrid.h per iteration. Setup and iterations cost O(#F), and on
+//    well-shaped meshes the iteration count stays nearly flat (17, 18, 19 at 10k, 41k,
+//    164k) and the solve is 2-3x faster than with the factor; on meshes with badly
+//    shaped triangles its Jacobi-Chebyshev smoothing is weak and it can be slower
+//    (fertility subdivided to 1.15M: 169 iterations). Not yet the default.
+// Jacobi-CG's iteration count grows like h^-2 under refinement; both of these stay
+// nearly flat.
 #pragma once
 
 #include <vector>
@@ -16,6 +24,7 @@
 #include "meshpde/mesh/mesh.h"
 #include "meshpde/operators/fem_operators.h"
 #include "meshpde/solvers/direct.h"
+#include "meshpde/solvers/surface_multigrid.h"
 
 namespace meshpde {
 
@@ -24,6 +33,9 @@ struct GlobalBilaplacianParams {
   double g2 = 1;            ///< bi-Laplacian weight (> 0)
   double tolerance = 1e-8;  ///< relative residual per component
   int max_iterations = 1000;
+  enum class Preconditioner { Multigrid, LaplacianFactor };
+  Preconditioner preconditioner = Preconditioner::LaplacianFactor;
+  SurfaceMultigridParams multigrid{};  ///< for Preconditioner::Multigrid
 };
 
 struct GlobalBilaplacianResult {
@@ -31,11 +43,14 @@ struct GlobalBilaplacianResult {
   int iterations = 0;
   double relative_residual = 0;  ///< worst component
   bool converged = false;
-  double setup_seconds = 0;    ///< assembly and factorization of K_FF
-  double solve_seconds = 0;    ///< the iterations
-  double factor_nonzeros = 0;  ///< nonzeros of the Cholesky factor of K_FF
-  /// Memory of the solve per vertex: the factor (12 bytes a nonzero), K_FF, and the
-  /// iteration's blocks (free rows x components: x, r, z, p, q; whole-mesh work fields).
+  double setup_seconds = 0;         ///< the multigrid hierarchy, or assembly and factorization of K_FF
+  double solve_seconds = 0;         ///< the iterations
+  double factor_nonzeros = 0;       ///< LaplacianFactor: nonzeros of the Cholesky factor of K_FF
+  std::vector<int> level_unknowns;  ///< Multigrid: free unknowns on each level, finest first
+  /// Memory of the solve per vertex. Multigrid: the hierarchy (matrices, prolongations,
+  /// coarsest factor, V-cycle blocks) and the iteration's blocks (x, r, z, p, q).
+  /// LaplacianFactor: the factor (12 bytes a nonzero), K_FF, the iteration's blocks
+  /// and whole-mesh work fields.
   double bytes_per_vertex = 0;
 };
 

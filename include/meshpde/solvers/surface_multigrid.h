@@ -1,0 +1,112 @@
+// Geometric surface multigrid for the steady bi-Laplacian
+//
+//     A = g1 K_FF + g2 (K D K)_FF          (#F x #F, SPD once a vertex is held)
+//
+// on the free vertices F of a mesh (everything else held at zero for the correction),
+// used as a preconditioner: one symmetric W-cycle per conjugate-gradient iteration.
+// Units follow K and D (fem_operators.h): A has units length^-2 for g2 = 1.
+//
+// Why geometric and not the algebraic multigrid of a Laplacian: an approximate K^-1
+// squared around M (the Laplacian-squared preconditioner of global_bilaplacian.h) is
+// not spectrally equivalent to the exact one, and smoothed aggregation on K D K builds
+// its coarse spaces from piecewise constants, which approximate nothing in the
+// bi-Laplacian's energy. Coarse spaces need linear precision (O(h^2) interpolation)
+// for a fourth-order operator; this hierarchy has it by construction (Wiersma et al.,
+// "A fast geometric multigrid method for curved surfaces", SIGGRAPH 2023, Gravo MG):
+//
+//   - coarse vertices: a maximal independent set of the level's graph (about 1 in 4);
+//   - every other vertex belongs to its nearest adjacent coarse vertex (a Voronoi-like
+//     cell); two coarse vertices are neighbours when their cells touch;
+//   - prolongation: a fine vertex takes the barycentric coordinates of its projection
+//     onto the tangent plane of its cell's coarse vertex c, in the triangle of c and
+//     two angularly consecutive coarse neighbours that contains it: linear functions
+//     of the tangent plane are reproduced exactly, constants everywhere;
+//   - held vertices stay in the hierarchy as coarse vertices of value zero (their
+//     columns are dropped), so interpolation decays to the held region as the error
+//     does;
+//   - coarse operators are Galerkin: A_1 = (K P)^T (g2 D) (K P) + g1 P^T K P, then
+//     A_{l+1} = P^T A_l P, so every level is SPD and the V-cycle is a symmetric
+//     positive definite preconditioner;
+//   - smoothing: Chebyshev polynomials in D_A^-1 A (Jacobi-scaled) on
+//     [lambda_max / smoothing_range, lambda_max], the same polynomial before and after
+//     the coarse correction; lambda_max by eight Lanczos steps (times 1.1: a power
+//     iteration's low estimate made the smoother amplify the top modes and CG stall);
+//   - W-cycle (cycle_index 2): each coarse level is corrected twice. With V-cycles the
+//     iteration count grew with the number of levels (22, 31, 43 at 10k, 41k, 164k;
+//     a two-grid stays at 16-17, so the coarse spaces are right and the V-cycle is
+//     what degrades, as it does for fourth-order problems), with W-cycles 17, 18, 19;
+//   - the coarsest level (at most coarsest_unknowns) is solved by sparse Cholesky.
+//
+// Limits, measured (docs/solvers.md): on well-shaped meshes the iteration count is
+// flat; on meshes with badly shaped triangles (obtuse and sliver triangles, as in
+// fertility-4k and its subdivisions) Jacobi-scaled smoothing is weak: even a two-grid
+// with exact nested interpolation needs about 120 iterations there.
+//
+// The finest level is applied as two sparse products with K on the free vertices and
+// their one-ring (nothing of K D K is assembled there), on both cores above 20k rows.
+// Cost and memory follow the free set, not the mesh: a drag region of 10k vertices
+// inside a 655k mesh builds a 10k hierarchy.
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/SparseCore>
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "meshpde/mesh/mesh.h"
+#include "meshpde/operators/fem_operators.h"
+#include "meshpde/solvers/cg.h"
+
+namespace meshpde {
+
+struct SurfaceMultigridParams {
+  int coarsest_unknowns = 2000;     ///< solve the coarsest level by Cholesky at or below this size
+  int max_levels = 20;              ///< at most this many levels (the finest included)
+  int smoothing_degree = 2;         ///< Chebyshev degree of each pre- and post-smoothing (coarse levels)
+  int finest_smoothing_degree = 1;  ///< the same on the finest level (each degree costs one apply there)
+  int cycle_index = 2;              ///< coarse corrections per level: 1 V-cycle, 2 W-cycle
+  double smoothing_range = 6;       ///< Chebyshev interval [lambda_max / range, lambda_max]
+};
+
+struct MultigridSolveResult {
+  int iterations = 0;
+  double relative_residual = 0;  ///< worst column, |b - A x| / |b|
+  bool converged = false;
+};
+
+class BilaplacianMultigrid {
+ public:
+  /// Builds the hierarchy for A = g1 K_FF + g2 (K D K)_FF on the listed free vertices.
+  /// \throw InputError for an invalid or repeated free vertex, g2 <= 0 or g1 < 0;
+  ///        SolverError if the coarsest level is not positive definite (a part of the
+  ///        free set that touches no held vertex).
+  BilaplacianMultigrid(const Mesh& mesh, const FemOperators& ops, std::span<const int> free, double g1, double g2,
+                       const SurfaceMultigridParams& params = {});
+  ~BilaplacianMultigrid();
+  BilaplacianMultigrid(BilaplacianMultigrid&&) noexcept;
+  BilaplacianMultigrid& operator=(BilaplacianMultigrid&&) noexcept;
+
+  /// Number of free vertices (rows of A); blocks are indexed in the order of `free`.
+  int unknowns() const;
+  /// Y = A X for an unknowns() x m block (row-major).
+  void apply(const Block& X, Block& Y) const;
+  /// Z = B R, one V-cycle (B approximates A^-1; symmetric positive definite).
+  void precondition(const Block& R, Block& Z) const;
+  /// Conjugate gradient on A X = B preconditioned by the V-cycle, from the given X
+  /// (every column its own step lengths, one apply and one V-cycle for all columns).
+  MultigridSolveResult solve(const Block& B, Block& X, double tolerance, int max_iterations = 500) const;
+
+  /// Free unknowns on each level, finest first.
+  std::vector<int> level_unknowns() const;
+  /// Bytes held by the hierarchy (matrices, prolongations, the coarsest factor, the
+  /// V-cycle's work blocks for `columns` right-hand sides).
+  double bytes(int columns = 3) const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace meshpde
