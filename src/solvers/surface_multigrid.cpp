@@ -160,6 +160,7 @@ std::pair<Nodes, RowSparse> coarsen(const Nodes& fine, Position&& position, Norm
   std::vector<Weight> weights;
   weights.reserve(static_cast<std::size_t>(fine.free_count) * 3);
   std::vector<Spoke> spokes;
+  Eigen::VectorXd fit_weights;
   constexpr double two_pi = 2 * std::numbers::pi;
   for (int c = 0; c < nc; ++c) {
     const Eigen::Vector3d xc = position(coarse.vertex[static_cast<std::size_t>(c)]);
@@ -179,6 +180,29 @@ std::pair<Nodes, RowSparse> coarsen(const Nodes& fine, Position&& position, Norm
       std::sort(spokes.begin(), spokes.end(), [](const Spoke& a, const Spoke& b) { return a.angle < b.angle; });
     }
     const int k = static_cast<int>(spokes.size());
+    // Minimum weighted-norm weights w (c first, then the spokes) with sum w = 1 and
+    // sum w q = p: w = Phi Q^T (Q Phi Q^T)^-1 (1, px, py), Q the 3 x (k+1) matrix of
+    // (1, q), Phi = diag(1 / (1 + |q|^2 / h^2)) favouring near nodes.
+    auto fan_fit = [&](double px, double py) {
+      Eigen::MatrixXd Q(3, k + 1);
+      Eigen::VectorXd phi(k + 1);
+      double h2 = 0;
+      for (const Spoke& sp : spokes) h2 += sp.x * sp.x + sp.y * sp.y;
+      h2 /= k;
+      Q.col(0) << 1, 0, 0;
+      phi[0] = 1;
+      for (int s2 = 0; s2 < k; ++s2) {
+        const Spoke& sp = spokes[static_cast<std::size_t>(s2)];
+        Q.col(s2 + 1) << 1, sp.x, sp.y;
+        phi[s2 + 1] = 1 / (1 + (sp.x * sp.x + sp.y * sp.y) / h2);
+      }
+      const Eigen::Matrix3d G = Q * phi.asDiagonal() * Q.transpose();
+      const Eigen::LDLT<Eigen::Matrix3d> ldlt(G);
+      if (ldlt.info() != Eigen::Success || !(ldlt.vectorD().minCoeff() > 1e-10 * ldlt.vectorD().maxCoeff()))
+        return false;  // the fan spans no plane (all spokes on a line)
+      fit_weights = phi.asDiagonal() * (Q.transpose() * ldlt.solve(Eigen::Vector3d(1, px, py)));
+      return true;
+    };
     for (int e = cell_off[c]; e < cell_off[c + 1]; ++e) {
       const int i = cell[static_cast<std::size_t>(e)];
       const int u = fine.unknown[static_cast<std::size_t>(i)];
@@ -202,16 +226,23 @@ std::pair<Nodes, RowSparse> coarsen(const Nodes& fine, Position&& position, Norm
         if (gap >= std::numbers::pi * (1 - 1e-9)) break;  // an open side: interpolate along a spoke
         const double det = a.x * b.y - a.y * b.x;
         double la = std::max((px * b.y - py * b.x) / det, 0.0), lb = std::max((a.x * py - a.y * px) / det, 0.0);
-        double lc = 1 - la - lb;
-        if (lc < 0) {  // beyond the far edge: its nearest point on that edge
-          const double s2 = la + lb;
-          la /= s2, lb /= s2, lc = 0;
-        }
-        add(c, lc);
+        const double lc = 1 - la - lb;
+        if (lc < -1e-9) break;  // beyond the far edge: the fan's fit below
+        add(c, std::max(lc, 0.0));
         add(a.node, la);
         add(b.node, lb);
         done = true;
         break;
+      }
+      if (!done && k >= 2 && fan_fit(px, py)) {
+        // Outside every triangle of the fan (beyond a far edge, or on an open side):
+        // the smallest weights, each damped by its spoke's length, over c and its whole
+        // fan that reproduce constants and the tangent plane's linear functions exactly
+        // (negative weights allowed), so linear precision holds here too.
+        add(c, fit_weights[0]);
+        for (int s2 = 0; s2 < k; ++s2)
+          add(spokes[static_cast<std::size_t>(s2)].node, fit_weights[static_cast<std::size_t>(s2) + 1]);
+        done = true;
       }
       if (!done) {
         // Along the spoke nearest in angle, clamped to the segment.
@@ -232,7 +263,7 @@ std::pair<Nodes, RowSparse> coarsen(const Nodes& fine, Position&& position, Norm
   std::vector<int> p_off(static_cast<std::size_t>(fine.free_count) + 1, 0), p_col;
   std::vector<double> p_val;
   for (const Weight& w : weights)
-    if (coarse.unknown[static_cast<std::size_t>(w.col)] >= 0 && w.w > 1e-12)
+    if (coarse.unknown[static_cast<std::size_t>(w.col)] >= 0 && std::abs(w.w) > 1e-12)
       ++p_off[static_cast<std::size_t>(w.row) + 1];
   for (int u = 0; u < fine.free_count; ++u) p_off[u + 1] += p_off[u];
   p_col.resize(static_cast<std::size_t>(p_off.back()));
@@ -241,13 +272,13 @@ std::pair<Nodes, RowSparse> coarsen(const Nodes& fine, Position&& position, Norm
     std::vector<int> fill(p_off.begin(), p_off.end() - 1);
     for (const Weight& w : weights) {
       const int col = coarse.unknown[static_cast<std::size_t>(w.col)];
-      if (col < 0 || !(w.w > 1e-12)) continue;
+      if (col < 0 || !(std::abs(w.w) > 1e-12)) continue;
       const int at = fill[static_cast<std::size_t>(w.row)]++;
       p_col[static_cast<std::size_t>(at)] = col;
       p_val[static_cast<std::size_t>(at)] = w.w;
     }
   }
-  // Columns in order within each row (at most three entries, all distinct nodes).
+  // Columns in order within each row (a few entries, all distinct nodes).
   for (int u = 0; u < fine.free_count; ++u)
     for (int a2 = p_off[u] + 1; a2 < p_off[u + 1]; ++a2)
       for (int b2 = a2; b2 > p_off[u] && p_col[static_cast<std::size_t>(b2 - 1)] > p_col[static_cast<std::size_t>(b2)];
@@ -280,7 +311,7 @@ struct BilaplacianMultigrid::Impl {
   Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> coarse;
 
   void apply(std::size_t l, const Block& X, Block& Y) const {
-    if (l > 0) return spmm(levels[l].A, X, Y);
+    if (l > 0 || levels[0].A.rows() > 0) return spmm(levels[l].A, X, Y);
     spmm(KRF, X, kx);
     if (g1 > 0) g1x = g1 * kx.topRows(nF);
     for (Eigen::Index i = 0; i < nR; ++i) kx.row(i) *= dR[i];
@@ -363,6 +394,55 @@ struct BilaplacianMultigrid::Impl {
     }
   }
 
+  // Gauss-Seidel sweeps on A x = b in place, rows in order (forward) or reversed; from
+  // x = 0 when `zero_start`.
+  void gauss_seidel(std::size_t l, const Block& b, Block& x, bool forward, bool zero_start) const {
+    const RowSparse& A = levels[l].A;
+    const Eigen::Index n = b.rows(), m = b.cols();
+    if (zero_start) x = Block::Zero(n, m);
+    const int* outer = A.outerIndexPtr();
+    const int* inner = A.innerIndexPtr();
+    const double* val = A.valuePtr();
+    const double* dinv = levels[l].inv_diag.data();
+    double* X = x.data();
+    const double* B = b.data();
+    std::array<double, 8> acc{};
+    const int sweeps = params.smoothing_degree;
+    for (int sweep = 0; sweep < sweeps; ++sweep)
+      for (Eigen::Index step = 0; step < n; ++step) {
+        const Eigen::Index i = forward ? step : n - 1 - step;
+        // acc: row i's residual with the current x_i; adding acc / A_ii to x_i zeroes it.
+        if (m <= 8) {
+          for (Eigen::Index c = 0; c < m; ++c) acc[static_cast<std::size_t>(c)] = B[i * m + c];
+          for (int k = outer[i]; k < outer[i + 1]; ++k) {
+            const double v = val[k];
+            const double* xr = X + static_cast<Eigen::Index>(inner[k]) * m;
+            for (Eigen::Index c = 0; c < m; ++c) acc[static_cast<std::size_t>(c)] -= v * xr[c];
+          }
+          for (Eigen::Index c = 0; c < m; ++c) X[i * m + c] += dinv[i] * acc[static_cast<std::size_t>(c)];
+        } else {
+          for (Eigen::Index c = 0; c < m; ++c) {
+            double r = B[i * m + c];
+            for (int k = outer[i]; k < outer[i + 1]; ++k) r -= val[k] * X[static_cast<Eigen::Index>(inner[k]) * m + c];
+            X[i * m + c] += dinv[i] * r;
+          }
+        }
+      }
+  }
+
+  void pre_smooth(std::size_t l, const Block& b, Block& x) const {
+    if (params.smoother == SurfaceMultigridParams::Smoother::GaussSeidel)
+      gauss_seidel(l, b, x, true, true);
+    else
+      smooth(l, b, x, true);
+  }
+  void post_smooth(std::size_t l, const Block& b, Block& x) const {
+    if (params.smoother == SurfaceMultigridParams::Smoother::GaussSeidel)
+      gauss_seidel(l, b, x, false, false);
+    else
+      smooth(l, b, x, false);
+  }
+
   void vcycle(std::size_t l, const Block& b, Block& x) const {
     if (l + 1 == levels.size()) {
       const Eigen::MatrixXd rhs = b;
@@ -371,7 +451,7 @@ struct BilaplacianMultigrid::Impl {
     }
     const Level& L = levels[l];
     const Level& C = levels[l + 1];
-    smooth(l, b, x, true);
+    pre_smooth(l, b, x);
     apply(l, x, L.t);
     L.r = b - L.t;
     spmm(L.Pt, L.r, C.b);
@@ -385,7 +465,7 @@ struct BilaplacianMultigrid::Impl {
     }
     spmm(L.P, C.x, L.t);
     x += L.t;
-    smooth(l, b, x, false);
+    post_smooth(l, b, x);
   }
 };
 
@@ -481,6 +561,13 @@ BilaplacianMultigrid::BilaplacianMultigrid(const Mesh& mesh, const FemOperators&
       for (RowSparse::InnerIterator it(m.KFR, i); it; ++it) a += it.value() * it.value() * m.dR[it.col()];
       a += g1 * ops.Kii[nodes.vertex[static_cast<std::size_t>(i)]];
       L0.inv_diag[i] = a > 0 ? 1 / a : 0;
+    }
+    if (params.smoother == SurfaceMultigridParams::Smoother::GaussSeidel) {
+      // Gauss-Seidel needs the rows: A_0 = K_FR (g2 D) K_RF + g1 K_FF (two-ring stencil).
+      const RowSparse DK = m.dR.asDiagonal() * m.KRF;
+      L0.A = m.KFR * DK;
+      if (g1 > 0) L0.A += RowSparse(g1 * RowSparse(m.KRF.topRows(m.nF)));
+      L0.A.makeCompressed();
     }
   }
   // Tangent planes: the least-squares plane of each vertex's one-ring (orientation

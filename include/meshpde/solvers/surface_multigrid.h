@@ -19,28 +19,38 @@
 //     cell); two coarse vertices are neighbours when their cells touch;
 //   - prolongation: a fine vertex takes the barycentric coordinates of its projection
 //     onto the tangent plane of its cell's coarse vertex c, in the triangle of c and
-//     two angularly consecutive coarse neighbours that contains it: linear functions
-//     of the tangent plane are reproduced exactly, constants everywhere;
+//     two angularly consecutive coarse neighbours that contains it; outside every
+//     triangle of that fan (beyond a far edge, on an open side at a boundary) the
+//     smallest weights over the whole fan that reproduce constants and the tangent
+//     plane's linear functions. Linear functions of the tangent plane are reproduced
+//     exactly, constants everywhere;
 //   - held vertices stay in the hierarchy as coarse vertices of value zero (their
 //     columns are dropped), so interpolation decays to the held region as the error
 //     does;
 //   - coarse operators are Galerkin: A_1 = (K P)^T (g2 D) (K P) + g1 P^T K P, then
-//     A_{l+1} = P^T A_l P, so every level is SPD and the V-cycle is a symmetric
+//     A_{l+1} = P^T A_l P, so every level is SPD and the cycle is a symmetric
 //     positive definite preconditioner;
-//   - smoothing: Chebyshev polynomials in D_A^-1 A (Jacobi-scaled) on
+//   - smoothing (Smoother::Chebyshev, the default): Chebyshev polynomials in D_A^-1 A (Jacobi-scaled) on
 //     [lambda_max / smoothing_range, lambda_max], the same polynomial before and after
 //     the coarse correction; lambda_max by eight Lanczos steps (times 1.1: a power
 //     iteration's low estimate made the smoother amplify the top modes and CG stall);
+//     or (Smoother::GaussSeidel) symmetric Gauss-Seidel on assembled rows;
 //   - W-cycle (cycle_index 2): each coarse level is corrected twice. With V-cycles the
 //     iteration count grew with the number of levels (22, 31, 43 at 10k, 41k, 164k;
 //     a two-grid stays at 16-17, so the coarse spaces are right and the V-cycle is
 //     what degrades, as it does for fourth-order problems), with W-cycles 17, 18, 19;
 //   - the coarsest level (at most coarsest_unknowns) is solved by sparse Cholesky.
 //
-// Limits, measured (docs/solvers.md): on well-shaped meshes the iteration count is
-// flat; on meshes with badly shaped triangles (obtuse and sliver triangles, as in
-// fertility-4k and its subdivisions) Jacobi-scaled smoothing is weak: even a two-grid
-// with exact nested interpolation needs about 120 iterations there.
+// Limits, measured (docs/solvers.md): on well-shaped meshes (icospheres, also with a
+// coarsening that is not the nested one) the iteration count is flat and the solve
+// is 2-4x faster than with the Laplacian factor. On real scanned and modelled meshes
+// (angles from 1-5 to 167-177 degrees) it is not: igea-134k 84 iterations, armadillo
+// 107, cow 217, the camel head (open boundary) 912, fertility-4k subdivided to 1.15M
+// 169, where the factor preconditioner needs 7-38. Neither the intrinsic Delaunay
+// operators, nor Gauss-Seidel, nor another coarse vertex order, nor the fan fit
+// above brought these to the sphere's figures; even a two-grid with exact nested
+// interpolation needs 55-83 iterations on subdivided fertility. So the global solver
+// keeps the factor preconditioner as its default.
 //
 // The finest level is applied as two sparse products with K on the free vertices and
 // their one-ring (nothing of K D K is assembled there), on both cores above 20k rows.
@@ -68,6 +78,12 @@ struct SurfaceMultigridParams {
   int finest_smoothing_degree = 1;  ///< the same on the finest level (each degree costs one apply there)
   int cycle_index = 2;              ///< coarse corrections per level: 1 V-cycle, 2 W-cycle
   double smoothing_range = 6;       ///< Chebyshev interval [lambda_max / range, lambda_max]
+  /// GaussSeidel: symmetric Gauss-Seidel (a forward sweep before the coarse correction,
+  /// a backward one after, `smoothing_degree` sweeps each), on one core, with the finest
+  /// level assembled; robust on meshes with obtuse and sliver triangles.
+  /// Chebyshev: polynomial smoothing (matrix-free on the finest level, both cores).
+  enum class Smoother { Chebyshev, GaussSeidel };
+  Smoother smoother = Smoother::Chebyshev;
 };
 
 struct MultigridSolveResult {
