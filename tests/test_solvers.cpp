@@ -738,6 +738,13 @@ TEST(Multigrid, BadRequestsAreRefusedInWords) {
   EXPECT_THROW(BilaplacianMultigrid(m, ops, std::vector<int>{1, 2, 1}, 0, 1), InputError);
   EXPECT_THROW(BilaplacianMultigrid(m, ops, std::vector<int>{1, 2, m.num_vertices()}, 0, 1), InputError);
   EXPECT_THROW(BilaplacianMultigrid(m, ops, std::vector<int>{1, 2}, 0, 0), InputError);
+  // No free vertex: nothing to solve, empty blocks out.
+  const BilaplacianMultigrid none(m, ops, std::vector<int>{}, 0, 1);
+  Block z;
+  none.precondition(Block(0, 3), z);
+  EXPECT_EQ(z.rows(), 0);
+  Block x0;
+  EXPECT_TRUE(none.solve(Block(0, 3), x0, 1e-8).converged);
   // Every vertex free and no Laplacian term: constants cost no energy, nothing to hold them.
   try {
     BilaplacianMultigrid(m, ops, all, 0, 1);

@@ -223,7 +223,7 @@ std::pair<Nodes, RowSparse> coarsen(const Nodes& fine, Position&& position, Norm
         if (gap <= 0) gap += two_pi;
         if (off < 0) off += two_pi;
         if (off > gap) continue;
-        if (gap >= std::numbers::pi * (1 - 1e-9)) break;  // an open side: interpolate along a spoke
+        if (gap >= std::numbers::pi * (1 - 1e-9)) break;  // an open side: the fan's fit below
         const double det = a.x * b.y - a.y * b.x;
         double la = std::max((px * b.y - py * b.x) / det, 0.0), lb = std::max((a.x * py - a.y * px) / det, 0.0);
         const double lc = 1 - la - lb;
@@ -295,7 +295,7 @@ std::pair<Nodes, RowSparse> coarsen(const Nodes& fine, Position&& position, Norm
 struct BilaplacianMultigrid::Impl {
   struct Level {
     int n = 0;
-    RowSparse A;               // assembled operator (levels below the finest)
+    RowSparse A;               // assembled operator (below the finest; the finest for Gauss-Seidel)
     Eigen::VectorXd inv_diag;  // 1 / A_ii
     double lambda_max = 0;     // of D_A^-1 A, with a 10 % margin
     RowSparse P, Pt;           // to the next coarser level (n x n_next) and back
@@ -443,7 +443,7 @@ struct BilaplacianMultigrid::Impl {
       smooth(l, b, x, false);
   }
 
-  void vcycle(std::size_t l, const Block& b, Block& x) const {
+  void cycle(std::size_t l, const Block& b, Block& x) const {
     if (l + 1 == levels.size()) {
       const Eigen::MatrixXd rhs = b;
       x = coarse.solve(rhs);
@@ -455,12 +455,12 @@ struct BilaplacianMultigrid::Impl {
     apply(l, x, L.t);
     L.r = b - L.t;
     spmm(L.Pt, L.r, C.b);
-    vcycle(l + 1, C.b, C.x);
+    cycle(l + 1, C.b, C.x);
     // W-cycle: more corrections of the coarse level (not of the coarsest, solved exactly).
     for (int k = 1; k < params.cycle_index && l + 2 < levels.size(); ++k) {
       apply(l + 1, C.x, C.t2);
       C.t2 = C.b - C.t2;
-      vcycle(l + 1, C.t2, C.e);
+      cycle(l + 1, C.t2, C.e);
       C.x += C.e;
     }
     spmm(L.P, C.x, L.t);
@@ -626,6 +626,7 @@ BilaplacianMultigrid::BilaplacianMultigrid(const Mesh& mesh, const FemOperators&
     m.levels.push_back(std::move(next));
     nodes = std::move(coarse_nodes);
   }
+  if (m.nF == 0) return;  // nothing to solve: apply and precondition return empty blocks
   // The coarsest level by sparse Cholesky (the finest itself for a small problem).
   Eigen::SparseMatrix<double> Ac;
   if (m.levels.size() == 1) {
@@ -661,7 +662,10 @@ void BilaplacianMultigrid::apply(const Block& X, Block& Y) const {
 }
 
 void BilaplacianMultigrid::precondition(const Block& R, Block& Z) const {
-  impl_->vcycle(0, R, Z);
+  if (impl_->nF > 0)
+    impl_->cycle(0, R, Z);
+  else
+    Z.resize(0, R.cols());
 }
 
 std::vector<int> BilaplacianMultigrid::level_unknowns() const {

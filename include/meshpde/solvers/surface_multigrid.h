@@ -108,16 +108,16 @@ class BilaplacianMultigrid {
   int unknowns() const;
   /// Y = A X for an unknowns() x m block (row-major).
   void apply(const Block& X, Block& Y) const;
-  /// Z = B R, one V-cycle (B approximates A^-1; symmetric positive definite).
+  /// Z = B R, one cycle (W by default; B approximates A^-1, symmetric positive definite).
   void precondition(const Block& R, Block& Z) const;
-  /// Conjugate gradient on A X = B preconditioned by the V-cycle, from the given X
-  /// (every column its own step lengths, one apply and one V-cycle for all columns).
+  /// Conjugate gradient on A X = B preconditioned by the cycle, from the given X
+  /// (every column its own step lengths, one apply and one cycle for all columns).
   MultigridSolveResult solve(const Block& B, Block& X, double tolerance, int max_iterations = 500) const;
 
   /// Free unknowns on each level, finest first.
   std::vector<int> level_unknowns() const;
   /// Bytes held by the hierarchy (matrices, prolongations, the coarsest factor, the
-  /// V-cycle's work blocks for `columns` right-hand sides).
+  /// cycle's work blocks for `columns` right-hand sides).
   double bytes(int columns = 3) const;
 
  private:
