@@ -337,18 +337,35 @@ TEST(Refinement, StopsWhenBackwardStableAndRefinesAnInexactSolve) {
   EXPECT_GT((inexact.solve(b) - x).norm(), 1e-4 * x.norm());  // the unrefined answer was off
 }
 
+namespace {
+
+// The global solvers' test problem on an icosphere: the top vertex moved, the far cap
+// below z = -0.95 held at zero, everything else free.
+struct GlobalProblem {
+  Mesh mesh;
+  FemOperators ops;
+  Field u;
+  std::vector<int> free;
+};
+
+GlobalProblem global_problem(int level) {
+  GlobalProblem g{make(icosphere(level)), {}, {}, {}};
+  g.ops = build_operators(g.mesh);
+  int handle = 0;
+  g.mesh.positions().col(2).maxCoeff(&handle);
+  g.u = Field::Zero(g.mesh.num_vertices(), 3);
+  g.u.row(handle) << 0.01, 0.02, 0.1;
+  for (int v = 0; v < g.mesh.num_vertices(); ++v)
+    if (v != handle && g.mesh.positions()(v, 2) > -0.95) g.free.push_back(v);
+  return g;
+}
+
+}  // namespace
+
 TEST(GlobalBilaplacian, IterationsStayFlatUnderRefinementAndMatchTheDirectSolve) {
   std::vector<int> iterations;
   for (int level : {3, 4, 5}) {
-    const Mesh m = make(icosphere(level));
-    const FemOperators ops = build_operators(m);
-    int handle = 0;
-    m.positions().col(2).maxCoeff(&handle);
-    Field u = Field::Zero(m.num_vertices(), 3);
-    u.row(handle) << 0.01, 0.02, 0.1;
-    std::vector<int> free;
-    for (int v = 0; v < m.num_vertices(); ++v)
-      if (v != handle && m.positions()(v, 2) > -0.95) free.push_back(v);  // far cap held at zero
+    const auto [m, ops, u, free] = global_problem(level);
     const GlobalBilaplacianResult r =
         solve_global_bilaplacian(m, ops, free, u, GlobalBilaplacianParams{.g1 = 0.1, .g2 = 1, .tolerance = 1e-10});
     ASSERT_TRUE(r.converged) << "level " << level;
@@ -678,15 +695,7 @@ TEST(Multigrid, CycleIsSymmetricPositiveDefiniteAndApplyIsTheBilaplacian) {
 TEST(Multigrid, IterationsStayFlatUnderRefinementAndMatchTheDirectSolve) {
   std::vector<int> iterations;
   for (int level : {4, 5, 6}) {
-    const Mesh m = make(icosphere(level));
-    const FemOperators ops = build_operators(m);
-    int handle = 0;
-    m.positions().col(2).maxCoeff(&handle);
-    Field u = Field::Zero(m.num_vertices(), 3);
-    u.row(handle) << 0.01, 0.02, 0.1;
-    std::vector<int> free;
-    for (int v : free_above(m, -0.95))
-      if (v != handle) free.push_back(v);
+    const auto [m, ops, u, free] = global_problem(level);
     GlobalBilaplacianParams p{.g1 = 0.1, .g2 = 1, .tolerance = 1e-10};
     p.preconditioner = GlobalBilaplacianParams::Preconditioner::Multigrid;
     const GlobalBilaplacianResult r = solve_global_bilaplacian(m, ops, free, u, p);
