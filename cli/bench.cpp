@@ -436,6 +436,13 @@ void add_bench_command(CLI::App& app) {
         j["global_bilap_direct_baseline_s_164k"] = direct_s;
         j["global_bilap_speedup_over_direct_164k"] = direct_s / pcg_s;
         j["global_bilap_mg_speedup_over_direct_164k"] = direct_s / j["global_bilap_mg_s_164k"].get<double>();
+        set_max_threads(1);
+        const auto t_mg_one = clock_type::now();
+        (void)solve_global_bilaplacian(m, o, free, u, mg_params);
+        j["global_bilap_mg_s_164k_1thread"] = seconds_since(t_mg_one);
+        set_max_threads(limit);
+        j["global_bilap_mg_speedup_2threads_164k"] =
+            j["global_bilap_mg_s_164k_1thread"].get<double>() / j["global_bilap_mg_s_164k"].get<double>();
         j["global_bilap_max_difference_164k"] = (r.values - x).cwiseAbs().maxCoeff() / x.cwiseAbs().maxCoeff();
       }
     }

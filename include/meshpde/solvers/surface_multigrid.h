@@ -49,8 +49,10 @@
 // 169, where the factor preconditioner needs 7-38. Neither the intrinsic Delaunay
 // operators, nor Gauss-Seidel, nor another coarse vertex order, nor the fan fit
 // above brought these to the sphere's figures; even a two-grid with exact nested
-// interpolation needs 55-83 iterations on subdivided fertility. So the global solver
-// keeps the factor preconditioner as its default.
+// interpolation needs 55-83 iterations on subdivided fertility, and 76 on the cow with
+// 16 Gauss-Seidel sweeps: the coarse spaces miss low-energy modes of the cotangent
+// bi-Laplacian on such meshes. So the global solver keeps the factor preconditioner
+// as its default.
 //
 // The finest level is applied as two sparse products with K on the free vertices and
 // their one-ring (nothing of K D K is assembled there), on both cores above 20k rows.
