@@ -640,7 +640,7 @@ TEST(DragSession, EditorPreviewFollowsTheHandleAndCorrectReplacesIt) {
 
 namespace {
 
-// The far cap below z = -0.9 held, the rest free (the global solver's benchmark problem).
+// The vertices above height z (free); the cap below it is held.
 std::vector<int> free_above(const Mesh& m, double z) {
   std::vector<int> free;
   for (int v = 0; v < m.num_vertices(); ++v)

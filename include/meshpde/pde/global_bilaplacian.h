@@ -10,11 +10,11 @@
 //    grows like n log n, and the factorization like n^1.5. The g1 term is left out of
 //    this preconditioner (a lower-order perturbation of g2 K D K). Robust on any mesh.
 //  - Multigrid: one W-cycle of the geometric surface multigrid of
-//    solvers/surface_multigrid.h per iteration. Setup and iterations cost O(#F), and on
-//    well-shaped meshes the iteration count stays nearly flat (17, 18, 19 at 10k, 41k,
-//    164k) and the solve is 2-3x faster than with the factor; on meshes with badly
-//    shaped triangles its Jacobi-Chebyshev smoothing is weak and it can be slower
-//    (fertility subdivided to 1.15M: 169 iterations). Not yet the default.
+//    solvers/surface_multigrid.h per iteration. Setup and iterations cost O(#F). On
+//    well-shaped meshes the iteration count stays nearly flat (15, 17, 19 at 10k, 41k,
+//    164k) and the solve is 3-4x faster than with the factor; on real meshes with
+//    obtuse triangles its coarse spaces are weak and it is slower (fertility
+//    subdivided to 1.15M: 170 iterations against 38). Not the default.
 // Jacobi-CG's iteration count grows like h^-2 under refinement; both of these stay
 // nearly flat.
 #pragma once
@@ -48,7 +48,7 @@ struct GlobalBilaplacianResult {
   double factor_nonzeros = 0;       ///< LaplacianFactor: nonzeros of the Cholesky factor of K_FF
   std::vector<int> level_unknowns;  ///< Multigrid: free unknowns on each level, finest first
   /// Memory of the solve per vertex. Multigrid: the hierarchy (matrices, prolongations,
-  /// coarsest factor, V-cycle blocks) and the iteration's blocks (x, r, z, p, q).
+  /// coarsest factor, cycle blocks) and the iteration's blocks (x, r, z, p, q).
   /// LaplacianFactor: the factor (12 bytes a nonzero), K_FF, the iteration's blocks
   /// and whole-mesh work fields.
   double bytes_per_vertex = 0;
