@@ -310,6 +310,16 @@ struct BilaplacianMultigrid::Impl {
   std::vector<Level> levels;
   Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> coarse;
 
+  // The finest operator assembled, A_0 = K_FR (g2 D) K_RF + g1 K_FF (two-ring stencil):
+  // for Gauss-Seidel, which needs its rows, and as the coarsest level of a small problem.
+  RowSparse assemble_finest() const {
+    const RowSparse DK = dR.asDiagonal() * KRF;
+    RowSparse A = KFR * DK;
+    if (g1 > 0) A += RowSparse(g1 * RowSparse(KRF.topRows(nF)));
+    A.makeCompressed();
+    return A;
+  }
+
   void apply(std::size_t l, const Block& X, Block& Y) const {
     if (l > 0 || levels[0].A.rows() > 0) return spmm(levels[l].A, X, Y);
     spmm(KRF, X, kx);
@@ -406,27 +416,18 @@ struct BilaplacianMultigrid::Impl {
     const double* dinv = levels[l].inv_diag.data();
     double* X = x.data();
     const double* B = b.data();
-    std::array<double, 8> acc{};
-    const int sweeps = params.smoothing_degree;
-    for (int sweep = 0; sweep < sweeps; ++sweep)
+    std::vector<double> acc(static_cast<std::size_t>(m));
+    for (int sweep = 0; sweep < params.smoothing_degree; ++sweep)
       for (Eigen::Index step = 0; step < n; ++step) {
         const Eigen::Index i = forward ? step : n - 1 - step;
         // acc: row i's residual with the current x_i; adding acc / A_ii to x_i zeroes it.
-        if (m <= 8) {
-          for (Eigen::Index c = 0; c < m; ++c) acc[static_cast<std::size_t>(c)] = B[i * m + c];
-          for (int k = outer[i]; k < outer[i + 1]; ++k) {
-            const double v = val[k];
-            const double* xr = X + static_cast<Eigen::Index>(inner[k]) * m;
-            for (Eigen::Index c = 0; c < m; ++c) acc[static_cast<std::size_t>(c)] -= v * xr[c];
-          }
-          for (Eigen::Index c = 0; c < m; ++c) X[i * m + c] += dinv[i] * acc[static_cast<std::size_t>(c)];
-        } else {
-          for (Eigen::Index c = 0; c < m; ++c) {
-            double r = B[i * m + c];
-            for (int k = outer[i]; k < outer[i + 1]; ++k) r -= val[k] * X[static_cast<Eigen::Index>(inner[k]) * m + c];
-            X[i * m + c] += dinv[i] * r;
-          }
+        for (Eigen::Index c = 0; c < m; ++c) acc[static_cast<std::size_t>(c)] = B[i * m + c];
+        for (int k = outer[i]; k < outer[i + 1]; ++k) {
+          const double v = val[k];
+          const double* xr = X + static_cast<Eigen::Index>(inner[k]) * m;
+          for (Eigen::Index c = 0; c < m; ++c) acc[static_cast<std::size_t>(c)] -= v * xr[c];
         }
+        for (Eigen::Index c = 0; c < m; ++c) X[i * m + c] += dinv[i] * acc[static_cast<std::size_t>(c)];
       }
   }
 
@@ -476,7 +477,8 @@ BilaplacianMultigrid::BilaplacianMultigrid(const Mesh& mesh, const FemOperators&
   if (!(g2 > 0) || !(g1 >= 0)) throw InputError("the bi-Laplacian multigrid needs g2 > 0 and g1 >= 0");
   if (params.smoothing_degree < 1 || !(params.smoothing_range > 1) || params.coarsest_unknowns < 1 ||
       params.max_levels < 1)
-    throw InputError("multigrid parameters: smoothing_degree >= 1, smoothing_range > 1, coarsest_unknowns >= 1");
+    throw InputError(
+        "multigrid parameters: smoothing_degree >= 1, smoothing_range > 1, coarsest_unknowns >= 1, max_levels >= 1");
   m.params = params;
   m.g1 = g1;
   m.g2 = g2;
@@ -562,22 +564,19 @@ BilaplacianMultigrid::BilaplacianMultigrid(const Mesh& mesh, const FemOperators&
       a += g1 * ops.Kii[nodes.vertex[static_cast<std::size_t>(i)]];
       L0.inv_diag[i] = a > 0 ? 1 / a : 0;
     }
-    if (params.smoother == SurfaceMultigridParams::Smoother::GaussSeidel) {
-      // Gauss-Seidel needs the rows: A_0 = K_FR (g2 D) K_RF + g1 K_FF (two-ring stencil).
-      const RowSparse DK = m.dR.asDiagonal() * m.KRF;
-      L0.A = m.KFR * DK;
-      if (g1 > 0) L0.A += RowSparse(g1 * RowSparse(m.KRF.topRows(m.nF)));
-      L0.A.makeCompressed();
-    }
+    if (params.smoother == SurfaceMultigridParams::Smoother::GaussSeidel) L0.A = m.assemble_finest();
   }
   // Tangent planes: the least-squares plane of each vertex's one-ring (orientation
   // does not matter here, and it needs nothing beyond the ring), computed when needed.
+  // Cached per node of the finest level (every coarse node is one), so memory follows
+  // the free set, not the mesh.
   const Positions& X = mesh.positions();
-  std::vector<Eigen::Vector3d> normals(static_cast<std::size_t>(nv));
-  std::vector<char> has_normal(static_cast<std::size_t>(nv), 0);
+  std::vector<Eigen::Vector3d> normals(static_cast<std::size_t>(m.nR));
+  std::vector<char> has_normal(static_cast<std::size_t>(m.nR), 0);
   auto position = [&](int v) -> Eigen::Vector3d { return X.row(v).transpose(); };
   auto normal = [&](int v) -> Eigen::Vector3d {
-    if (!has_normal[static_cast<std::size_t>(v)]) {
+    const auto at = static_cast<std::size_t>(local[static_cast<std::size_t>(v)]);
+    if (!has_normal[at]) {
       Eigen::Vector3d mean = X.row(v).transpose();
       for (int q = off[v]; q < off[v + 1]; ++q) mean += X.row(nbr[q]).transpose();
       mean /= (off[v + 1] - off[v] + 1);
@@ -588,10 +587,10 @@ BilaplacianMultigrid::BilaplacianMultigrid(const Mesh& mesh, const FemOperators&
       }
       Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
       es.computeDirect(cov);
-      normals[static_cast<std::size_t>(v)] = es.eigenvectors().col(0);
-      has_normal[static_cast<std::size_t>(v)] = 1;
+      normals[at] = es.eigenvectors().col(0);
+      has_normal[at] = 1;
     }
-    return normals[static_cast<std::size_t>(v)];
+    return normals[at];
   };
 
   // Coarser levels until the coarsest is small enough for a direct solve.
@@ -600,6 +599,7 @@ BilaplacianMultigrid::BilaplacianMultigrid(const Mesh& mesh, const FemOperators&
     const int nc = coarse_nodes.free_count;
     if (nc == 0 || nc > 0.85 * m.levels.back().n) break;  // no longer coarsening
     const std::size_t l = m.levels.size() - 1;
+    RowSparse Pt = P.transpose();
     RowSparse A;
     if (l == 0) {
       // A_1 = (K P)^T (g2 D) (K P) + g1 P^T K_FF P, the Galerkin product of the
@@ -608,16 +608,12 @@ BilaplacianMultigrid::BilaplacianMultigrid(const Mesh& mesh, const FemOperators&
       const RowSparse Gt = G.transpose();
       const RowSparse DG = m.dR.asDiagonal() * G;
       A = Gt * DG;
-      if (g1 > 0) {
-        const RowSparse Pt = P.transpose();
-        A += g1 * RowSparse(Pt * RowSparse(G.topRows(m.nF)));
-      }
+      if (g1 > 0) A += g1 * RowSparse(Pt * RowSparse(G.topRows(m.nF)));
     } else {
-      const RowSparse Pt = P.transpose();
       A = Pt * (m.levels[l].A * P);
     }
     m.levels[l].P = std::move(P);
-    m.levels[l].Pt = m.levels[l].P.transpose();
+    m.levels[l].Pt = std::move(Pt);
     Impl::Level next;
     next.n = nc;
     next.A = std::move(A);
@@ -630,11 +626,7 @@ BilaplacianMultigrid::BilaplacianMultigrid(const Mesh& mesh, const FemOperators&
   // The coarsest level by sparse Cholesky (the finest itself for a small problem).
   Eigen::SparseMatrix<double> Ac;
   if (m.levels.size() == 1) {
-    const RowSparse Gt = m.KFR;
-    const RowSparse DG = m.dR.asDiagonal() * m.KRF;
-    RowSparse A = Gt * DG;
-    if (g1 > 0) A += RowSparse(g1 * RowSparse(m.KRF.topRows(m.nF)));
-    Ac = A;
+    Ac = m.levels[0].A.rows() > 0 ? m.levels[0].A : m.assemble_finest();
   } else {
     Ac = m.levels.back().A;
   }
@@ -646,7 +638,8 @@ BilaplacianMultigrid::BilaplacianMultigrid(const Mesh& mesh, const FemOperators&
         "the bi-Laplacian on {} free vertices is not positive definite (its coarsest level of {} unknowns could not "
         "be factored): is there a connected part of the free set with no held vertex?",
         m.nF, Ac.rows()));
-  for (std::size_t l = 0; l + 1 < m.levels.size(); ++l) m.estimate_lambda_max(l);
+  if (params.smoother == SurfaceMultigridParams::Smoother::Chebyshev)
+    for (std::size_t l = 0; l + 1 < m.levels.size(); ++l) m.estimate_lambda_max(l);
 }
 
 BilaplacianMultigrid::~BilaplacianMultigrid() = default;

@@ -64,7 +64,6 @@
 #include <Eigen/SparseCore>
 #include <memory>
 #include <span>
-#include <string>
 #include <vector>
 
 #include "meshpde/mesh/mesh.h"
