@@ -795,3 +795,140 @@ TEST(Multigrid, RealMeshesConvergeToTheFactorSolvesAnswer) {
     }
   }
 }
+
+// ---- fill-reducing orderings and leading-block factors --------------------------
+
+#include <Eigen/OrderingMethods>
+
+#include "../src/core/index_map.h"
+#include "meshpde/solvers/ordering.h"
+
+namespace {
+
+// Nonzeros of the Cholesky factor of A taken in the order it is given.
+double factor_fill(const Eigen::SparseMatrix<double>& A) {
+  const Eigen::SimplicialLLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::NaturalOrdering<int>> llt(A);
+  EXPECT_EQ(llt.info(), Eigen::Success);
+  return static_cast<double>(llt.matrixL().nestedExpression().nonZeros());
+}
+
+// A drag region of about 3k vertices on the 41k icosphere, in the order the geodesic
+// ball finds them.
+std::vector<int> ordering_region(const Mesh& mesh) {
+  int top = 0;
+  mesh.positions().col(2).maxCoeff(&top);
+  return geodesic_ball(mesh, top, 0.6);
+}
+
+}  // namespace
+
+TEST(Ordering, IndexMapNumbersKeysInInsertionOrderAcrossGrowth) {
+  IndexMap map(2);  // grows several times below
+  std::vector<int> keys;
+  for (int k = 0; k < 5000; ++k) keys.push_back((k * 7919) % 1000003);
+  for (std::size_t k = 0; k < keys.size(); ++k) {
+    const auto [index, inserted] = map.insert(keys[k]);
+    EXPECT_TRUE(inserted);
+    EXPECT_EQ(index, static_cast<int>(k));
+  }
+  EXPECT_EQ(map.insert(keys[17]), std::make_pair(17, false));
+  EXPECT_EQ(map.size(), keys.size());
+  for (std::size_t k = 0; k < keys.size(); ++k) EXPECT_EQ(map.find(keys[k]), static_cast<int>(k));
+  EXPECT_EQ(map.find(3), -1);  // 3 is not a multiple of 7919 modulo 1000003 below 5000 steps
+  EXPECT_FALSE(map.contains(1000004));
+}
+
+TEST(Ordering, NestedDissectionIsAPermutationWithAmdLevelFill) {
+  const Mesh mesh = make(icosphere(6));
+  const FemOperators ops = build_operators(mesh);
+  const std::vector<int> region = ordering_region(mesh);
+  ASSERT_GT(region.size(), 2800u);
+  for (const int hops : {2, 1}) {
+    const PdeCoefficients c{.g0 = 0, .g1 = hops == 1 ? 1.0 : 0.0, .g2 = hops == 2 ? 1.0 : 0.0};
+    const std::vector<int> nd = nested_dissection_order(mesh, region, NestedDissectionParams{.separator_hops = hops});
+    std::vector<int> a = nd, b = region;
+    std::sort(a.begin(), a.end());
+    std::sort(b.begin(), b.end());
+    EXPECT_EQ(a, b) << "not a permutation of the region";
+    const Eigen::SparseMatrix<double> in_ball_order = assemble_steady_matrix(mesh, ops, c, region);
+    Eigen::AMDOrdering<int> amd;
+    Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> perm;
+    amd(in_ball_order, perm);
+    Eigen::SparseMatrix<double> in_amd_order;
+    in_amd_order = in_ball_order.selfadjointView<Eigen::Lower>().twistedBy(perm.inverse());
+    const double nd_fill = factor_fill(assemble_steady_matrix(mesh, ops, c, nd));
+    const double amd_fill = factor_fill(in_amd_order), ball_fill = factor_fill(in_ball_order);
+    std::printf("hops %d: factor nonzeros %.0f nested dissection, %.0f AMD, %.0f geodesic-ball order\n", hops, nd_fill,
+                amd_fill, ball_fill);
+    // Measured: K D K 218k against AMD's 205k, K 82k against 71k (its leaves keep the
+    // order given); on the 10k-vertex drag region of the bench it has 5 % less fill
+    // than AMD and 23 % fewer flops.
+    EXPECT_LE(nd_fill, 1.25 * amd_fill);
+    EXPECT_LE(nd_fill, 0.5 * ball_fill);
+    if (hops == 2) {
+      // One-layer separators do not separate K D K (it couples vertices two edges
+      // apart): the same recursion with them leaves more fill.
+      const std::vector<int> thin = nested_dissection_order(mesh, region, NestedDissectionParams{.separator_hops = 1});
+      const double thin_fill = factor_fill(assemble_steady_matrix(mesh, ops, c, thin));
+      std::printf("K D K in the one-hop order: %.0f\n", thin_fill);
+      EXPECT_GT(thin_fill, 1.1 * nd_fill);
+    }
+  }
+}
+
+TEST(Ordering, BadRequestsAreRefusedInWords) {
+  const Mesh mesh = make(icosphere(2));
+  auto message = [&](const std::vector<int>& v, const NestedDissectionParams& p) {
+    try {
+      (void)nested_dissection_order(mesh, v, p);
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string("accepted");
+  };
+  EXPECT_NE(message({1, 2, 1}, {}).find("vertex 1 is listed twice"), std::string::npos);
+  EXPECT_NE(message({1, mesh.num_vertices()}, {}).find("does not exist"), std::string::npos);
+  EXPECT_NE(message({1, 2}, NestedDissectionParams{.separator_hops = 3}).find("separator_hops"), std::string::npos);
+  EXPECT_NE(message({1, 2}, NestedDissectionParams{.leaf_size = 0}).find("leaf_size"), std::string::npos);
+  EXPECT_TRUE(nested_dissection_order(mesh, {}).empty());
+}
+
+TEST(Direct, LeadingBlockSolvesMatchFreshFactorizationsOfTheBlocks) {
+  const Mesh mesh = make(icosphere(6));
+  const FemOperators ops = build_operators(mesh);
+  int top = 0;
+  mesh.positions().col(2).maxCoeff(&top);
+  const std::vector<int> order = nested_dissection_order(mesh, geodesic_ball(mesh, top, 0.6));
+  const Eigen::SparseMatrix<double> A =
+      assemble_steady_matrix(mesh, ops, PdeCoefficients{.g0 = 0, .g1 = 0.1, .g2 = 1}, order);
+  const auto N = A.rows();
+  ASSERT_GT(N, 3000);
+  std::vector<SparseCholesky::Backend> backends{SparseCholesky::Backend::Eigen};
+  if (SparseCholesky::cholmod_available()) backends.push_back(SparseCholesky::Backend::Cholmod);
+  for (const auto backend : backends) {
+    LeadingBlockCholesky f(backend);
+    f.factorize(A);
+    EXPECT_EQ(f.size(), N);
+    EXPECT_GT(f.factor_nonzeros(), static_cast<double>(A.nonZeros()) / 2);
+    for (const Eigen::Index n : {N, N - 150, N / 2}) {
+      // The leading block by itself, factored afresh by the general solver.
+      const Eigen::SparseMatrix<double> block = A.topLeftCorner(n, n);
+      SparseCholesky fresh;
+      fresh.factorize(block);
+      const Eigen::MatrixXd B = Eigen::MatrixXd::Random(n, 3);
+      const Eigen::MatrixXd x = f.solve_leading(B), y = fresh.solve(B);
+      EXPECT_LE((x - y).norm(), 1e-8 * y.norm()) << f.backend_name() << " block " << n;
+      EXPECT_LE((block * x - B).norm(), 1e-8 * B.norm()) << f.backend_name() << " block " << n;
+    }
+    EXPECT_THROW((void)f.solve_leading(Eigen::MatrixXd::Zero(N + 1, 1)), SolverError);
+    Eigen::SparseMatrix<double> bad = A;
+    bad.coeffRef(7, 7) = -1;
+    try {
+      f.factorize(bad);
+      FAIL() << "indefinite matrix accepted";
+    } catch (const SolverError& e) {
+      EXPECT_NE(std::string(e.what()).find("not positive definite"), std::string::npos) << e.what();
+    }
+    EXPECT_THROW((void)f.solve_leading(Eigen::MatrixXd::Zero(N, 1)), SolverError);  // no factor now
+  }
+}

@@ -2,22 +2,30 @@
 
 #include <fmt/format.h>
 
-#include <Eigen/OrderingMethods>
-#include <Eigen/SparseCholesky>
 #include <algorithm>
 #include <queue>
 #include <unordered_map>
 #include <unordered_set>
 
+#include "../core/index_map.h"
 #include "meshpde/core/errors.h"
 #include "meshpde/pde/pde_session.h"
+#include "meshpde/solvers/direct.h"
+#include "meshpde/solvers/ordering.h"
 #include "meshpde/solvers/refinement.h"
 
 namespace meshpde {
 
 std::vector<int> geodesic_ball(const Mesh& mesh, int source, double radius) {
   const auto& V = mesh.positions();
-  std::unordered_map<int, double> dist{{source, 0.0}};
+  const auto off = mesh.offsets();
+  const auto nbr = mesh.neighbors();
+  // Tentative distances of the vertices reached so far, by local index (sized to the
+  // ball, not the mesh).
+  IndexMap index;
+  std::vector<double> dist;
+  index.insert(source);
+  dist.push_back(0.0);
   using Item = std::pair<double, int>;
   std::priority_queue<Item, std::vector<Item>, std::greater<>> heap;
   heap.emplace(0.0, source);
@@ -25,16 +33,20 @@ std::vector<int> geodesic_ball(const Mesh& mesh, int source, double radius) {
   while (!heap.empty()) {
     const auto [d, v] = heap.top();
     heap.pop();
-    if (d > dist[v]) continue;
+    if (d > dist[static_cast<std::size_t>(index.find(v))]) continue;  // a stale entry
     out.push_back(v);
-    for (int w : mesh.neighbors(v)) {
+    for (int q = off[v]; q < off[v + 1]; ++q) {
+      const int w = nbr[q];
       const double dw = d + (V.row(v) - V.row(w)).norm();
       if (dw >= radius) continue;
-      auto it = dist.find(w);
-      if (it == dist.end() || dw < it->second) {
-        dist[w] = dw;
-        heap.emplace(dw, w);
-      }
+      const auto [k, added] = index.insert(w);
+      if (added)
+        dist.push_back(dw);
+      else if (dw < dist[static_cast<std::size_t>(k)])
+        dist[static_cast<std::size_t>(k)] = dw;
+      else
+        continue;
+      heap.emplace(dw, w);
     }
   }
   return out;
@@ -103,16 +115,15 @@ DragResult drag_vertex(const Mesh& mesh, const FemOperators& ops, const DragPara
 }
 
 struct DragSession::Factor {
-  // Factored rows: the core of the region (AMD order), then, with a margin, the
+  // Factored rows: the core of the region (nested dissection order), then, with a margin, the
   // region's outermost ring and one ring outside it. Every `levels` entry is a leading
   // block that can be the region (its factor is the leading block of L).
   std::vector<int> vertices;
-  std::unordered_map<int, int> row;  // vertex -> row of `vertices`
-  Eigen::SparseMatrix<double> A;     // Kt on `vertices`, symmetric, both triangles
-  // Cholesky factor, read in place: L is column-major and compressed, each column's
-  // diagonal first and its rows ascending (Eigen's up-looking factorization fills the
-  // columns row by row).
-  Eigen::SimplicialLLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::NaturalOrdering<int>> llt;
+  IndexMap row;                   // vertex -> row of `vertices`
+  Eigen::SparseMatrix<double> A;  // Kt on `vertices`, symmetric, both triangles
+  // Cholesky factor in the order of `vertices`: every leading block's factor is the
+  // leading block of L.
+  LeadingBlockCholesky chol;
   std::vector<Eigen::Index> levels;  // possible region sizes, ascending
   std::size_t level = 0;             // levels[level] == active
   Eigen::Index active = 0;           // leading rows in use (the region)
@@ -129,31 +140,10 @@ struct DragSession::Factor {
     }
   }
 
-  // X = A_aa^-1 X for the leading `active` rows, with the leading block of L: a
-  // forward and a backward sweep that skip every entry below row `active`. The
-  // columns are swept together (row-major copy): L is read once for all of them, and
-  // reading L is what a sweep costs (about 1 M entries for a 10k-vertex region).
-  void solve_leading(Eigen::MatrixXd& X) const {
-    RowMajor Y = X;
-    switch (Y.cols()) {
-      case 1:
-        sweep<1>(Y);
-        break;
-      case 2:
-        sweep<2>(Y);
-        break;
-      case 3:
-        sweep<3>(Y);
-        break;
-      case 4:
-        sweep<4>(Y);
-        break;
-      default:
-        sweep<Eigen::Dynamic>(Y);
-    }
-    X = Y;
-  }
-  // Y = A_aa X on the leading rows.
+  // X = A_aa^-1 X for the leading `active` rows (all columns in one pass over L).
+  void solve_leading(Eigen::MatrixXd& X) const { X = chol.solve_leading(X); }
+  // Y = A_aa X on the leading rows (row-major copies: each entry of A updates all columns).
+  using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
   Eigen::MatrixXd multiply_leading(const Eigen::MatrixXd& X) const {
     const RowMajor Xr = X;
     RowMajor Y = RowMajor::Zero(active, X.cols());
@@ -170,60 +160,6 @@ struct DragSession::Factor {
         }
     }
     return Y;
-  }
-
- private:
-  using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
-  // The sweeps, with the column count M fixed at compile time where it is small. Row
-  // j's values are held in locals while its column is applied (the stores into other
-  // rows could alias them otherwise, and every entry would reload them).
-  template <int M>
-  void sweep(RowMajor& Y) const {
-    const Eigen::Index m = M == Eigen::Dynamic ? Y.cols() : M;
-    constexpr int kLocal = M == Eigen::Dynamic ? 1 : M;
-    double* y = Y.data();
-    const Eigen::SparseMatrix<double>& L = llt.matrixL().nestedExpression();
-    const int* outer = L.outerIndexPtr();
-    const int* inner = L.innerIndexPtr();
-    const double* val = L.valuePtr();
-    const auto n = static_cast<int>(active);
-    for (int j = 0; j < n; ++j) {
-      double* yj = y + j * m;
-      const double d = val[outer[j]];  // the diagonal is the first entry of its column
-      for (Eigen::Index c = 0; c < m; ++c) yj[c] /= d;
-      if constexpr (M == Eigen::Dynamic) {
-        for (int q = outer[j] + 1; q < outer[j + 1] && inner[q] < n; ++q) {
-          double* yi = y + static_cast<Eigen::Index>(inner[q]) * m;
-          for (Eigen::Index c = 0; c < m; ++c) yi[c] -= val[q] * yj[c];
-        }
-      } else {
-        double xj[kLocal];
-        for (int c = 0; c < M; ++c) xj[c] = yj[c];
-        for (int q = outer[j] + 1; q < outer[j + 1] && inner[q] < n; ++q) {
-          double* yi = y + static_cast<Eigen::Index>(inner[q]) * M;
-          for (int c = 0; c < M; ++c) yi[c] -= val[q] * xj[c];
-        }
-      }
-    }
-    for (int j = n - 1; j >= 0; --j) {
-      double* yj = y + j * m;
-      if constexpr (M == Eigen::Dynamic) {
-        for (int q = outer[j] + 1; q < outer[j + 1] && inner[q] < n; ++q) {
-          const double* yi = y + static_cast<Eigen::Index>(inner[q]) * m;
-          for (Eigen::Index c = 0; c < m; ++c) yj[c] -= val[q] * yi[c];
-        }
-      } else {
-        double sum[kLocal];
-        for (int c = 0; c < M; ++c) sum[c] = yj[c];
-        for (int q = outer[j] + 1; q < outer[j + 1] && inner[q] < n; ++q) {
-          const double* yi = y + static_cast<Eigen::Index>(inner[q]) * M;
-          for (int c = 0; c < M; ++c) sum[c] -= val[q] * yi[c];
-        }
-        for (int c = 0; c < M; ++c) yj[c] = sum[c];
-      }
-      const double d = val[outer[j]];
-      for (Eigen::Index c = 0; c < m; ++c) yj[c] /= d;
-    }
   }
 };
 
@@ -323,37 +259,29 @@ void DragSession::build(std::vector<int> free) {
     for (int v : free)
       if (!ring.count(v)) core.push_back(v);
   }
-  // Fill-reducing order of the core by itself (AMD on its own matrix).
-  const Eigen::SparseMatrix<double> AC = assemble_steady_matrix(mesh_, ops_, coef, core);
-  Eigen::AMDOrdering<int> amd;
-  Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> perm;
-  amd(AC, perm);  // perm.indices()[new position] = old position (Eigen's convention)
-  f->vertices.resize(core.size());
-  for (std::size_t k = 0; k < core.size(); ++k)
-    f->vertices[k] = core[static_cast<std::size_t>(perm.indices()[static_cast<Eigen::Index>(k)])];
+  // Fill-reducing order of the core by itself: nested dissection from positions and
+  // adjacency, so the matrix is assembled once, already in its final order.
+  f->vertices = nested_dissection_order(mesh_, core, NestedDissectionParams{.separator_hops = params_.g2 != 0 ? 2 : 1});
   f->vertices.insert(f->vertices.end(), inner.begin(), inner.end());
   f->vertices.insert(f->vertices.end(), outer.begin(), outer.end());
-  for (std::size_t k = 0; k < f->vertices.size(); ++k) f->row.emplace(f->vertices[k], static_cast<int>(k));
+  f->row = IndexMap(f->vertices.size());
+  for (int v : f->vertices) f->row.insert(v);  // row k for vertices[k]
   const auto n_core = static_cast<Eigen::Index>(core.size());
   const auto n_region = n_core + static_cast<Eigen::Index>(inner.size());
   if (!inner.empty()) f->levels.push_back(n_core);
   f->levels.push_back(n_region);
   if (!outer.empty()) f->levels.push_back(n_region + static_cast<Eigen::Index>(outer.size()));
   f->level = inner.empty() ? 0 : 1;
-  if (inner.empty() && outer.empty()) {
-    // The region's matrix in its new order: AC permuted (no second assembly).
-    // twistedBy(Q) puts entry (i, j) at (Q[i], Q[j]); Q = perm^-1 maps old to new.
-    f->A = AC.selfadjointView<Eigen::Lower>().twistedBy(perm.inverse());
-  } else {
-    f->A = assemble_steady_matrix(mesh_, ops_, coef, f->vertices);
-  }
+  f->A = assemble_steady_matrix(mesh_, ops_, coef, f->vertices);
   f->A.makeCompressed();  // the products read its arrays directly
-  f->llt.compute(f->A);
-  if (f->llt.info() != Eigen::Success)
+  try {
+    f->chol.factorize(f->A);
+  } catch (const SolverError&) {
     throw SolverError(
         fmt::format("the drag region's system ({} vertices) is not positive definite: does the region cover a "
                     "whole closed part of the mesh, or is a coefficient negative?",
                     f->vertices.size()));
+  }
   factor_ = std::move(f);
   ++factorizations_;
   activate();
@@ -370,8 +298,8 @@ void DragSession::activate() {
 }
 
 int DragSession::region_index(int v) const {
-  const auto it = factor_->row.find(v);
-  return it == factor_->row.end() || it->second >= factor_->active ? -1 : it->second;
+  const int k = factor_->row.find(v);
+  return k >= factor_->active ? -1 : k;
 }
 
 Eigen::VectorXd DragSession::coupling(int v) const {

@@ -7,10 +7,18 @@
 #include <limits>
 #include <numeric>
 
+#include "../core/index_map.h"
 #include "meshpde/core/errors.h"
+#include "meshpde/core/parallel.h"
 #include "meshpde/solvers/refinement.h"
 
 namespace meshpde {
+
+namespace {
+// Below this many columns a region's matrix is assembled on the calling thread (a 2k
+// region takes about a millisecond; waking a second thread is not worth it).
+constexpr int kParallelColumns = 4000;
+}  // namespace
 
 Eigen::SparseMatrix<double> assemble_steady_matrix(const Mesh& mesh, const FemOperators& ops, const PdeCoefficients& c,
                                                    const std::vector<int>& vertices,
@@ -22,15 +30,14 @@ Eigen::SparseMatrix<double> assemble_steady_matrix(const Mesh& mesh, const FemOp
   // S = F and its one ring, numbered locally (F first, in the order given): the only
   // hash lookups are these, one per adjacency slot of S's rows; the assembly below runs
   // on local numbers. Sized to the region, not the mesh.
-  std::unordered_map<int, int> local;
-  local.reserve(4 * static_cast<std::size_t>(n));
+  IndexMap local(2 * static_cast<std::size_t>(n));
   std::vector<int> S;
   S.reserve(2 * static_cast<std::size_t>(n));
   for (int v : vertices)
-    if (local.emplace(v, static_cast<int>(S.size())).second) S.push_back(v);
+    if (local.insert(v).second) S.push_back(v);
   for (int k = 0; k < n; ++k)
     for (int q = off[vertices[k]]; q < off[vertices[k] + 1]; ++q)
-      if (local.emplace(nbr[q], static_cast<int>(S.size())).second) S.push_back(nbr[q]);
+      if (local.insert(nbr[q]).second) S.push_back(nbr[q]);
   // Row s of K restricted to the free columns: (local free index, K value), diagonal first.
   std::vector<int> row_start(S.size() + 1, 0);
   std::vector<std::pair<int, double>> row_entries;
@@ -39,56 +46,76 @@ Eigen::SparseMatrix<double> assemble_steady_matrix(const Mesh& mesh, const FemOp
     const int i = S[r];
     if (r < static_cast<std::size_t>(n)) row_entries.emplace_back(static_cast<int>(r), ops.Kii[i]);
     for (int q = off[i]; q < off[i + 1]; ++q)
-      if (const auto it = local.find(nbr[q]); it != local.end() && it->second < n)
-        row_entries.emplace_back(it->second, ops.Kij[q]);
+      if (const int j = local.find(nbr[q]); j >= 0 && j < n) row_entries.emplace_back(j, ops.Kij[q]);
     row_start[r + 1] = static_cast<int>(row_entries.size());
   }
   // Column k of Kt_FF = g0 M + g1 K + g2 (K_SF)^T D_S K_SF, scattered into a dense work
-  // column; K is symmetric, so the free entries of row k are column k's.
-  std::vector<int> outer(static_cast<std::size_t>(n) + 1, 0), inner;
-  std::vector<double> values;
-  inner.reserve(20 * static_cast<std::size_t>(n));
-  values.reserve(20 * static_cast<std::size_t>(n));
-  std::vector<double> work(static_cast<std::size_t>(n), 0.0);
-  std::vector<char> touched(static_cast<std::size_t>(n), 0);
-  std::vector<int> pattern;
-  auto add = [&](int row, double value) {
-    if (!touched[row]) {
-      touched[row] = 1;
-      pattern.push_back(row);
-    }
-    work[row] += value;
+  // column; K is symmetric, so the free entries of row k are column k's. Columns are
+  // independent: with enough of them each thread assembles a contiguous block into its
+  // own arrays, and the blocks are concatenated in order.
+  struct ColumnBlock {
+    std::vector<int> inner;
+    std::vector<double> values;
   };
-  for (int k = 0; k < n; ++k) {
-    const int v = vertices[k];
-    pattern.clear();
-    add(k, c.g0 * ops.mass[v] + (extra ? extra_diagonal[v] : 0.0));
-    if (c.g1 != 0)
-      for (int e = row_start[k]; e < row_start[k + 1]; ++e) add(row_entries[e].first, c.g1 * row_entries[e].second);
-    if (c.g2 != 0) {
-      // (K_SF)^T D_S K_SF column k: every s with K_sk != 0 (k itself and its
-      // neighbours, all in S), then every free f with K_fs != 0.
-      auto through = [&](int s, double k_sk) {
-        const double w = c.g2 * k_sk * ops.D(S[s]);
-        for (int e = row_start[s]; e < row_start[s + 1]; ++e) add(row_entries[e].first, w * row_entries[e].second);
-      };
-      through(k, ops.Kii[v]);
-      for (int q = off[v]; q < off[v + 1]; ++q) through(local.at(nbr[q]), ops.Kij[q]);
+  [[maybe_unused]] const int threads = n >= kParallelColumns ? max_threads() : 1;
+  std::vector<ColumnBlock> blocks(static_cast<std::size_t>(threads));
+  std::vector<int> outer(static_cast<std::size_t>(n) + 1, 0);
+  auto assemble_block = [&](int t) {
+    const int k0 = static_cast<int>(static_cast<long>(n) * t / threads);
+    const int k1 = static_cast<int>(static_cast<long>(n) * (t + 1) / threads);
+    ColumnBlock& block = blocks[static_cast<std::size_t>(t)];
+    block.inner.reserve(20 * static_cast<std::size_t>(k1 - k0));
+    block.values.reserve(20 * static_cast<std::size_t>(k1 - k0));
+    std::vector<double> work(static_cast<std::size_t>(n), 0.0);
+    std::vector<char> touched(static_cast<std::size_t>(n), 0);
+    std::vector<int> pattern;
+    auto add = [&](int row, double value) {
+      if (!touched[row]) {
+        touched[row] = 1;
+        pattern.push_back(row);
+      }
+      work[row] += value;
+    };
+    for (int k = k0; k < k1; ++k) {
+      const int v = vertices[k];
+      pattern.clear();
+      add(k, c.g0 * ops.mass[v] + (extra ? extra_diagonal[v] : 0.0));
+      if (c.g1 != 0)
+        for (int e = row_start[k]; e < row_start[k + 1]; ++e) add(row_entries[e].first, c.g1 * row_entries[e].second);
+      if (c.g2 != 0) {
+        // (K_SF)^T D_S K_SF column k: every s with K_sk != 0 (k itself and its
+        // neighbours, all in S), then every free f with K_fs != 0.
+        auto through = [&](int s, double k_sk) {
+          const double w = c.g2 * k_sk * ops.D(S[s]);
+          for (int e = row_start[s]; e < row_start[s + 1]; ++e) add(row_entries[e].first, w * row_entries[e].second);
+        };
+        through(k, ops.Kii[v]);
+        for (int q = off[v]; q < off[v + 1]; ++q) through(local.find(nbr[q]), ops.Kij[q]);
+      }
+      std::sort(pattern.begin(), pattern.end());
+      for (int row : pattern) {
+        block.inner.push_back(row);
+        block.values.push_back(work[row]);
+        work[row] = 0;
+        touched[row] = 0;
+      }
+      outer[static_cast<std::size_t>(k) + 1] = static_cast<int>(pattern.size());
     }
-    std::sort(pattern.begin(), pattern.end());
-    for (int row : pattern) {
-      inner.push_back(row);
-      values.push_back(work[row]);
-      work[row] = 0;
-      touched[row] = 0;
-    }
-    outer[static_cast<std::size_t>(k) + 1] = static_cast<int>(inner.size());
-  }
+  };
+#ifdef MESHPDE_HAVE_OPENMP
+#pragma omp parallel for schedule(static, 1) if (threads > 1) num_threads(threads)
+#endif
+  for (int t = 0; t < threads; ++t) assemble_block(t);
+  for (int k = 0; k < n; ++k) outer[static_cast<std::size_t>(k) + 1] += outer[static_cast<std::size_t>(k)];
   Eigen::SparseMatrix<double> A(n, n);
-  A.resizeNonZeros(static_cast<Eigen::Index>(inner.size()));
+  A.resizeNonZeros(outer.back());
   std::copy(outer.begin(), outer.end(), A.outerIndexPtr());
-  std::copy(inner.begin(), inner.end(), A.innerIndexPtr());
-  std::copy(values.begin(), values.end(), A.valuePtr());
+  std::ptrdiff_t at = 0;
+  for (const ColumnBlock& block : blocks) {
+    std::copy(block.inner.begin(), block.inner.end(), A.innerIndexPtr() + at);
+    std::copy(block.values.begin(), block.values.end(), A.valuePtr() + at);
+    at += static_cast<std::ptrdiff_t>(block.inner.size());
+  }
   return A;
 }
 

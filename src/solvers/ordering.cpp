@@ -1,0 +1,85 @@
+#include "meshpde/solvers/ordering.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+
+#include "../core/index_map.h"
+#include "meshpde/core/errors.h"
+
+namespace meshpde {
+
+namespace {
+
+struct Dissection {
+  const Mesh& mesh;
+  const NestedDissectionParams& params;
+  std::vector<int> out;
+  std::vector<double> coordinate;  // scratch for the median
+
+  // Appends `part` (vertex ids) in nested dissection order.
+  void order(std::vector<int> part) {
+    if (static_cast<int>(part.size()) <= params.leaf_size) {
+      out.insert(out.end(), part.begin(), part.end());
+      return;
+    }
+    const auto& V = mesh.positions();
+    Eigen::Vector3d lo = V.row(part[0]).transpose(), hi = lo;
+    for (int v : part) {
+      lo = lo.cwiseMin(V.row(v).transpose());
+      hi = hi.cwiseMax(V.row(v).transpose());
+    }
+    int axis = 0;
+    (hi - lo).maxCoeff(&axis);
+    coordinate.resize(part.size());
+    for (std::size_t k = 0; k < part.size(); ++k) coordinate[k] = V(part[k], axis);
+    const auto mid = coordinate.begin() + static_cast<std::ptrdiff_t>(part.size() / 2);
+    std::nth_element(coordinate.begin(), mid, coordinate.end());
+    const double cut = *mid;
+    // Sides are defined for every mesh vertex (held ones too: K D K couples two free
+    // vertices through a held neighbour). A vertex joins the separator if a neighbour
+    // lies across the cut: from the lower side only for one hop, from both for two.
+    const auto off = mesh.offsets();
+    const auto nbr = mesh.neighbors();
+    std::vector<int> lower, upper, separator;
+    for (int v : part) {
+      const bool below = V(v, axis) < cut;
+      bool across = false;
+      if (below || params.separator_hops == 2)
+        for (int q = off[v]; q < off[v + 1] && !across; ++q) across = (V(nbr[q], axis) < cut) != below;
+      (across ? separator : below ? lower : upper).push_back(v);
+    }
+    if (lower.empty() || upper.empty()) {  // no cut that splits (a tiny or degenerate part)
+      out.insert(out.end(), part.begin(), part.end());
+      return;
+    }
+    part = {};  // free it before recursing
+    order(std::move(lower));
+    order(std::move(upper));
+    out.insert(out.end(), separator.begin(), separator.end());
+  }
+};
+
+}  // namespace
+
+std::vector<int> nested_dissection_order(const Mesh& mesh, const std::vector<int>& vertices,
+                                         const NestedDissectionParams& params) {
+  if (params.separator_hops != 1 && params.separator_hops != 2)
+    throw InputError(
+        fmt::format("nested dissection: separator_hops is {}; it must be 1 (K) or 2 (K D K)", params.separator_hops));
+  if (params.leaf_size < 1)
+    throw InputError(fmt::format("nested dissection: leaf_size is {}; it must be at least 1", params.leaf_size));
+  IndexMap seen(vertices.size());
+  for (int v : vertices) {
+    if (v < 0 || v >= mesh.num_vertices())
+      throw InputError(fmt::format("nested dissection: vertex {} does not exist (the mesh has {} vertices)", v,
+                                   mesh.num_vertices()));
+    if (!seen.insert(v).second) throw InputError(fmt::format("nested dissection: vertex {} is listed twice", v));
+  }
+  Dissection d{mesh, params, {}, {}};
+  d.out.reserve(vertices.size());
+  d.order(vertices);
+  return std::move(d.out);
+}
+
+}  // namespace meshpde
