@@ -485,6 +485,44 @@ TEST(DragSession, AddedHandlesAndGrownRegionsMatchFreshFactorizations) {
   EXPECT_EQ(plain.factorizations(), 2);
 }
 
+TEST(DragSession, LargeRegionsFactoredOnTwoThreadsMatchFreshFactorizations) {
+  // A region of about 3k vertices without margins: the split factor (both halves of
+  // the nested dissection at once) for the set-up, an added handle and a growth.
+  const GeneratedMesh g = icosphere(6);
+  const Mesh mesh(g.V, g.F);
+  const FemOperators ops = build_operators(mesh);
+  int h0 = 0;
+  mesh.positions().col(2).maxCoeff(&h0);
+  DragSession s(mesh, ops, {h0}, DragSessionParams{.radius = 0.6});
+  ASSERT_GT(s.region().size(), 2500u);
+  EXPECT_EQ(s.split_factor(), SplitCholesky::available());
+  int second = s.region()[0];
+  for (int v : s.region())  // a free vertex about 0.3 from the first handle
+    if (std::abs((mesh.positions().row(v) - mesh.positions().row(h0)).norm() - 0.3) <
+        std::abs((mesh.positions().row(second) - mesh.positions().row(h0)).norm() - 0.3))
+      second = v;
+  s.add_handle(second);
+  Eigen::MatrixXd moves(2, 3);
+  moves << 0.01, 0.02, 0.1, -0.03, 0, 0.05;
+  const double tol = 1e-9 * moves.norm();
+  std::vector<int> with_handles = s.region();
+  with_handles.push_back(h0);
+  EXPECT_LE(
+      (session_field(mesh, s, moves) - fresh_solve(mesh, ops, s.handles(), moves, with_handles)).cwiseAbs().maxCoeff(),
+      tol);
+  s.grow(1);
+  EXPECT_EQ(s.factorizations(), 2);
+  EXPECT_EQ(s.split_factor(), SplitCholesky::available());
+  with_handles = s.region();
+  with_handles.push_back(h0);
+  EXPECT_LE(
+      (session_field(mesh, s, moves) - fresh_solve(mesh, ops, s.handles(), moves, with_handles)).cwiseAbs().maxCoeff(),
+      tol);
+  EXPECT_LE(s.last_relative_residual(), 1e-10);
+  // With a margin the factor keeps its leading-block form (the ring ordered last).
+  EXPECT_FALSE(DragSession(mesh, ops, {h0}, DragSessionParams{.radius = 0.6, .margin = true}).split_factor());
+}
+
 TEST(DragSession, ShrunkRegionsReuseTheFactorAndMatchFreshFactorizations) {
   const GeneratedMesh g = icosphere(4);
   const Mesh mesh(g.V, g.F);
@@ -801,6 +839,7 @@ TEST(Multigrid, RealMeshesConvergeToTheFactorSolvesAnswer) {
 #include <Eigen/OrderingMethods>
 
 #include "../src/core/index_map.h"
+#include "meshpde/core/parallel.h"
 #include "meshpde/solvers/ordering.h"
 
 namespace {
@@ -931,4 +970,53 @@ TEST(Direct, LeadingBlockSolvesMatchFreshFactorizationsOfTheBlocks) {
     }
     EXPECT_THROW((void)f.solve_leading(Eigen::MatrixXd::Zero(N, 1)), SolverError);  // no factor now
   }
+}
+
+TEST(Direct, SplitFactorMatchesOneFactorOfTheWholeAndRefusesCoupledParts) {
+  if (!SplitCholesky::available()) GTEST_SKIP() << "built without CHOLMOD: no split factor";
+  const Mesh mesh = make(icosphere(6));
+  const FemOperators ops = build_operators(mesh);
+  const NestedDissection nd = nested_dissection(mesh, ordering_region(mesh));
+  ASSERT_GT(nd.parts[0], 1000u);
+  ASSERT_GT(nd.parts[1], 1000u);
+  const auto n1 = static_cast<Eigen::Index>(nd.parts[0]), n2 = static_cast<Eigen::Index>(nd.parts[1]);
+  const Eigen::SparseMatrix<double> A =
+      assemble_steady_matrix(mesh, ops, PdeCoefficients{.g0 = 0, .g1 = 0.1, .g2 = 1}, nd.order);
+  // The two halves are uncoupled in K D K: the top separator is two layers wide.
+  for (Eigen::Index j = 0; j < n1; ++j)
+    for (Eigen::SparseMatrix<double>::InnerIterator it(A, j); it; ++it)
+      ASSERT_FALSE(it.row() >= n1 && it.row() < n1 + n2) << "rows " << j << " and " << it.row() << " coupled";
+  SplitCholesky split;
+  split.factorize(A, n1, n2);
+  EXPECT_EQ(split.size(), A.rows());
+  LeadingBlockCholesky whole;
+  whole.factorize(A);
+  const Eigen::MatrixXd B = Eigen::MatrixXd::Random(A.rows(), 3);
+  const Eigen::MatrixXd x = split.solve(B), y = whole.solve_leading(B);
+  EXPECT_LE((x - y).norm(), 1e-9 * y.norm());
+  EXPECT_LE((A * x - B).norm(), 1e-9 * B.norm());
+  // Same answers on one thread (the parts one after the other).
+  set_max_threads(1);
+  SplitCholesky serial;
+  serial.factorize(A, n1, n2);
+  const Eigen::MatrixXd z = serial.solve(B);
+  set_max_threads(0);
+  EXPECT_LE((z - x).norm(), 1e-12 * x.norm());
+  auto message = [&](const Eigen::SparseMatrix<double>& M, Eigen::Index p1, Eigen::Index p2) {
+    try {
+      SplitCholesky s;
+      s.factorize(M, p1, p2);
+    } catch (const SolverError& e) {
+      return std::string(e.what());
+    }
+    return std::string("accepted");
+  };
+  EXPECT_NE(message(A, n1 + 50, n2 - 50).find("couple the two parts"), std::string::npos);
+  EXPECT_NE(message(A, n1, A.rows() - n1).find("leave no separator"), std::string::npos);
+  Eigen::SparseMatrix<double> bad = A;
+  bad.coeffRef(A.rows() - 3, A.rows() - 3) = -1e3;  // a separator row: the Schur complement fails
+  EXPECT_NE(message(bad, n1, n2).find("not positive definite"), std::string::npos);
+  bad = A;
+  bad.coeffRef(5, 5) = -1e3;  // a row of part 1: its CHOLMOD factor fails
+  EXPECT_NE(message(bad, n1, n2).find("not positive definite"), std::string::npos);
 }

@@ -122,8 +122,11 @@ struct DragSession::Factor {
   IndexMap row;                   // vertex -> row of `vertices`
   Eigen::SparseMatrix<double> A;  // Kt on `vertices`, symmetric, both triangles
   // Cholesky factor in the order of `vertices`: every leading block's factor is the
-  // leading block of L.
+  // leading block of L. Without margins (one level, the whole factor) and with enough
+  // rows, the two-thread split factor instead.
   LeadingBlockCholesky chol;
+  SplitCholesky split;
+  bool use_split = false;
   std::vector<Eigen::Index> levels;  // possible region sizes, ascending
   std::size_t level = 0;             // levels[level] == active
   Eigen::Index active = 0;           // leading rows in use (the region)
@@ -141,7 +144,7 @@ struct DragSession::Factor {
   }
 
   // X = A_aa^-1 X for the leading `active` rows (all columns in one pass over L).
-  void solve_leading(Eigen::MatrixXd& X) const { X = chol.solve_leading(X); }
+  void solve_leading(Eigen::MatrixXd& X) const { X = use_split ? split.solve(X) : chol.solve_leading(X); }
   // Y = A_aa X on the leading rows (row-major copies: each entry of A updates all columns).
   using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
   Eigen::MatrixXd multiply_leading(const Eigen::MatrixXd& X) const {
@@ -162,6 +165,13 @@ struct DragSession::Factor {
     return Y;
   }
 };
+
+namespace {
+// From this many core vertices (no margins) the region is factored on two threads
+// (SplitCholesky). Measured against one factor of the whole region, same runs: 867 rows
+// 1.0 against 1.2 ms, 1,950 rows 2.5 against 3.2 ms, 9,888 rows 11-13 against 15 ms.
+constexpr Eigen::Index kSplitFactorFrom = 1000;
+}  // namespace
 
 DragSession::~DragSession() = default;
 DragSession::DragSession(DragSession&&) noexcept = default;
@@ -260,8 +270,14 @@ void DragSession::build(std::vector<int> free) {
       if (!ring.count(v)) core.push_back(v);
   }
   // Fill-reducing order of the core by itself: nested dissection from positions and
-  // adjacency, so the matrix is assembled once, already in its final order.
-  f->vertices = nested_dissection_order(mesh_, core, NestedDissectionParams{.separator_hops = params_.g2 != 0 ? 2 : 1});
+  // adjacency, so the matrix is assembled once, already in its final order. Its top
+  // level splits the core in two uncoupled halves and a separator: without margins the
+  // halves are factored at the same time (SplitCholesky).
+  NestedDissection nd =
+      nested_dissection(mesh_, core, NestedDissectionParams{.separator_hops = params_.g2 != 0 ? 2 : 1});
+  f->use_split = inner.empty() && outer.empty() && SplitCholesky::available() &&
+                 static_cast<Eigen::Index>(core.size()) >= kSplitFactorFrom && nd.parts[1] > 0;
+  f->vertices = std::move(nd.order);
   f->vertices.insert(f->vertices.end(), inner.begin(), inner.end());
   f->vertices.insert(f->vertices.end(), outer.begin(), outer.end());
   f->row = IndexMap(f->vertices.size());
@@ -275,7 +291,10 @@ void DragSession::build(std::vector<int> free) {
   f->A = assemble_steady_matrix(mesh_, ops_, coef, f->vertices);
   f->A.makeCompressed();  // the products read its arrays directly
   try {
-    f->chol.factorize(f->A);
+    if (f->use_split)
+      f->split.factorize(f->A, static_cast<Eigen::Index>(nd.parts[0]), static_cast<Eigen::Index>(nd.parts[1]));
+    else
+      f->chol.factorize(f->A);
   } catch (const SolverError&) {
     throw SolverError(
         fmt::format("the drag region's system ({} vertices) is not positive definite: does the region cover a "
@@ -295,6 +314,10 @@ void DragSession::activate() {
   // factor, or in rows beyond the region) are held and enter through the right-hand side.
   for (std::size_t k = 0; k < handles_.size(); ++k) handle_in_region_[k] = region_index(handles_[k]) >= 0;
   compute_basis();
+}
+
+bool DragSession::split_factor() const {
+  return factor_->use_split;
 }
 
 int DragSession::region_index(int v) const {

@@ -16,7 +16,7 @@ namespace meshpde {
 
 namespace {
 // Below this many columns a region's matrix is assembled on the calling thread (a 2k
-// region takes about a millisecond; waking a second thread is not worth it).
+// region's K D K takes under 2 ms).
 constexpr int kParallelColumns = 4000;
 }  // namespace
 

@@ -3,6 +3,7 @@
 
 #include <fmt/format.h>
 
+#include <Eigen/Cholesky>
 #include <Eigen/SparseCholesky>
 #ifdef MESHPDE_HAVE_CHOLMOD
 #include <cholmod.h>
@@ -13,6 +14,7 @@
 #include <dlfcn.h>
 
 #include <algorithm>
+#include <exception>
 #ifdef MESHPDE_HAVE_OPENMP
 #include <omp.h>
 #endif
@@ -24,10 +26,11 @@ namespace meshpde {
 
 namespace {
 
-// Measured on the 2-core development machine (docs/solvers.md): below about 3,000
-// unknowns Eigen's simplicial factorization beats CHOLMOD's supernodal one; below about
-// 60,000 a single BLAS thread beats two (the supernodes are too small to share).
-constexpr Eigen::Index kSimplicialBelow = 3000;
+// Measured on the 2-core development machine (docs/solvers.md), bi-Laplacian drag
+// regions: below about 700 unknowns Eigen's simplicial factorization beats CHOLMOD's
+// supernodal one (504: 0.79 against 0.88 ms; 1,140: 2.8 against 2.2 ms); below about
+// 60,000 a second BLAS thread does not pay (128k: 1.75 s on one or two).
+constexpr Eigen::Index kSimplicialBelow = 700;
 constexpr Eigen::Index kOneBlasThreadBelow = 60000;
 
 // OpenBLAS (Debian's libopenblas0-pthread provides libblas.so.3) exports this; other
@@ -190,14 +193,17 @@ Eigen::MatrixXd SparseCholesky::solve(const Eigen::MatrixXd& B) const {
   return d.eigen.solve(B);
 }
 
-struct LeadingBlockCholesky::Impl {
-  SparseCholesky::Backend backend = SparseCholesky::Backend::Eigen;
-  Eigen::SimplicialLLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::NaturalOrdering<int>> eigen;
-  bool factored = false;
 #ifdef MESHPDE_HAVE_CHOLMOD
+namespace {
+
+// A CHOLMOD supernodal LL^T factor of a matrix in the order it is given (no
+// fill-reducing permutation, no postordering), with the sweeps and the trailing block
+// the leading-block and split factors need.
+struct CholmodInOrder {
   cholmod_common common{};
   cholmod_factor* L = nullptr;
-  Impl() {
+
+  CholmodInOrder() {
     cholmod_start(&common);
     common.print = 0;  // failures become SolverError in words, not lines on stderr
     // The given order, exactly: no fill-reducing method, no postordering (which could
@@ -213,18 +219,94 @@ struct LeadingBlockCholesky::Impl {
     common.nrelax[1] = 48;
     common.nrelax[2] = 144;
   }
-  ~Impl() {
+  ~CholmodInOrder() {
     if (L) cholmod_free_factor(&L, &common);
     cholmod_finish(&common);
   }
-  Impl(const Impl&) = delete;
-  Impl& operator=(const Impl&) = delete;
+  CholmodInOrder(const CholmodInOrder&) = delete;
+  CholmodInOrder& operator=(const CholmodInOrder&) = delete;
+
+  // Analyzes and factors A (compressed, symmetric; the lower triangle is read). Returns
+  // false if A is not positive definite. The caller sets the BLAS and OpenMP threads.
+  bool factorize(const Eigen::SparseMatrix<double>& A) {
+    if (L) cholmod_free_factor(&L, &common);
+    // A view of A's arrays (nothing copied); with stype -1 CHOLMOD reads the lower
+    // triangle and ignores the upper one.
+    cholmod_sparse view{};
+    view.nrow = view.ncol = static_cast<std::size_t>(A.rows());
+    view.nzmax = static_cast<std::size_t>(A.nonZeros());
+    view.p = const_cast<int*>(A.outerIndexPtr());
+    view.i = const_cast<int*>(A.innerIndexPtr());
+    view.x = const_cast<double*>(A.valuePtr());
+    view.stype = -1;
+    view.itype = CHOLMOD_INT;
+    view.xtype = CHOLMOD_REAL;
+    view.dtype = CHOLMOD_DOUBLE;
+    view.sorted = 1;
+    view.packed = 1;
+    L = cholmod_analyze(&view, &common);
+    if (!L) throw SolverError(fmt::format("direct solve: CHOLMOD's analysis failed (status {})", common.status));
+    // The order must be the given one: the leading-block solves rely on it.
+    const auto* perm = static_cast<const int*>(L->Perm);
+    for (std::size_t k = 0; k < L->n; ++k)
+      if (perm[k] != static_cast<int>(k)) throw SolverError("direct solve: CHOLMOD reordered a matrix given in order");
+    return cholmod_factorize(&view, L, &common) && common.status == CHOLMOD_OK && L->minor == L->n;
+  }
+
+  // Y = L^-1 Y (sys CHOLMOD_L) or L^-T Y (CHOLMOD_Lt), all columns in one sweep.
+  void sweep(int sys, Eigen::MatrixXd& Y) {
+    cholmod_dense b{};
+    b.nrow = b.d = static_cast<std::size_t>(Y.rows());
+    b.ncol = static_cast<std::size_t>(Y.cols());
+    b.nzmax = b.nrow * b.ncol;
+    b.x = Y.data();
+    b.xtype = CHOLMOD_REAL;
+    b.dtype = CHOLMOD_DOUBLE;
+    cholmod_dense* x = cholmod_solve(sys, L, &b, &common);
+    if (!x) throw SolverError("direct solve: a CHOLMOD triangular sweep failed");
+    Y = Eigen::Map<Eigen::MatrixXd>(static_cast<double*>(x->x), Y.rows(), Y.cols());
+    cholmod_free_dense(&x, &common);
+  }
+
+  // The trailing s x s block of L (lower triangular, dense), read from the supernodes.
+  Eigen::MatrixXd trailing_block(Eigen::Index s) const {
+    const auto n = static_cast<Eigen::Index>(L->n), first = n - s;
+    Eigen::MatrixXd C = Eigen::MatrixXd::Zero(s, s);
+    const auto* super = static_cast<const int*>(L->super);
+    const auto* pi = static_cast<const int*>(L->pi);
+    const auto* px = static_cast<const int*>(L->px);
+    const auto* rows = static_cast<const int*>(L->s);
+    const auto* x = static_cast<const double*>(L->x);
+    for (std::size_t k = 0; k < L->nsuper; ++k) {
+      if (super[k + 1] <= first) continue;
+      const int nsrow = pi[k + 1] - pi[k];
+      for (int j = std::max<int>(super[k], static_cast<int>(first)); j < super[k + 1]; ++j)
+        for (int q = j - super[k]; q < nsrow; ++q) {  // rows j and below (the diagonal block's lower part)
+          const int i = rows[pi[k] + q];
+          C(i - first, j - first) = x[px[k] + static_cast<std::ptrdiff_t>(j - super[k]) * nsrow + q];
+        }
+    }
+    return C;
+  }
+};
+
+}  // namespace
+#endif
+
+struct LeadingBlockCholesky::Impl {
+  SparseCholesky::Backend requested = SparseCholesky::Backend::Auto;
+  SparseCholesky::Backend backend = SparseCholesky::Backend::Eigen;
+  Eigen::SimplicialLLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::NaturalOrdering<int>> eigen;
+  bool factored = false;
+#ifdef MESHPDE_HAVE_CHOLMOD
+  CholmodInOrder cholmod;
 #endif
 };
 
 LeadingBlockCholesky::LeadingBlockCholesky(SparseCholesky::Backend backend) : impl_(std::make_unique<Impl>()) {
   if (backend == SparseCholesky::Backend::Cholmod && !SparseCholesky::cholmod_available())
     throw SolverError("CHOLMOD was requested but meshpde was built without it (install libsuitesparse-dev)");
+  impl_->requested = backend;
   impl_->backend = backend == SparseCholesky::Backend::Eigen || !SparseCholesky::cholmod_available()
                        ? SparseCholesky::Backend::Eigen
                        : SparseCholesky::Backend::Cholmod;
@@ -238,60 +320,55 @@ const char* LeadingBlockCholesky::backend_name() const {
   return impl_->backend == SparseCholesky::Backend::Cholmod ? "cholmod-supernodal" : "eigen-simplicial-llt";
 }
 
+namespace {
+
+// A compressed copy only when needed, and a check that every entry is finite.
+const Eigen::SparseMatrix<double>& checked(const Eigen::SparseMatrix<double>& A, Eigen::SparseMatrix<double>& copy) {
+  if (A.rows() != A.cols())
+    throw SolverError(fmt::format("direct solve: the matrix is {} x {}, not square", A.rows(), A.cols()));
+  const Eigen::SparseMatrix<double>* out = &A;
+  if (!A.isCompressed()) {
+    copy = A;
+    copy.makeCompressed();
+    out = &copy;
+  }
+  for (Eigen::Index k = 0; k < out->nonZeros(); ++k)
+    if (!std::isfinite(out->valuePtr()[k])) throw SolverError("direct solve: the matrix has a NaN or infinite entry");
+  return *out;
+}
+
+SolverError not_positive_definite(const char* backend) {
+  return SolverError(
+      fmt::format("direct solve ({}): the matrix is not positive definite (a part of the mesh "
+                  "without constraints, or a negative coefficient?)",
+                  backend));
+}
+
+}  // namespace
+
 void LeadingBlockCholesky::factorize(const Eigen::SparseMatrix<double>& A_in) {
-  if (A_in.rows() != A_in.cols())
-    throw SolverError(fmt::format("direct solve: the matrix is {} x {}, not square", A_in.rows(), A_in.cols()));
   Impl& d = *impl_;
   d.factored = false;
   size_ = 0;
-  const Eigen::SparseMatrix<double>* A = &A_in;
-  Eigen::SparseMatrix<double> compressed;
-  if (!A_in.isCompressed()) {
-    compressed = A_in;
-    compressed.makeCompressed();
-    A = &compressed;
-  }
-  for (Eigen::Index k = 0; k < A->nonZeros(); ++k)
-    if (!std::isfinite(A->valuePtr()[k])) throw SolverError("direct solve: the matrix has a NaN or infinite entry");
+  Eigen::SparseMatrix<double> copy;
+  const Eigen::SparseMatrix<double>& A = checked(A_in, copy);
+  if (d.requested == SparseCholesky::Backend::Auto)  // the size rule of SparseCholesky
+    d.backend = SparseCholesky::cholmod_available() && A.rows() >= kSimplicialBelow ? SparseCholesky::Backend::Cholmod
+                                                                                    : SparseCholesky::Backend::Eigen;
   bool ok = true;
 #ifdef MESHPDE_HAVE_CHOLMOD
   if (d.backend == SparseCholesky::Backend::Cholmod) {
-    if (d.L) cholmod_free_factor(&d.L, &d.common);
-    // A view of A's arrays (nothing copied); with stype -1 CHOLMOD reads the lower
-    // triangle and ignores the upper one.
-    cholmod_sparse view{};
-    view.nrow = view.ncol = static_cast<std::size_t>(A->rows());
-    view.nzmax = static_cast<std::size_t>(A->nonZeros());
-    view.p = const_cast<int*>(A->outerIndexPtr());
-    view.i = const_cast<int*>(A->innerIndexPtr());
-    view.x = const_cast<double*>(A->valuePtr());
-    view.stype = -1;
-    view.itype = CHOLMOD_INT;
-    view.xtype = CHOLMOD_REAL;
-    view.dtype = CHOLMOD_DOUBLE;
-    view.sorted = 1;
-    view.packed = 1;
-    set_blas_threads(blas_threads_for(A->rows()));
+    set_blas_threads(blas_threads_for(A.rows()));
     const SerialOpenMpRegions serial;
-    d.L = cholmod_analyze(&view, &d.common);
-    if (!d.L) throw SolverError(fmt::format("direct solve: CHOLMOD's analysis failed (status {})", d.common.status));
-    // The order must be the given one: the leading-block solves rely on it.
-    const auto* perm = static_cast<const int*>(d.L->Perm);
-    for (std::size_t k = 0; k < d.L->n; ++k)
-      if (perm[k] != static_cast<int>(k)) throw SolverError("direct solve: CHOLMOD reordered a matrix given in order");
-    ok = cholmod_factorize(&view, d.L, &d.common) && d.common.status == CHOLMOD_OK && d.L->minor == d.L->n;
+    ok = d.cholmod.factorize(A);
   }
 #endif
   if (d.backend == SparseCholesky::Backend::Eigen) {
-    d.eigen.compute(*A);
+    d.eigen.compute(A);
     ok = d.eigen.info() == Eigen::Success;
   }
-  if (!ok)
-    throw SolverError(
-        fmt::format("direct solve ({}): the matrix is not positive definite (a part of the mesh "
-                    "without constraints, or a negative coefficient?)",
-                    backend_name()));
-  size_ = A->rows();
+  if (!ok) throw not_positive_definite(backend_name());
+  size_ = A.rows();
   d.factored = true;
 }
 
@@ -299,13 +376,13 @@ double LeadingBlockCholesky::factor_nonzeros() const {
   const Impl& d = *impl_;
   if (!d.factored) return 0;
 #ifdef MESHPDE_HAVE_CHOLMOD
-  if (d.backend == SparseCholesky::Backend::Cholmod) return d.common.lnz;
+  if (d.backend == SparseCholesky::Backend::Cholmod) return d.cholmod.common.lnz;
 #endif
   return static_cast<double>(d.eigen.matrixL().nestedExpression().nonZeros());
 }
 
 Eigen::MatrixXd LeadingBlockCholesky::solve_leading(const Eigen::MatrixXd& B) const {
-  const Impl& d = *impl_;
+  Impl& d = *impl_;  // CHOLMOD's workspace changes in a solve, the factor does not
   if (!d.factored) throw SolverError("direct solve: solve_leading() before a successful factorize()");
   const Eigen::Index n = B.rows();
   if (n > size_) throw SolverError(fmt::format("direct solve: {} rows for a factor of {}", n, size_));
@@ -317,30 +394,186 @@ Eigen::MatrixXd LeadingBlockCholesky::solve_leading(const Eigen::MatrixXd& B) co
   if (d.backend == SparseCholesky::Backend::Cholmod) {
     set_blas_threads(1);  // as SparseCholesky::solve(): memory-bound sweeps
     const SerialOpenMpRegions serial;
-    auto& common = const_cast<cholmod_common&>(d.common);  // CHOLMOD's workspace, not the factor
-    cholmod_dense b{};
-    b.nrow = b.d = static_cast<std::size_t>(size_);
-    b.ncol = static_cast<std::size_t>(Y.cols());
-    b.nzmax = b.nrow * b.ncol;
-    b.x = Y.data();
-    b.xtype = CHOLMOD_REAL;
-    b.dtype = CHOLMOD_DOUBLE;
-    cholmod_dense* y = cholmod_solve(CHOLMOD_L, d.L, &b, &common);
-    if (!y) throw SolverError("direct solve: CHOLMOD's forward sweep failed");
-    Eigen::Map<Eigen::MatrixXd> ym(static_cast<double*>(y->x), size_, Y.cols());
-    ym.bottomRows(size_ - n).setZero();
-    cholmod_dense* x = cholmod_solve(CHOLMOD_Lt, d.L, y, &common);
-    cholmod_free_dense(&y, &common);
-    if (!x) throw SolverError("direct solve: CHOLMOD's backward sweep failed");
-    Eigen::MatrixXd out = Eigen::Map<Eigen::MatrixXd>(static_cast<double*>(x->x), size_, Y.cols()).topRows(n);
-    cholmod_free_dense(&x, &common);
-    return out;
+    d.cholmod.sweep(CHOLMOD_L, Y);
+    Y.bottomRows(size_ - n).setZero();
+    d.cholmod.sweep(CHOLMOD_Lt, Y);
+    return Y.topRows(n);
   }
 #endif
   d.eigen.matrixL().solveInPlace(Y);
   Y.bottomRows(size_ - n).setZero();
   d.eigen.matrixU().solveInPlace(Y);
   return Y.topRows(n);
+}
+
+namespace {
+
+// Runs f0 and f1 at the same time, each on one core, with one BLAS thread each; CHOLMOD's
+// own OpenMP regions inside them stay on their thread (nested regions are inactive at
+// one active level). One thread under set_max_threads(1). Exceptions are rethrown after
+// both have finished.
+template <class F0, class F1>
+void on_two_threads(F0&& f0, F1&& f1) {
+  std::exception_ptr e0, e1;
+  set_blas_threads(1);
+#ifdef MESHPDE_HAVE_OPENMP
+  const int threads = std::min(2, max_threads());
+  const int saved = omp_get_max_active_levels();
+  omp_set_max_active_levels(threads > 1 ? 1 : 0);
+#pragma omp parallel sections num_threads(threads)
+  {
+#pragma omp section
+    {
+      try {
+        f0();
+      } catch (...) {
+        e0 = std::current_exception();
+      }
+    }
+#pragma omp section
+    {
+      try {
+        f1();
+      } catch (...) {
+        e1 = std::current_exception();
+      }
+    }
+  }
+  omp_set_max_active_levels(saved);
+#else
+  try {
+    f0();
+  } catch (...) {
+    e0 = std::current_exception();
+  }
+  try {
+    f1();
+  } catch (...) {
+    e1 = std::current_exception();
+  }
+#endif
+  if (e0) std::rethrow_exception(e0);
+  if (e1) std::rethrow_exception(e1);
+}
+
+}  // namespace
+
+struct SplitCholesky::Impl {
+#ifdef MESHPDE_HAVE_CHOLMOD
+  CholmodInOrder part[2];
+#endif
+  Eigen::Index n1 = 0, n2 = 0, s = 0;
+  Eigen::MatrixXd C[2];               // trailing blocks of the parts' factors (lower)
+  Eigen::LLT<Eigen::MatrixXd> schur;  // of C1 C1^T + C2 C2^T - ASS
+  bool factored = false;
+};
+
+SplitCholesky::SplitCholesky() : impl_(std::make_unique<Impl>()) {}
+SplitCholesky::~SplitCholesky() = default;
+SplitCholesky::SplitCholesky(SplitCholesky&&) noexcept = default;
+SplitCholesky& SplitCholesky::operator=(SplitCholesky&&) noexcept = default;
+
+namespace {
+
+// The principal submatrix of A without the rows and columns [skip_begin, skip_end),
+// compressed. With `check_coupling`, a nonzero between a column before skip_begin and a
+// row in the skipped range throws.
+Eigen::SparseMatrix<double> principal_without(const Eigen::SparseMatrix<double>& A, Eigen::Index skip_begin,
+                                              Eigen::Index skip_end, bool check_coupling) {
+  const Eigen::Index n = A.rows(), skipped = skip_end - skip_begin;
+  Eigen::SparseMatrix<double> M(n - skipped, n - skipped);
+  M.reserve(A.nonZeros());
+  Eigen::Index column = 0;
+  for (Eigen::Index j = 0; j < n; ++j) {
+    if (j >= skip_begin && j < skip_end) continue;
+    M.startVec(column++);
+    for (Eigen::SparseMatrix<double>::InnerIterator it(A, j); it; ++it) {
+      const Eigen::Index i = it.row();
+      if (i >= skip_begin && i < skip_end) {
+        if (check_coupling && j < skip_begin && it.value() != 0)
+          throw SolverError(fmt::format("split factor: rows {} and {} couple the two parts", j, i));
+        continue;
+      }
+      M.insertBack(i < skip_begin ? i : i - skipped, column - 1) = it.value();
+    }
+  }
+  M.finalize();
+  return M;
+}
+
+}  // namespace
+
+void SplitCholesky::factorize(const Eigen::SparseMatrix<double>& A_in, Eigen::Index part1, Eigen::Index part2) {
+  Impl& d = *impl_;
+  d.factored = false;
+  size_ = 0;
+  if (!available()) throw SolverError("the split factor needs CHOLMOD, and meshpde was built without it");
+  Eigen::SparseMatrix<double> copy;
+  const Eigen::SparseMatrix<double>& A = checked(A_in, copy);
+  const Eigen::Index n = A.rows();
+  if (part1 < 1 || part2 < 1 || part1 + part2 >= n)
+    throw SolverError(
+        fmt::format("split factor: parts of {} and {} rows leave no separator in {} rows", part1, part2, n));
+  d.n1 = part1;
+  d.n2 = part2;
+  d.s = n - part1 - part2;
+#ifdef MESHPDE_HAVE_CHOLMOD
+  bool ok[2] = {false, false};
+  auto factor_part = [&](int k) {
+    // M1 skips part 2's rows; M2 skips part 1's.
+    const Eigen::SparseMatrix<double> M =
+        k == 0 ? principal_without(A, part1, part1 + part2, true) : principal_without(A, 0, part1, false);
+    ok[k] = d.part[k].factorize(M);
+    if (ok[k]) d.C[k] = d.part[k].trailing_block(d.s);
+  };
+  on_two_threads([&] { factor_part(0); }, [&] { factor_part(1); });
+  if (!ok[0] || !ok[1]) throw not_positive_definite("cholmod-supernodal, split");
+  Eigen::MatrixXd schur = -Eigen::MatrixXd(A.bottomRightCorner(d.s, d.s));
+  for (const Eigen::MatrixXd& C : d.C) schur.selfadjointView<Eigen::Lower>().rankUpdate(C);
+  d.schur.compute(schur);
+  if (d.schur.info() != Eigen::Success) throw not_positive_definite("cholmod-supernodal, split");
+#endif
+  size_ = n;
+  d.factored = true;
+}
+
+double SplitCholesky::factor_nonzeros() const {
+  const Impl& d = *impl_;
+  if (!d.factored) return 0;
+  double count = static_cast<double>(d.s * (d.s + 1) / 2);
+#ifdef MESHPDE_HAVE_CHOLMOD
+  for (const CholmodInOrder& p : d.part) count += p.common.lnz;
+#endif
+  return count;
+}
+
+Eigen::MatrixXd SplitCholesky::solve(const Eigen::MatrixXd& B) const {
+  Impl& d = *impl_;  // CHOLMOD's workspace changes in a solve, the factors do not
+  if (!d.factored) throw SolverError("direct solve: solve() before a successful factorize()");
+  if (B.rows() != size_) throw SolverError(fmt::format("direct solve: {} rows for a factor of {}", B.rows(), size_));
+  const Eigen::Index m = B.cols();
+  Eigen::MatrixXd out(size_, m);
+#ifdef MESHPDE_HAVE_CHOLMOD
+  // Part k's factor is [L_kk 0; L_Sk C_k]. Forward with [B_k; 0] gives y_k = L_kk^-1 B_k
+  // on top and w_k = -C_k^-1 L_Sk y_k below, so the separator's right-hand side after
+  // both parts is B_S + C_1 w_1 + C_2 w_2. Backward with [y_k; C_k^T x_S] gives
+  // x_k = L_kk^-T (y_k - L_Sk^T x_S) on top.
+  Eigen::MatrixXd Y[2];
+  const Eigen::Index begin[2] = {0, d.n1}, rows[2] = {d.n1, d.n2};
+  for (int k = 0; k < 2; ++k) {
+    Y[k] = Eigen::MatrixXd::Zero(rows[k] + d.s, m);
+    Y[k].topRows(rows[k]) = B.middleRows(begin[k], rows[k]);
+  }
+  on_two_threads([&] { d.part[0].sweep(CHOLMOD_L, Y[0]); }, [&] { d.part[1].sweep(CHOLMOD_L, Y[1]); });
+  Eigen::MatrixXd t = B.bottomRows(d.s);
+  for (int k = 0; k < 2; ++k) t += d.C[k].triangularView<Eigen::Lower>() * Y[k].bottomRows(d.s);
+  const Eigen::MatrixXd xs = d.schur.solve(t);
+  for (int k = 0; k < 2; ++k) Y[k].bottomRows(d.s) = d.C[k].triangularView<Eigen::Lower>().transpose() * xs;
+  on_two_threads([&] { d.part[0].sweep(CHOLMOD_Lt, Y[0]); }, [&] { d.part[1].sweep(CHOLMOD_Lt, Y[1]); });
+  for (int k = 0; k < 2; ++k) out.middleRows(begin[k], rows[k]) = Y[k].topRows(rows[k]);
+  out.bottomRows(d.s) = xs;
+#endif
+  return out;
 }
 
 }  // namespace meshpde

@@ -17,8 +17,9 @@ struct Dissection {
   std::vector<int> out;
   std::vector<double> coordinate;  // scratch for the median
 
-  // Appends `part` (vertex ids) in nested dissection order.
-  void order(std::vector<int> part) {
+  // Appends `part` (vertex ids) in nested dissection order. `sizes`, when given, gets
+  // the number of vertices of the two halves (0, 0 when the part is not split).
+  void order(std::vector<int> part, std::size_t* sizes = nullptr) {
     if (static_cast<int>(part.size()) <= params.leaf_size) {
       out.insert(out.end(), part.begin(), part.end());
       return;
@@ -54,6 +55,10 @@ struct Dissection {
       return;
     }
     part = {};  // free it before recursing
+    if (sizes) {
+      sizes[0] = lower.size();
+      sizes[1] = upper.size();
+    }
     order(std::move(lower));
     order(std::move(upper));
     out.insert(out.end(), separator.begin(), separator.end());
@@ -62,8 +67,8 @@ struct Dissection {
 
 }  // namespace
 
-std::vector<int> nested_dissection_order(const Mesh& mesh, const std::vector<int>& vertices,
-                                         const NestedDissectionParams& params) {
+NestedDissection nested_dissection(const Mesh& mesh, const std::vector<int>& vertices,
+                                   const NestedDissectionParams& params) {
   if (params.separator_hops != 1 && params.separator_hops != 2)
     throw InputError(
         fmt::format("nested dissection: separator_hops is {}; it must be 1 (K) or 2 (K D K)", params.separator_hops));
@@ -78,8 +83,16 @@ std::vector<int> nested_dissection_order(const Mesh& mesh, const std::vector<int
   }
   Dissection d{mesh, params, {}, {}};
   d.out.reserve(vertices.size());
-  d.order(vertices);
-  return std::move(d.out);
+  NestedDissection result;
+  d.order(vertices, result.parts);
+  if (result.parts[0] == 0 && result.parts[1] == 0) result.parts[0] = vertices.size();  // not split
+  result.order = std::move(d.out);
+  return result;
+}
+
+std::vector<int> nested_dissection_order(const Mesh& mesh, const std::vector<int>& vertices,
+                                         const NestedDissectionParams& params) {
+  return nested_dissection(mesh, vertices, params).order;
 }
 
 }  // namespace meshpde

@@ -132,8 +132,11 @@ class DragSession {
   const std::vector<int>& region() const { return region_; }
   /// Row of vertex v in region(), or -1.
   int region_index(int v) const;
-  const Eigen::MatrixXd& basis() const { return basis_; }      ///< region x handles
-  int factorizations() const { return factorizations_; }       ///< factors built so far
+  const Eigen::MatrixXd& basis() const { return basis_; }  ///< region x handles
+  int factorizations() const { return factorizations_; }   ///< factors built so far
+  /// Whether the current factor is the two-thread split one (SplitCholesky: a region
+  /// of at least 1,000 vertices without margins, CHOLMOD available).
+  bool split_factor() const;
   int solves() const { return solves_; }                       ///< solves with a factor so far
   double last_relative_residual() const { return residual_; }  ///< of the last solve, after refinement
 

@@ -50,9 +50,9 @@ class SparseCholesky {
 /// last. Used by local drags, whose region can shrink or grow by a ring without a new
 /// factor (apps/local_drag.h).
 ///
-/// Backend: CHOLMOD's supernodal LL^T when meshpde was built with it (Auto, Cholmod),
-/// else Eigen's simplicial LL^T. Every call makes a new analysis: the pattern of a drag
-/// region changes whenever the region does.
+/// Backend: CHOLMOD's supernodal LL^T when meshpde was built with it (Cholmod; Auto from
+/// 700 unknowns, as SparseCholesky), else Eigen's simplicial LL^T. Every factorize()
+/// makes a new analysis: the pattern of a drag region changes whenever the region does.
 class LeadingBlockCholesky {
  public:
   /// \throw SolverError when Cholmod is asked for but meshpde was built without it.
@@ -71,6 +71,47 @@ class LeadingBlockCholesky {
   Eigen::Index size() const { return size_; }  ///< rows of the factored matrix
   const char* backend_name() const;
   double factor_nonzeros() const;  ///< nonzeros of L (about 12 bytes each)
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+  Eigen::Index size_ = 0;
+};
+
+/// Cholesky factor of a matrix whose rows fall into two uncoupled parts and a separator
+/// (the top level of a nested dissection), in that order:
+///
+///     A = [A11 0 A1S; 0 A22 A2S; AS1 AS2 ASS]   (part 1, part 2, separator),
+///
+/// factored on two threads. CHOLMOD factors M1 = A on (part 1, separator) and M2 = A on
+/// (part 2, separator) at the same time, each in the order given. The trailing blocks
+/// C1, C2 of their factors satisfy C_i C_i^T = ASS - AS_i A_ii^-1 A_iS, so the
+/// separator's Schur complement is C1 C1^T + C2 C2^T - ASS, a small dense matrix
+/// (about 2 sqrt(n) rows for a disc of K D K) factored by Eigen. A solve sweeps the two
+/// parts' factors at the same time and joins them through the separator. Each part
+/// repeats the separator's rows, so the gain is short of 2x: on the 10k-vertex drag
+/// region 11-13 ms against 15 ms for one CHOLMOD factor of all of A (docs/solvers.md).
+/// Needs CHOLMOD (available()).
+class SplitCholesky {
+ public:
+  SplitCholesky();
+  ~SplitCholesky();
+  SplitCholesky(SplitCholesky&&) noexcept;
+  SplitCholesky& operator=(SplitCholesky&&) noexcept;
+
+  /// Whether meshpde was built with CHOLMOD (which this factor needs).
+  static bool available() { return SparseCholesky::cholmod_available(); }
+
+  /// Factors A (symmetric, both triangles stored) whose first `part1` rows and next
+  /// `part2` rows are not coupled. \throw SolverError (in words) if CHOLMOD is missing,
+  /// the sizes do not leave a separator, the parts are coupled, or A is not finite or
+  /// not positive definite.
+  void factorize(const Eigen::SparseMatrix<double>& A, Eigen::Index part1, Eigen::Index part2);
+  /// X = A^-1 B (B has size() rows). \pre factorize() succeeded.
+  Eigen::MatrixXd solve(const Eigen::MatrixXd& B) const;
+
+  Eigen::Index size() const { return size_; }
+  double factor_nonzeros() const;  ///< both parts' factors and the dense separator block
 
  private:
   struct Impl;

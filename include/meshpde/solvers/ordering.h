@@ -37,4 +37,15 @@ struct NestedDissectionParams {
 std::vector<int> nested_dissection_order(const Mesh& mesh, const std::vector<int>& vertices,
                                          const NestedDissectionParams& params = {});
 
+/// The same order with its top level: order is part 1 (parts[0] vertices), then part 2
+/// (parts[1]), then their separator, and no matrix row couples the two parts (what
+/// SplitCholesky needs). parts = {#vertices, 0} when the region was not split (at most
+/// leaf_size vertices, or no cut splits it).
+struct NestedDissection {
+  std::vector<int> order;
+  std::size_t parts[2] = {0, 0};
+};
+NestedDissection nested_dissection(const Mesh& mesh, const std::vector<int>& vertices,
+                                   const NestedDissectionParams& params = {});
+
 }  // namespace meshpde
