@@ -19,6 +19,8 @@
 #include "meshpde/pde/global_bilaplacian.h"
 #include "meshpde/pde/pde_session.h"
 #include "meshpde/pde/steady_direct.h"
+#include "meshpde/solvers/direct.h"
+#include "meshpde/solvers/ordering.h"
 
 namespace meshpde::cli {
 
@@ -240,6 +242,30 @@ void add_bench_command(CLI::App& app) {
                                    SparseCholesky::Backend::Eigen);
       });
       j["drag_setup_baseline_ms_eigen_simplicial"] = eigen_setup_s * 1e3;
+      j["drag_split_factor"] = session->split_factor();
+      {
+        // The factorization alone, region in nested dissection order: the two halves at
+        // once (SplitCholesky, what the session uses) against one CHOLMOD factor of the
+        // whole region (LeadingBlockCholesky), same matrix, interleaved.
+        const NestedDissection nd = nested_dissection(big, free);
+        const Eigen::SparseMatrix<double> A =
+            assemble_steady_matrix(big, big_ops, PdeCoefficients{.g0 = 0, .g1 = 0, .g2 = 1}, nd.order);
+        double split_best = 1e30, whole_best = 1e30;
+        for (int r = 0; r < (*quick ? 2 : 5); ++r) {
+          auto t = clock_type::now();
+          if (SplitCholesky::available() && nd.parts[1] > 0) {
+            SplitCholesky f;
+            f.factorize(A, static_cast<Eigen::Index>(nd.parts[0]), static_cast<Eigen::Index>(nd.parts[1]));
+            split_best = std::min(split_best, seconds_since(t));
+          }
+          t = clock_type::now();
+          LeadingBlockCholesky f;
+          f.factorize(A);
+          whole_best = std::min(whole_best, seconds_since(t));
+        }
+        if (split_best < 1e30) j["drag_factor_ms_10k_region_split"] = split_best * 1e3;
+        j["drag_factor_ms_10k_region_one_factor"] = whole_best * 1e3;
+      }
       std::unique_ptr<DragSession> with_margin;
       j["drag_setup_ms_10k_region_with_margin"] =
           best_of(*quick ? 2 : 4,

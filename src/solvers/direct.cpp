@@ -519,17 +519,21 @@ void SplitCholesky::factorize(const Eigen::SparseMatrix<double>& A_in, Eigen::In
   d.s = n - part1 - part2;
 #ifdef MESHPDE_HAVE_CHOLMOD
   bool ok[2] = {false, false};
+  Eigen::MatrixXd gram[2];
   auto factor_part = [&](int k) {
     // M1 skips part 2's rows; M2 skips part 1's.
     const Eigen::SparseMatrix<double> M =
         k == 0 ? principal_without(A, part1, part1 + part2, true) : principal_without(A, 0, part1, false);
     ok[k] = d.part[k].factorize(M);
-    if (ok[k]) d.C[k] = d.part[k].trailing_block(d.s);
+    if (!ok[k]) return;
+    d.C[k] = d.part[k].trailing_block(d.s);
+    // C_k C_k^T (lower half) on this part's thread: C_k is triangular, so only the
+    // product of its lower triangle with its transpose is formed.
+    gram[k] = d.C[k].triangularView<Eigen::Lower>() * d.C[k].transpose();
   };
   on_two_threads([&] { factor_part(0); }, [&] { factor_part(1); });
   if (!ok[0] || !ok[1]) throw not_positive_definite("cholmod-supernodal, split");
-  Eigen::MatrixXd schur = -Eigen::MatrixXd(A.bottomRightCorner(d.s, d.s));
-  for (const Eigen::MatrixXd& C : d.C) schur.selfadjointView<Eigen::Lower>().rankUpdate(C);
+  const Eigen::MatrixXd schur = gram[0] + gram[1] - Eigen::MatrixXd(A.bottomRightCorner(d.s, d.s));
   d.schur.compute(schur);
   if (d.schur.info() != Eigen::Success) throw not_positive_definite("cholmod-supernodal, split");
 #endif
