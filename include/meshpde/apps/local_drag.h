@@ -83,12 +83,13 @@ struct DragSessionParams {
   double g2 = 1;      ///< plate (bi-Laplacian) stiffness
   /// Factor one ring outside the region at set-up, ordered last, so that grow(1) needs
   /// no new factor. Costs set-up time: the ring's rows fill in against the region's top
-  /// separators (10k-vertex region: set-up 141 ms instead of 76 ms, then growth 3.8 ms
-  /// instead of 97 ms; docs/solvers.md).
+  /// separators, and the factor is one piece, not the two-thread split (10k-vertex
+  /// region: set-up 33 ms instead of 20 ms, then growth 3.8 ms instead of 28 ms;
+  /// docs/solvers.md).
   bool margin = false;
   /// Order the region's own outermost ring last, so that shrink(1) needs no new factor
-  /// (10k-vertex region: set-up 146 ms, then shrinking 3.7 ms instead of 85 ms; both
-  /// margins together: set-up 280 ms).
+  /// (10k-vertex region: set-up 35 ms, then shrinking 4.1 ms instead of 25 ms; both
+  /// margins together: set-up 60 ms).
   bool inner_margin = false;
 };
 
