@@ -41,7 +41,7 @@ void set_blas_threads(int n) {
   if (fn) fn(n);
 }
 
-int blas_threads_for(Eigen::Index n) {
+[[maybe_unused]] int blas_threads_for(Eigen::Index n) {  // unused without CHOLMOD
   return n < kOneBlasThreadBelow ? 1 : max_threads();
 }
 
@@ -478,8 +478,9 @@ namespace {
 // The principal submatrix of A without the rows and columns [skip_begin, skip_end),
 // compressed. With `check_coupling`, a nonzero between a column before skip_begin and a
 // row in the skipped range throws.
-Eigen::SparseMatrix<double> principal_without(const Eigen::SparseMatrix<double>& A, Eigen::Index skip_begin,
-                                              Eigen::Index skip_end, bool check_coupling) {
+[[maybe_unused]] Eigen::SparseMatrix<double> principal_without(const Eigen::SparseMatrix<double>& A,
+                                                               Eigen::Index skip_begin, Eigen::Index skip_end,
+                                                               bool check_coupling) {
   const Eigen::Index n = A.rows(), skipped = skip_end - skip_begin;
   Eigen::SparseMatrix<double> M(n - skipped, n - skipped);
   M.reserve(A.nonZeros());
