@@ -528,8 +528,8 @@ void SplitCholesky::factorize(const Eigen::SparseMatrix<double>& A_in, Eigen::In
     ok[k] = d.part[k].factorize(M);
     if (!ok[k]) return;
     d.C[k] = d.part[k].trailing_block(d.s);
-    // C_k C_k^T (lower half) on this part's thread: C_k is triangular, so only the
-    // product of its lower triangle with its transpose is formed.
+    // C_k C_k^T on this part's thread, reading only C_k's lower triangle (the rest of
+    // the block is zero).
     gram[k] = d.C[k].triangularView<Eigen::Lower>() * d.C[k].transpose();
   };
   on_two_threads([&] { factor_part(0); }, [&] { factor_part(1); });
