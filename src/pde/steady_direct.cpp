@@ -57,7 +57,7 @@ Eigen::SparseMatrix<double> assemble_steady_matrix(const Mesh& mesh, const FemOp
     std::vector<int> inner;
     std::vector<double> values;
   };
-  [[maybe_unused]] const int threads = n >= kParallelColumns ? max_threads() : 1;
+  const int threads = n >= kParallelColumns ? max_threads() : 1;
   std::vector<ColumnBlock> blocks(static_cast<std::size_t>(threads));
   std::vector<int> outer(static_cast<std::size_t>(n) + 1, 0);
   auto assemble_block = [&](int t) {

@@ -52,24 +52,47 @@ void set_blas_threads(int n) {
 // supernode: measured on the 10k-vertex drag region's K D K (126 Mflop), 48 ms with
 // them and 13 ms without (docs/solvers.md). The parallel work that pays is the BLAS's
 // (its own threads, blas_threads_for), so CHOLMOD's regions run on the calling thread:
-// with no active parallel level allowed, every OpenMP region is one thread. Restored
-// on leaving, so meshpde's own loops are not affected.
-class SerialOpenMpRegions {
+// with no active parallel level allowed (OpenMpActiveLevels(0)), every OpenMP region is
+// one thread. Restored on leaving, so meshpde's own loops are not affected.
+class OpenMpActiveLevels {
  public:
 #ifdef MESHPDE_HAVE_OPENMP
-  SerialOpenMpRegions() : saved_(omp_get_max_active_levels()) {
-    omp_set_max_active_levels(0);
+  explicit OpenMpActiveLevels(int levels) : saved_(omp_get_max_active_levels()) {
+    omp_set_max_active_levels(levels);
   }
-  ~SerialOpenMpRegions() {
+  ~OpenMpActiveLevels() {
     omp_set_max_active_levels(saved_);
   }
 
  private:
   int saved_;
 #else
-  SerialOpenMpRegions() {}  // user-provided: an unused-variable warning otherwise
+  explicit OpenMpActiveLevels(int) {}  // user-provided: an unused-variable warning otherwise
 #endif
 };
+
+// A compressed copy only when needed, and a check that A is square and every entry
+// finite.
+const Eigen::SparseMatrix<double>& checked(const Eigen::SparseMatrix<double>& A, Eigen::SparseMatrix<double>& copy) {
+  if (A.rows() != A.cols())
+    throw SolverError(fmt::format("direct solve: the matrix is {} x {}, not square", A.rows(), A.cols()));
+  const Eigen::SparseMatrix<double>* out = &A;
+  if (!A.isCompressed()) {
+    copy = A;
+    copy.makeCompressed();
+    out = &copy;
+  }
+  for (Eigen::Index k = 0; k < out->nonZeros(); ++k)
+    if (!std::isfinite(out->valuePtr()[k])) throw SolverError("direct solve: the matrix has a NaN or infinite entry");
+  return *out;
+}
+
+SolverError not_positive_definite(const char* backend) {
+  return SolverError(
+      fmt::format("direct solve ({}): the matrix is not positive definite (a part of the mesh "
+                  "without constraints, or a negative coefficient?)",
+                  backend));
+}
 
 }  // namespace
 
@@ -120,12 +143,8 @@ bool same_pattern(const Eigen::SparseMatrix<double>& a, const Eigen::SparseMatri
 }  // namespace
 
 void SparseCholesky::factorize(const Eigen::SparseMatrix<double>& A_in) {
-  if (A_in.rows() != A_in.cols())
-    throw SolverError(fmt::format("direct solve: the matrix is {} x {}, not square", A_in.rows(), A_in.cols()));
-  Eigen::SparseMatrix<double> A = A_in;
-  A.makeCompressed();
-  for (Eigen::Index k = 0; k < A.nonZeros(); ++k)
-    if (!std::isfinite(A.valuePtr()[k])) throw SolverError("direct solve: the matrix has a NaN or infinite entry");
+  Eigen::SparseMatrix<double> copy;
+  const Eigen::SparseMatrix<double>& A = checked(A_in, copy);
   Impl& d = *impl_;
   d.factored = false;
   if (d.requested == Backend::Auto)
@@ -135,7 +154,7 @@ void SparseCholesky::factorize(const Eigen::SparseMatrix<double>& A_in) {
 #ifdef MESHPDE_HAVE_CHOLMOD
   if (d.backend == Backend::Cholmod) {
     set_blas_threads(blas_threads_for(A.rows()));
-    const SerialOpenMpRegions serial;
+    const OpenMpActiveLevels serial(0);
     if (new_pattern) {
       d.cholmod.analyzePattern(A);
       ++analyses_;
@@ -159,11 +178,7 @@ void SparseCholesky::factorize(const Eigen::SparseMatrix<double>& A_in) {
     d.analyzed = true;
   }
   ++factors_;
-  if (info != Eigen::Success)
-    throw SolverError(
-        fmt::format("direct solve ({}): the matrix is not positive definite (a part of the mesh "
-                    "without constraints, or a negative coefficient?)",
-                    backend_name()));
+  if (info != Eigen::Success) throw not_positive_definite(backend_name());
   d.factored = true;
 }
 
@@ -186,7 +201,7 @@ Eigen::MatrixXd SparseCholesky::solve(const Eigen::MatrixXd& B) const {
     // BLAS thread makes them slower (164k-vertex Laplacian factor, three columns:
     // 43 ms on one thread, 48 ms on two), so they always run on one.
     set_blas_threads(1);
-    const SerialOpenMpRegions serial;
+    const OpenMpActiveLevels serial(0);
     return d.cholmod.solve(B);
   }
 #endif
@@ -320,32 +335,6 @@ const char* LeadingBlockCholesky::backend_name() const {
   return impl_->backend == SparseCholesky::Backend::Cholmod ? "cholmod-supernodal" : "eigen-simplicial-llt";
 }
 
-namespace {
-
-// A compressed copy only when needed, and a check that every entry is finite.
-const Eigen::SparseMatrix<double>& checked(const Eigen::SparseMatrix<double>& A, Eigen::SparseMatrix<double>& copy) {
-  if (A.rows() != A.cols())
-    throw SolverError(fmt::format("direct solve: the matrix is {} x {}, not square", A.rows(), A.cols()));
-  const Eigen::SparseMatrix<double>* out = &A;
-  if (!A.isCompressed()) {
-    copy = A;
-    copy.makeCompressed();
-    out = &copy;
-  }
-  for (Eigen::Index k = 0; k < out->nonZeros(); ++k)
-    if (!std::isfinite(out->valuePtr()[k])) throw SolverError("direct solve: the matrix has a NaN or infinite entry");
-  return *out;
-}
-
-SolverError not_positive_definite(const char* backend) {
-  return SolverError(
-      fmt::format("direct solve ({}): the matrix is not positive definite (a part of the mesh "
-                  "without constraints, or a negative coefficient?)",
-                  backend));
-}
-
-}  // namespace
-
 void LeadingBlockCholesky::factorize(const Eigen::SparseMatrix<double>& A_in) {
   Impl& d = *impl_;
   d.factored = false;
@@ -359,7 +348,7 @@ void LeadingBlockCholesky::factorize(const Eigen::SparseMatrix<double>& A_in) {
 #ifdef MESHPDE_HAVE_CHOLMOD
   if (d.backend == SparseCholesky::Backend::Cholmod) {
     set_blas_threads(blas_threads_for(A.rows()));
-    const SerialOpenMpRegions serial;
+    const OpenMpActiveLevels serial(0);
     ok = d.cholmod.factorize(A);
   }
 #endif
@@ -393,7 +382,7 @@ Eigen::MatrixXd LeadingBlockCholesky::solve_leading(const Eigen::MatrixXd& B) co
 #ifdef MESHPDE_HAVE_CHOLMOD
   if (d.backend == SparseCholesky::Backend::Cholmod) {
     set_blas_threads(1);  // as SparseCholesky::solve(): memory-bound sweeps
-    const SerialOpenMpRegions serial;
+    const OpenMpActiveLevels serial(0);
     d.cholmod.sweep(CHOLMOD_L, Y);
     Y.bottomRows(size_ - n).setZero();
     d.cholmod.sweep(CHOLMOD_Lt, Y);
@@ -418,8 +407,7 @@ void on_two_threads(F0&& f0, F1&& f1) {
   set_blas_threads(1);
 #ifdef MESHPDE_HAVE_OPENMP
   const int threads = std::min(2, max_threads());
-  const int saved = omp_get_max_active_levels();
-  omp_set_max_active_levels(threads > 1 ? 1 : 0);
+  const OpenMpActiveLevels levels(threads > 1 ? 1 : 0);
 #pragma omp parallel sections num_threads(threads)
   {
 #pragma omp section
@@ -439,7 +427,6 @@ void on_two_threads(F0&& f0, F1&& f1) {
       }
     }
   }
-  omp_set_max_active_levels(saved);
 #else
   try {
     f0();
