@@ -4,6 +4,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <functional>
 
 #include "meshpde/core/errors.h"
 #include "meshpde/solvers/surface_multigrid.h"
@@ -17,6 +18,9 @@ GlobalBilaplacianResult solve_global_bilaplacian(const Mesh& mesh, const FemOper
   const auto t0 = clock::now();
   const int nv = mesh.num_vertices(), n = static_cast<int>(free.size()), m = static_cast<int>(u.cols());
   if (!(p.g2 > 0) || !(p.g1 >= 0)) throw InputError("the global bi-Laplacian solver needs g2 > 0 and g1 >= 0");
+  if (p.probe_iterations < 1 || !(p.max_multigrid_iterations > 0))
+    throw InputError(
+        "the global bi-Laplacian solver's Auto rule needs probe_iterations >= 1 and max_multigrid_iterations > 0");
   if (u.rows() != nv) throw InputError(fmt::format("values have {} rows for {} vertices", u.rows(), nv));
   std::vector<int> local(nv, -1);
   for (int k = 0; k < n; ++k) {
@@ -36,22 +40,53 @@ GlobalBilaplacianResult solve_global_bilaplacian(const Mesh& mesh, const FemOper
   Eigen::MatrixXd b(n, m);
   for (int k = 0; k < n; ++k) b.row(k) = -(p.g1 * Kw.row(free[k]) + p.g2 * KDKw.row(free[k]));
   GlobalBilaplacianResult res;
-  if (p.preconditioner == GlobalBilaplacianParams::Preconditioner::Multigrid) {
+  using Preconditioner = GlobalBilaplacianParams::Preconditioner;
+  Eigen::MatrixXd x = Eigen::MatrixXd::Zero(n, m);
+  auto finish = [&] {
+    res.values = u;
+    for (int k = 0; k < n; ++k) res.values.row(free[k]) = x.row(k);
+  };
+  if (p.preconditioner != Preconditioner::LaplacianFactor) {
+    const auto t_mg = clock::now();
     const BilaplacianMultigrid mg(mesh, ops, free, p.g1, p.g2, p.multigrid);
     res.level_unknowns = mg.level_unknowns();
     res.bytes_per_vertex = (mg.bytes(m) + 8.0 * 5 * m * n) / nv;
     res.setup_seconds = std::chrono::duration<double>(clock::now() - t0).count();
     const auto t1 = clock::now();
-    Block x = Block::Zero(n, m);
-    const MultigridSolveResult r = mg.solve(Block(b), x, p.tolerance, p.max_iterations);
-    res.iterations = r.iterations;
+    // Auto: from the probe on, judge the multigrid after every iteration k by its rate
+    // over the second half of its history, rho = (r_k / r_{k/2})^(1 / (k - k/2)): it
+    // predicts k + ln(tolerance / r_k) / ln(rho) iterations in all. The first
+    // iterations are left out of the rate because CG's residual can rise in them, and
+    // the window follows a stall on a badly shaped mesh, where the rate is good at
+    // first and then slows.
+    std::function<bool(int, double)> keep_going;
+    std::vector<double> history{1.0};  // relative residual after each iteration, from x = 0
+    if (p.preconditioner == Preconditioner::Auto)
+      keep_going = [&](int k, double r) {
+        history.push_back(r);
+        if (k < p.probe_iterations) return true;
+        const double rho = std::pow(r / history[static_cast<std::size_t>(k / 2)], 1.0 / (k - k / 2));
+        res.multigrid_predicted_iterations = rho < 1 ? k + std::log(p.tolerance / r) / std::log(rho) : HUGE_VAL;
+        return res.multigrid_predicted_iterations <= p.max_multigrid_iterations;
+      };
+    Block xb = Block::Zero(n, m);
+    const MultigridSolveResult r = mg.solve(Block(b), xb, p.tolerance, p.max_iterations, keep_going);
+    x = xb;
+    res.iterations = res.multigrid_iterations = r.iterations;
     res.relative_residual = r.relative_residual;
     res.converged = r.converged;
-    res.values = u;
-    for (int k = 0; k < n; ++k) res.values.row(free[k]) = x.row(k);
     res.solve_seconds = std::chrono::duration<double>(clock::now() - t1).count();
-    return res;
+    res.multigrid_seconds = std::chrono::duration<double>(clock::now() - t_mg).count();
+    const bool handed_on = p.preconditioner == Preconditioner::Auto && !r.converged && r.iterations < p.max_iterations;
+    if (!handed_on) {
+      res.used = Preconditioner::Multigrid;
+      finish();
+      return res;
+    }
+    // The multigrid's hierarchy is released here, before the factor is built.
   }
+  res.used = Preconditioner::LaplacianFactor;
+  const auto t_factor = clock::now();
   const auto off = mesh.offsets();
   const auto nbr = mesh.neighbors();
   // K_FF: the free rows and columns of K, for the preconditioner.
@@ -67,9 +102,10 @@ GlobalBilaplacianResult solve_global_bilaplacian(const Mesh& mesh, const FemOper
   SparseCholesky chol;
   chol.factorize(KFF);
   res.factor_nonzeros = chol.factor_nonzeros();
-  res.bytes_per_vertex =
+  res.bytes_per_vertex = std::max(
+      res.bytes_per_vertex,
       (12.0 * res.factor_nonzeros + 12.0 * static_cast<double>(KFF.nonZeros()) + 8.0 * 5 * m * n + 8.0 * 4 * m * nv) /
-      nv;
+          nv);
   Eigen::VectorXd mass_f(n);
   for (int k = 0; k < n; ++k) mass_f[k] = ops.mass[free[k]];
   // (g1 K + g2 K D K)_FF x, matrix-free over the whole mesh (the free set is nearly all
@@ -81,8 +117,8 @@ GlobalBilaplacianResult solve_global_bilaplacian(const Mesh& mesh, const FemOper
     for (int i = 0; i < nv; ++i) a[static_cast<std::size_t>(i)] = i;
     return a;
   }();
-  auto apply = [&](const Eigen::MatrixXd& x) -> Eigen::MatrixXd {
-    for (int k = 0; k < n; ++k) full.row(free[k]) = x.row(k);
+  auto apply = [&](const Eigen::MatrixXd& xs) -> Eigen::MatrixXd {
+    for (int k = 0; k < n; ++k) full.row(free[k]) = xs.row(k);
     apply_stiffness_rows(mesh, ops, full.data(), kx.data(), m, all);
     dkx.noalias() = d.asDiagonal() * kx;
     apply_stiffness_rows(mesh, ops, dkx.data(), kdkx.data(), m, all);
@@ -93,10 +129,13 @@ GlobalBilaplacianResult solve_global_bilaplacian(const Mesh& mesh, const FemOper
   auto precondition = [&](const Eigen::MatrixXd& r) -> Eigen::MatrixXd {
     return chol.solve(mass_f.asDiagonal() * chol.solve(r)) / p.g2;
   };
-  res.setup_seconds = std::chrono::duration<double>(clock::now() - t0).count();
+  res.setup_seconds += std::chrono::duration<double>(clock::now() - t_factor).count() +
+                       (res.multigrid_iterations > 0 ? 0 : std::chrono::duration<double>(t_factor - t0).count());
   const auto t1 = clock::now();
-  // Block PCG: every component its own step lengths, one operator application for all.
-  Eigen::MatrixXd x = Eigen::MatrixXd::Zero(n, m), r = b, z = precondition(r), pdir = z;
+  // Block PCG: every component its own step lengths, one operator application for all;
+  // from the multigrid's iterate when Auto handed the solve on.
+  Eigen::MatrixXd r = res.multigrid_iterations > 0 ? Eigen::MatrixXd(b - apply(x)) : b;
+  Eigen::MatrixXd z = precondition(r), pdir = z;
   Eigen::VectorXd bn = b.colwise().norm().transpose(), rz = (r.cwiseProduct(z)).colwise().sum().transpose();
   auto worst = [&] {
     double rel = 0;
@@ -124,9 +163,8 @@ GlobalBilaplacianResult solve_global_bilaplacian(const Mesh& mesh, const FemOper
     if (!std::isfinite(res.relative_residual)) throw SolverError("global bi-Laplacian solve: the residual became NaN");
   }
   res.converged = res.relative_residual <= p.tolerance;
-  res.values = u;
-  for (int k = 0; k < n; ++k) res.values.row(free[k]) = x.row(k);
-  res.solve_seconds = std::chrono::duration<double>(clock::now() - t1).count();
+  finish();
+  res.solve_seconds += std::chrono::duration<double>(clock::now() - t1).count();
   return res;
 }
 

@@ -676,7 +676,8 @@ double BilaplacianMultigrid::bytes(int columns) const {
   return b;
 }
 
-MultigridSolveResult BilaplacianMultigrid::solve(const Block& B, Block& X, double tolerance, int max_iterations) const {
+MultigridSolveResult BilaplacianMultigrid::solve(const Block& B, Block& X, double tolerance, int max_iterations,
+                                                 const std::function<bool(int, double)>& keep_going) const {
   const Eigen::Index n = B.rows(), m = B.cols();
   if (n != impl_->nF) throw InputError(fmt::format("right-hand side has {} rows for {} unknowns", n, impl_->nF));
   if (X.rows() != n || X.cols() != m) X = Block::Zero(n, m);
@@ -721,6 +722,7 @@ MultigridSolveResult BilaplacianMultigrid::solve(const Block& B, Block& X, doubl
     res.relative_residual = worst(rr);
     if (!std::isfinite(res.relative_residual)) throw SolverError("bi-Laplacian multigrid: the residual became NaN");
     if (res.relative_residual <= tolerance) break;
+    if (keep_going && !keep_going(res.iterations, res.relative_residual)) break;
     precondition(r, z);
     const Eigen::VectorXd rz_new = column_dots(r, z);
     for (Eigen::Index c = 0; c < m; ++c) beta[c] = rz[c] > 0 ? rz_new[c] / rz[c] : 0.0;

@@ -2,8 +2,17 @@
 //
 //     (g1 K + g2 K D K)_FF u_F = -(Kt u_held)_F
 //
-// Two preconditioners (docs/solvers.md has the measured tables):
-//  - LaplacianFactor (the default): P^-1 = K_FF^-1 M_FF K_FF^-1 / g2, the bi-Laplacian written as the
+// Two preconditioners, and a rule to choose between them (docs/solvers.md has the
+// measured tables):
+//  - Auto (the default): the multigrid first; from `probe_iterations` on, its recent
+//    rate predicts the iterations it needs, and once that is more than
+//    `max_multigrid_iterations` (a mesh with badly shaped triangles, where its coarse
+//    spaces are weak) the solve goes on from the multigrid's iterate with the Laplacian
+//    factor. On well-shaped meshes this is the multigrid's speed; on the others it
+//    costs the multigrid's set-up and a few of its iterations on top of the factor's
+//    solve, and the peak memory is the larger of the two (the hierarchy is released
+//    before the factor is built).
+//  - LaplacianFactor: P^-1 = K_FF^-1 M_FF K_FF^-1 / g2, the bi-Laplacian written as the
 //    square of the Laplacian (K D K = K M^-1 K), with one sparse Cholesky factor of
 //    K_FF (about as sparse as K itself, where a factor of K D K has three times the
 //    fill). Few iterations, but each costs four triangular sweeps over a factor that
@@ -14,7 +23,7 @@
 //    well-shaped meshes the iteration count stays nearly flat (15, 17, 19 at 10k, 41k,
 //    164k) and the solve is 3-4x faster than with the factor; on real meshes with
 //    obtuse triangles its coarse spaces are weak and it is slower (fertility
-//    subdivided to 1.15M: 170 iterations against 38). Not the default.
+//    subdivided to 1.15M: 170 iterations against 38).
 // Jacobi-CG's iteration count grows like h^-2 under refinement; both of these stay
 // nearly flat.
 #pragma once
@@ -33,24 +42,38 @@ struct GlobalBilaplacianParams {
   double g2 = 1;            ///< bi-Laplacian weight (> 0)
   double tolerance = 1e-8;  ///< relative residual per component
   int max_iterations = 1000;
-  enum class Preconditioner { Multigrid, LaplacianFactor };
-  Preconditioner preconditioner = Preconditioner::LaplacianFactor;
-  SurfaceMultigridParams multigrid{};  ///< for Preconditioner::Multigrid
+  enum class Preconditioner { Auto, Multigrid, LaplacianFactor };
+  Preconditioner preconditioner = Preconditioner::Auto;
+  SurfaceMultigridParams multigrid{};  ///< for Multigrid and Auto
+  /// Auto: multigrid iterations before its rate is first judged.
+  int probe_iterations = 6;
+  /// Auto: hand the solve on to the Laplacian factor once the multigrid's rate predicts
+  /// more iterations in all than this (docs/solvers.md: icospheres need 15-26, real
+  /// meshes with slivers 80-900, where the factor needs 7-38 iterations at 3-4x the cost).
+  double max_multigrid_iterations = 50;
 };
 
 struct GlobalBilaplacianResult {
-  Field values;  ///< u with the free rows solved
-  int iterations = 0;
+  Field values;        ///< u with the free rows solved
+  int iterations = 0;  ///< in all (Auto: the multigrid's, then the factor's)
+  /// The preconditioner that finished the solve (Multigrid or LaplacianFactor).
+  GlobalBilaplacianParams::Preconditioner used = GlobalBilaplacianParams::Preconditioner::LaplacianFactor;
+  /// Iterations with the multigrid (all of them, or those before Auto handed on).
+  int multigrid_iterations = 0;
+  /// Auto: the iterations in all that the multigrid's rate last predicted (0 if it
+  /// converged before `probe_iterations`).
+  double multigrid_predicted_iterations = 0;
+  double multigrid_seconds = 0;  ///< the multigrid's set-up and iterations
   double relative_residual = 0;  ///< worst component
   bool converged = false;
-  double setup_seconds = 0;         ///< the multigrid hierarchy, or assembly and factorization of K_FF
-  double solve_seconds = 0;         ///< the iterations
+  double setup_seconds = 0;  ///< the right-hand side, the multigrid hierarchy and/or assembly and factorization of K_FF
+  double solve_seconds = 0;  ///< the iterations (both preconditioners' for Auto)
   double factor_nonzeros = 0;       ///< LaplacianFactor: nonzeros of the Cholesky factor of K_FF
   std::vector<int> level_unknowns;  ///< Multigrid: free unknowns on each level, finest first
   /// Memory of the solve per vertex. Multigrid: the hierarchy (matrices, prolongations,
   /// coarsest factor, cycle blocks) and the iteration's blocks (x, r, z, p, q).
   /// LaplacianFactor: the factor (12 bytes a nonzero), K_FF, the iteration's blocks
-  /// and whole-mesh work fields.
+  /// and whole-mesh work fields. Auto: the larger of the two it used.
   double bytes_per_vertex = 0;
 };
 
