@@ -728,6 +728,7 @@ TEST(DragSession, EditorPreviewFollowsTheHandleAndCorrectReplacesIt) {
   EXPECT_FALSE(b.dragging());
 }
 
+#include "meshpde/core/parallel.h"
 #include "meshpde/solvers/surface_multigrid.h"
 
 namespace {
@@ -804,6 +805,25 @@ TEST(Multigrid, IterationsStayFlatUnderRefinementAndMatchTheDirectSolve) {
   // V-cycle: about 1.6x); measured 19, 20, 22 with tolerance 1e-10.
   EXPECT_GE(iterations[0], 2);  // the hierarchy has coarse levels (not a direct solve)
   EXPECT_LE(iterations[2], iterations[0] + 6) << iterations[0] << " -> " << iterations[2];
+}
+
+TEST(Multigrid, OneThreadAndTwoReachTheSameAnswer) {
+  // The 10k icosphere: its finest level (10k rows) is split over the threads on two
+  // (products, Chebyshev and CG updates, and CG's sums, each thread's part added in
+  // order), the coarser ones are not. The rounding differs, the answer may not.
+  const auto [m, ops, u, free] = global_problem(5);
+  GlobalBilaplacianParams p{.tolerance = 1e-10};
+  p.preconditioner = GlobalBilaplacianParams::Preconditioner::Multigrid;
+  const int limit = max_threads();
+  set_max_threads(1);
+  const GlobalBilaplacianResult one = solve_global_bilaplacian(m, ops, free, u, p);
+  set_max_threads(2);
+  const GlobalBilaplacianResult two = solve_global_bilaplacian(m, ops, free, u, p);
+  set_max_threads(limit);
+  ASSERT_TRUE(one.converged);
+  ASSERT_TRUE(two.converged);
+  EXPECT_LE(std::abs(one.iterations - two.iterations), 1);
+  EXPECT_LE((one.values - two.values).cwiseAbs().maxCoeff(), 1e-8 * one.values.cwiseAbs().maxCoeff());
 }
 
 TEST(Multigrid, HierarchyFollowsTheFreeRegionNotTheMesh) {

@@ -12,13 +12,21 @@
 #include "meshpde/core/errors.h"
 #include "meshpde/core/parallel.h"
 
+#ifdef MESHPDE_HAVE_OPENMP
+#include <omp.h>
+#endif
+
 namespace meshpde {
 namespace {
 
 using RowSparse = Eigen::SparseMatrix<double, Eigen::RowMajor, int>;
 
-// Below this many rows a second thread costs more than it saves (core/parallel.h).
-constexpr Eigen::Index kParallelRows = 20000;
+// Levels of at least this many rows run their products and vector updates on every
+// thread. Lower than the 20k rows of one-off applies (core/parallel.h) because the
+// cycle keeps the threads busy, so they wake fast: at 164k (levels of 162k, 40k, 10k,
+// 2.5k rows) 5,000 took the solve from 26-28 to 23-24 ms an iteration against 20,000;
+// 1,500 changed nothing more.
+constexpr Eigen::Index kParallelRows = 5000;
 
 // Y = S X for a compressed row-major S and row-major blocks, rows split over threads.
 // Specialized for one and three columns (scalars, displacements).
@@ -67,6 +75,26 @@ void spmm(const RowSparse& S, const Block& X, Block& Y) {
     default:
       spmm_fixed<0>(S, X.data(), Y.data(), X.cols());
   }
+}
+
+// Runs f(begin, end, part) on [0, n) cut into one contiguous range per thread when n is
+// at least kParallelRows (the cycle's and CG's vector updates on the fine levels, about
+// a fifth of a solve's time on one thread), else f(0, n, 0). Returns the number of parts.
+template <class F>
+int for_row_ranges(Eigen::Index n, F&& f) {
+#ifdef MESHPDE_HAVE_OPENMP
+  const int threads = max_threads();
+  if (n >= kParallelRows && threads > 1) {
+#pragma omp parallel num_threads(threads)
+    {
+      const Eigen::Index t = omp_get_thread_num(), parts = omp_get_num_threads();
+      f(n * t / parts, n * (t + 1) / parts, static_cast<int>(t));
+    }
+    return threads;
+  }
+#endif
+  f(Eigen::Index{0}, n, 0);
+  return 1;
 }
 
 // A compressed row-major matrix from rows given as (column, value) lists.
@@ -324,7 +352,12 @@ struct BilaplacianMultigrid::Impl {
     if (l > 0 || levels[0].A.rows() > 0) return spmm(levels[l].A, X, Y);
     spmm(KRF, X, kx);
     if (g1 > 0) g1x = g1 * kx.topRows(nF);
-    for (Eigen::Index i = 0; i < nR; ++i) kx.row(i) *= dR[i];
+    const Eigen::Index m = kx.cols();
+    for_row_ranges(nR, [&](Eigen::Index begin, Eigen::Index end, int) {
+      double* K = kx.data();
+      for (Eigen::Index i = begin; i < end; ++i)
+        for (Eigen::Index c = 0; c < m; ++c) K[i * m + c] *= dR[i];
+    });
     spmm(KFR, kx, Y);
     if (g1 > 0) Y += g1x;
   }
@@ -364,6 +397,14 @@ struct BilaplacianMultigrid::Impl {
         1.1 * Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(T, Eigen::EigenvaluesOnly).eigenvalues().maxCoeff();
   }
 
+  // r = b - t, rows split over threads on large levels.
+  static void difference(const Block& b, const Block& t, Block& r) {
+    r.resize(b.rows(), b.cols());
+    for_row_ranges(b.rows(), [&](Eigen::Index begin, Eigen::Index end, int) {
+      r.middleRows(begin, end - begin) = b.middleRows(begin, end - begin) - t.middleRows(begin, end - begin);
+    });
+  }
+
   // Chebyshev smoothing of A x = b in D_A^-1 A on [lambda_max / range, lambda_max]
   // (Saad's three-term recurrence); from x = 0 when `zero_start`.
   void smooth(std::size_t l, const Block& b, Block& x, bool zero_start) const {
@@ -378,28 +419,32 @@ struct BilaplacianMultigrid::Impl {
       x.resize(n, m);
     } else {
       apply(l, x, L.t);
-      L.r = b - L.t;
+      difference(b, L.t, L.r);
     }
     L.d.resize(n, m);
     const double* dinv = L.inv_diag.data();
     double *D = L.d.data(), *X = x.data(), *R = L.r.data();
-    for (Eigen::Index i = 0; i < n; ++i)
-      for (Eigen::Index c = 0; c < m; ++c) {
-        const Eigen::Index k = i * m + c;
-        D[k] = dinv[i] / theta * R[k];
-        X[k] = zero_start ? D[k] : X[k] + D[k];
-      }
+    for_row_ranges(n, [&](Eigen::Index begin, Eigen::Index end, int) {
+      for (Eigen::Index i = begin; i < end; ++i)
+        for (Eigen::Index c = 0; c < m; ++c) {
+          const Eigen::Index k = i * m + c;
+          D[k] = dinv[i] / theta * R[k];
+          X[k] = zero_start ? D[k] : X[k] + D[k];
+        }
+    });
     for (int step = 2; step <= degree; ++step) {
       apply(l, L.d, L.t);
       const double rho_new = 1 / (2 * sigma - rho), a = rho_new * rho, g = 2 * rho_new / delta;
       const double* T = L.t.data();
-      for (Eigen::Index i = 0; i < n; ++i)
-        for (Eigen::Index c = 0; c < m; ++c) {
-          const Eigen::Index k = i * m + c;
-          R[k] -= T[k];
-          D[k] = a * D[k] + g * dinv[i] * R[k];
-          X[k] += D[k];
-        }
+      for_row_ranges(n, [&](Eigen::Index begin, Eigen::Index end, int) {
+        for (Eigen::Index i = begin; i < end; ++i)
+          for (Eigen::Index c = 0; c < m; ++c) {
+            const Eigen::Index k = i * m + c;
+            R[k] -= T[k];
+            D[k] = a * D[k] + g * dinv[i] * R[k];
+            X[k] += D[k];
+          }
+      });
       rho = rho_new;
     }
   }
@@ -454,7 +499,7 @@ struct BilaplacianMultigrid::Impl {
     const Level& C = levels[l + 1];
     pre_smooth(l, b, x);
     apply(l, x, L.t);
-    L.r = b - L.t;
+    difference(b, L.t, L.r);
     spmm(L.Pt, L.r, C.b);
     cycle(l + 1, C.b, C.x);
     // W-cycle: more corrections of the coarse level (not of the coarsest, solved exactly).
@@ -465,7 +510,9 @@ struct BilaplacianMultigrid::Impl {
       C.x += C.e;
     }
     spmm(L.P, C.x, L.t);
-    x += L.t;
+    for_row_ranges(x.rows(), [&](Eigen::Index begin, Eigen::Index end, int) {
+      x.middleRows(begin, end - begin) += L.t.middleRows(begin, end - begin);
+    });
     post_smooth(l, b, x);
   }
 };
@@ -685,13 +732,22 @@ MultigridSolveResult BilaplacianMultigrid::solve(const Block& B, Block& X, doubl
   Block r, z, p, q;
   apply(X, q);
   r = B - q;
-  // Per-column sums over row-major blocks in one pass.
-  auto column_dots = [&](const Block& a, const Block& b) {
+  // Per-column sums over row-major blocks in one pass, each thread's range summed
+  // apart and the parts added in order.
+  std::vector<Eigen::VectorXd> partial(static_cast<std::size_t>(max_threads()));
+  auto add_parts = [&](int parts) {
     Eigen::VectorXd s = Eigen::VectorXd::Zero(m);
-    const double *A = a.data(), *Bp = b.data();
-    for (Eigen::Index i = 0; i < n; ++i)
-      for (Eigen::Index c = 0; c < m; ++c) s[c] += A[i * m + c] * Bp[i * m + c];
+    for (int t = 0; t < parts; ++t) s += partial[static_cast<std::size_t>(t)];
     return s;
+  };
+  auto column_dots = [&](const Block& a, const Block& b) {
+    const double *A = a.data(), *Bp = b.data();
+    return add_parts(for_row_ranges(n, [&](Eigen::Index begin, Eigen::Index end, int t) {
+      Eigen::VectorXd s = Eigen::VectorXd::Zero(m);
+      for (Eigen::Index i = begin; i < end; ++i)
+        for (Eigen::Index c = 0; c < m; ++c) s[c] += A[i * m + c] * Bp[i * m + c];
+      partial[static_cast<std::size_t>(t)] = s;
+    }));
   };
   const Eigen::VectorXd bn = column_dots(B, B).cwiseSqrt();
   auto worst = [&](const Eigen::VectorXd& rr) {
@@ -710,14 +766,17 @@ MultigridSolveResult BilaplacianMultigrid::solve(const Block& B, Block& X, doubl
     for (Eigen::Index c = 0; c < m; ++c) alpha[c] = pq[c] > 0 ? rz[c] / pq[c] : 0.0;  // 0: a converged (or zero) column
     double *Xp = X.data(), *R = r.data();
     const double *P = p.data(), *Q = q.data();
-    Eigen::VectorXd rr = Eigen::VectorXd::Zero(m);
-    for (Eigen::Index i = 0; i < n; ++i)
-      for (Eigen::Index c = 0; c < m; ++c) {
-        const Eigen::Index k = i * m + c;
-        Xp[k] += alpha[c] * P[k];
-        R[k] -= alpha[c] * Q[k];
-        rr[c] += R[k] * R[k];
-      }
+    const Eigen::VectorXd rr = add_parts(for_row_ranges(n, [&](Eigen::Index begin, Eigen::Index end, int t) {
+      Eigen::VectorXd s = Eigen::VectorXd::Zero(m);
+      for (Eigen::Index i = begin; i < end; ++i)
+        for (Eigen::Index c = 0; c < m; ++c) {
+          const Eigen::Index k = i * m + c;
+          Xp[k] += alpha[c] * P[k];
+          R[k] -= alpha[c] * Q[k];
+          s[c] += R[k] * R[k];
+        }
+      partial[static_cast<std::size_t>(t)] = s;
+    }));
     ++res.iterations;
     res.relative_residual = worst(rr);
     if (!std::isfinite(res.relative_residual)) throw SolverError("bi-Laplacian multigrid: the residual became NaN");
@@ -729,8 +788,10 @@ MultigridSolveResult BilaplacianMultigrid::solve(const Block& B, Block& X, doubl
     rz = rz_new;
     double* Pw = p.data();
     const double* Z = z.data();
-    for (Eigen::Index i = 0; i < n; ++i)
-      for (Eigen::Index c = 0; c < m; ++c) Pw[i * m + c] = Z[i * m + c] + beta[c] * Pw[i * m + c];
+    for_row_ranges(n, [&](Eigen::Index begin, Eigen::Index end, int) {
+      for (Eigen::Index i = begin; i < end; ++i)
+        for (Eigen::Index c = 0; c < m; ++c) Pw[i * m + c] = Z[i * m + c] + beta[c] * Pw[i * m + c];
+    });
   }
   res.converged = res.relative_residual <= tolerance;
   return res;
