@@ -44,6 +44,11 @@ std::pair<int, double> parse_vertex_value(const Mesh& mesh, const std::string& s
 
 namespace {
 
+// --solver's names (checked by CLI11 before this runs).
+SteadySolver steady_solver(const std::string& name) {
+  return name == "direct" ? SteadySolver::Direct : name == "global" ? SteadySolver::Global : SteadySolver::Iterative;
+}
+
 void write_values_csv(const std::filesystem::path& path, const Eigen::VectorXd& u) {
   std::string s;
   s.reserve(static_cast<std::size_t>(24 * u.size()));
@@ -198,8 +203,10 @@ void add_fair_command(CLI::App& app) {
       ->check(CLI::IsMember({1, 2}))
       ->capture_default_str();
   cmd->add_flag("--regularize", a->p.regularize, "Re-assemble area-weighted stiffness every step (seed 000 Fig. 7)");
-  cmd->add_option("--solver", a->solver, "Static solve: direct (sparse Cholesky) | iterative (Jacobi-CG)")
-      ->check(CLI::IsMember({"direct", "iterative"}))
+  cmd->add_option("--solver", a->solver,
+                  "Static solve: direct (sparse Cholesky) | global (multigrid or Laplacian-factor CG, large meshes, "
+                  "--order 2) | iterative (Jacobi-CG)")
+      ->check(CLI::IsMember({"direct", "global", "iterative"}))
       ->capture_default_str();
   cmd->add_option("--dt", a->p.dt, "Regularization step (unit-free)")->capture_default_str();
   cmd->add_option("--steps", a->p.steps, "Regularization steps")->capture_default_str();
@@ -218,7 +225,7 @@ void add_fair_command(CLI::App& app) {
       throw InputError("every vertex is fixed: nothing to fair");
     const auto t0 = std::chrono::steady_clock::now();
     FairParams params = a->p;
-    params.solver = a->solver == "direct" ? SteadySolver::Direct : SteadySolver::Iterative;
+    params.solver = steady_solver(a->solver);
     const FairResult r = fair(mesh, fixed, params);
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     Eigen::VectorXd free_mask = Eigen::VectorXd::Ones(mesh.num_vertices());
@@ -351,8 +358,10 @@ void add_interpolate_command(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--g1", a->g1, "Laplacian weight")->capture_default_str();
   cmd->add_option("--g2", a->g2, "bi-Laplacian weight")->capture_default_str();
-  cmd->add_option("--solver", a->solver, "direct (sparse Cholesky) | iterative (Jacobi-CG)")
-      ->check(CLI::IsMember({"direct", "iterative"}))
+  cmd->add_option("--solver", a->solver,
+                  "direct (sparse Cholesky) | global (multigrid or Laplacian-factor CG, large meshes, g2 > 0) | "
+                  "iterative (Jacobi-CG)")
+      ->check(CLI::IsMember({"direct", "global", "iterative"}))
       ->capture_default_str();
   cmd->add_option("--method", a->method, "tangent fields: componentwise (seed) | connection | both")
       ->check(CLI::IsMember({"componentwise", "connection", "both"}))
@@ -387,10 +396,7 @@ void add_interpolate_command(CLI::App& app) {
       const auto t0 = std::chrono::steady_clock::now();
       const InterpolationResult r = interpolate(
           mesh, ops, kind, cons,
-          InterpolationParams{.g1 = a->g1,
-                              .g2 = a->g2,
-                              .method = method,
-                              .solver = a->solver == "direct" ? SteadySolver::Direct : SteadySolver::Iterative});
+          InterpolationParams{.g1 = a->g1, .g2 = a->g2, .method = method, .solver = steady_solver(a->solver)});
       const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
       RenderOptions ro = a->r;
       apply_view_options(ro, a->view, a->up, a->size);

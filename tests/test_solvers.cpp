@@ -439,7 +439,50 @@ TEST(GlobalBilaplacian, AutoHandsBadlyShapedMeshesOnToTheFactor) {
   EXPECT_LE((r.values - mg.values).cwiseAbs().maxCoeff(), 1e-6 * x.cwiseAbs().maxCoeff());
 }
 
+#include "meshpde/apps/fairing.h"
 #include "meshpde/apps/local_drag.h"
+
+TEST(GlobalBilaplacian, AppsGetTheDirectSolversAnswerFromIt) {
+  // SteadySolver::Global in interpolation, static drags and fairing: CG with the Auto
+  // preconditioner to 1e-10, the same answer as the sparse Cholesky solve.
+  const Mesh m = make(icosphere(4));
+  const FemOperators ops = build_operators(m);
+  const std::vector<InterpolationConstraint> cons = {{0, Eigen::VectorXd::Constant(1, 1.0)},
+                                                     {700, Eigen::VectorXd::Constant(1, -2.0)},
+                                                     {2000, Eigen::VectorXd::Constant(1, 0.5)}};
+  const auto direct = interpolate(m, ops, FieldKind::Scalar, cons, InterpolationParams{.g1 = 0.1, .g2 = 1});
+  const auto global = interpolate(m, ops, FieldKind::Scalar, cons,
+                                  InterpolationParams{.g1 = 0.1, .g2 = 1, .solver = SteadySolver::Global});
+  EXPECT_GT(global.cg.iterations, 0);
+  EXPECT_LE(global.cg.relative_residual, 1e-10);
+  EXPECT_LE((global.values - direct.values).cwiseAbs().maxCoeff(), 1e-7 * direct.values.cwiseAbs().maxCoeff());
+
+  int top = 0;
+  m.positions().col(2).maxCoeff(&top);
+  DragParams dp{.vertex = top, .displacement = Eigen::Vector3d(0.01, 0, 0.05), .radius = 0.8};
+  const DragResult d_direct = drag_vertex(m, ops, dp);
+  dp.solver = SteadySolver::Global;
+  const DragResult d_global = drag_vertex(m, ops, dp);
+  EXPECT_EQ(d_global.region, d_direct.region);
+  EXPECT_GT(d_global.cg.iterations, 0);
+  EXPECT_LE((d_global.displacement - d_direct.displacement).cwiseAbs().maxCoeff(), 1e-7 * 0.05);
+  EXPECT_LE((d_global.reaction - d_direct.reaction).norm(), 1e-6 * d_direct.reaction.norm());
+
+  std::vector<int> fixed;
+  for (int v = 0; v < m.num_vertices(); ++v)
+    if (m.positions()(v, 2) < 0.2) fixed.push_back(v);
+  const FairResult f_direct = fair(m, fixed, FairParams{.order = 2});
+  const FairResult f_global = fair(m, fixed, FairParams{.order = 2, .solver = SteadySolver::Global});
+  EXPECT_GT(f_global.cg_iterations, 0);
+  EXPECT_LE((f_global.V - f_direct.V).cwiseAbs().maxCoeff(), 1e-7);
+  // The membrane has no bi-Laplacian term: the global solver says so.
+  try {
+    (void)fair(m, fixed, FairParams{.order = 1, .solver = SteadySolver::Global});
+    ADD_FAILURE() << "the global solver took a problem without a bi-Laplacian term";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("g2 > 0"), std::string::npos) << e.what();
+  }
+}
 
 namespace {
 

@@ -69,14 +69,16 @@ FairResult fair(const Mesh& mesh, const std::vector<int>& fixed, const FairParam
   FairResult r;
   r.before = triangle_quality(mesh.positions(), F, free_faces);
   const double g1 = p.order == 1 ? 1.0 : 0.0, g2 = p.order == 2 ? 1.0 : 0.0;
-  if (!p.regularize && p.solver == SteadySolver::Direct) {
+  if (!p.regularize && p.solver != SteadySolver::Iterative) {
     std::vector<int> free;
     for (int v = 0; v < nv; ++v)
       if (!is_fixed[v]) free.push_back(v);
     const FemOperators ops = build_operators(mesh);
-    const SteadyDirectSolver solver(mesh, ops, PdeCoefficients{.g0 = 0, .g1 = g1, .g2 = g2}, free);
-    r.V = solver.solve(mesh.positions());
-    r.worst_residual = solver.last_relative_residual();
+    SteadySolveResult s =
+        solve_steady(mesh, ops, PdeCoefficients{.g0 = 0, .g1 = g1, .g2 = g2}, free, mesh.positions(), p.solver);
+    r.V = std::move(s.values);
+    r.worst_residual = s.relative_residual;
+    r.cg_iterations = s.iterations;
     r.after = triangle_quality(r.V, F, free_faces);
     return r;
   }

@@ -16,7 +16,7 @@ namespace {
 Field solve_scalar_like(const Mesh& mesh, const FemOperators& ops, int m,
                         const std::vector<InterpolationConstraint>& cons, const InterpolationParams& p, CgResult& cg,
                         const std::vector<Eigen::VectorXd>* values = nullptr) {
-  if (p.solver == SteadySolver::Direct) {
+  if (p.solver != SteadySolver::Iterative) {
     std::vector<char> held(mesh.num_vertices(), 0);
     Field u = Field::Zero(mesh.num_vertices(), m);
     for (std::size_t k = 0; k < cons.size(); ++k) {
@@ -26,13 +26,12 @@ Field solve_scalar_like(const Mesh& mesh, const FemOperators& ops, int m,
     std::vector<int> free;
     for (int v = 0; v < mesh.num_vertices(); ++v)
       if (!held[v] && ops.mass[v] > 0) free.push_back(v);
-    const SteadyDirectSolver solver(mesh, ops, PdeCoefficients{.g0 = 0, .g1 = p.g1, .g2 = p.g2}, free);
-    Field out = solver.solve(u);
+    SteadySolveResult s = solve_steady(mesh, ops, PdeCoefficients{.g0 = 0, .g1 = p.g1, .g2 = p.g2}, free, u, p.solver);
     cg = CgResult{.status = CgStatus::Converged,
-                  .iterations = 0,
-                  .relative_residual = solver.last_relative_residual(),
+                  .iterations = s.iterations,
+                  .relative_residual = s.relative_residual,
                   .message = {}};
-    return out;
+    return std::move(s.values);
   }
   PdeSession s(mesh, ops, m, PdeCoefficients{.alpha = 0, .b1 = 0, .b2 = 0, .g0 = 0, .g1 = p.g1, .g2 = p.g2},
                DomainOptions{.seed_rings = 0});

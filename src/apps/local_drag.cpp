@@ -73,18 +73,19 @@ DragResult drag_vertex(const Mesh& mesh, const FemOperators& ops, const DragPara
   if (ops.mass[p.vertex] <= 0) throw InputError(fmt::format("handle vertex {} has no incident area", p.vertex));
   DragResult r;
   r.region = p.radius > 0 ? geodesic_ball(mesh, p.vertex, p.radius) : ring_ball(mesh, p.vertex, p.rings);
-  if (p.solver == SteadySolver::Direct) {
+  if (p.solver != SteadySolver::Iterative) {
     r.region.erase(std::remove(r.region.begin(), r.region.end(), p.vertex), r.region.end());
     std::vector<int> free;
     for (int v : r.region)
       if (ops.mass[v] > 0) free.push_back(v);
-    const SteadyDirectSolver solver(mesh, ops, PdeCoefficients{.g0 = 0, .g1 = p.g1, .g2 = p.g2}, free);
     Field held = Field::Zero(mesh.num_vertices(), 3);
     held.row(p.vertex) = p.displacement.transpose();
-    r.displacement = solver.solve(held);
+    SteadySolveResult s =
+        solve_steady(mesh, ops, PdeCoefficients{.g0 = 0, .g1 = p.g1, .g2 = p.g2}, free, held, p.solver);
+    r.displacement = std::move(s.values);
     r.cg = CgResult{.status = CgStatus::Converged,
-                    .iterations = 0,
-                    .relative_residual = solver.last_relative_residual(),
+                    .iterations = s.iterations,
+                    .relative_residual = s.relative_residual,
                     .message = {}};
     // Reaction at the handle: row of Kt applied to the solution (steady: no inertia).
     for (int c = 0; c < 3; ++c) {

@@ -10,6 +10,7 @@
 #include "../core/index_map.h"
 #include "meshpde/core/errors.h"
 #include "meshpde/core/parallel.h"
+#include "meshpde/pde/global_bilaplacian.h"
 #include "meshpde/solvers/refinement.h"
 
 namespace meshpde {
@@ -305,6 +306,33 @@ SteadyDirectSolver::Conditioning SteadyDirectSolver::conditioning(double accurac
         "use the intrinsic Delaunay Laplacian (--laplacian intrinsic or auto)",
         c.condition_1, c.relative_error, accuracy);
   return c;
+}
+
+SteadySolveResult solve_steady(const Mesh& mesh, const FemOperators& ops, const PdeCoefficients& coefficients,
+                               const std::vector<int>& free, const Field& u, SteadySolver solver) {
+  SteadySolveResult r;
+  if (solver == SteadySolver::Direct) {
+    const SteadyDirectSolver direct(mesh, ops, coefficients, free);
+    r.values = direct.solve(u);
+    r.relative_residual = direct.last_relative_residual();
+    return r;
+  }
+  if (solver != SteadySolver::Global)
+    throw InputError("solve_steady takes the direct or the global solver (Jacobi-CG runs through PdeSession)");
+  if (!(coefficients.g2 > 0) || coefficients.g0 != 0)
+    throw InputError(
+        fmt::format("the global solver needs a bi-Laplacian term (g2 > 0) and no g0 term (g2 = {}, g0 = {}); "
+                    "use the direct solver",
+                    coefficients.g2, coefficients.g0));
+  const GlobalBilaplacianResult g = solve_global_bilaplacian(
+      mesh, ops, free, u, GlobalBilaplacianParams{.g1 = coefficients.g1, .g2 = coefficients.g2, .tolerance = 1e-10});
+  if (!g.converged)
+    throw SolverError(fmt::format("the global solver stopped after {} iterations at relative residual {:.2g}",
+                                  g.iterations, g.relative_residual));
+  r.values = g.values;
+  r.iterations = g.iterations;
+  r.relative_residual = g.relative_residual;
+  return r;
 }
 
 }  // namespace meshpde

@@ -40,7 +40,7 @@ struct FairParams {
   /// geometry, which is what the seed's b1 = 0.01 amounts to at its scale (b1 M is
   /// negligible next to dt K there).
   double damping = 0.0;
-  SteadySolver solver = SteadySolver::Direct;  ///< for the static solve
+  SteadySolver solver = SteadySolver::Direct;  ///< for the static solve (Global: order 2 only)
   CgOptions cg{.tolerance = 1e-10, .max_iterations = 100000};
 };
 

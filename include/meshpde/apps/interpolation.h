@@ -39,6 +39,7 @@ struct InterpolationParams {
   double g1 = 0;  ///< Laplacian (membrane) weight
   double g2 = 1;  ///< bi-Laplacian (thin plate) weight
   TangentMethod method = TangentMethod::Componentwise;
+  /// Direct, Global (large meshes; g2 > 0) or Iterative (Jacobi-CG), pde/steady_direct.h
   SteadySolver solver = SteadySolver::Direct;
   CgOptions cg{.tolerance = 1e-11, .max_iterations = 200000};  ///< for SteadySolver::Iterative
 };

@@ -26,7 +26,7 @@ struct DragParams {
   int rings = 0;      ///< region of influence in rings of neighbours (used when radius == 0)
   double g1 = 0;      ///< membrane stiffness
   double g2 = 1;      ///< plate (bi-Laplacian) stiffness
-  SteadySolver solver = SteadySolver::Direct;
+  SteadySolver solver = SteadySolver::Direct;  ///< Direct, Global (g2 > 0) or Iterative, pde/steady_direct.h
   CgOptions cg{.tolerance = 1e-10, .max_iterations = 50000};  ///< for SteadySolver::Iterative
 };
 

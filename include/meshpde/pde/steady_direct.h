@@ -19,9 +19,28 @@
 
 namespace meshpde {
 
-/// Which solver steady problems use: Direct (SteadyDirectSolver, the default) or
-/// Iterative (Jacobi-CG through PdeSession::solve_steady, no factorization memory).
-enum class SteadySolver { Direct, Iterative };
+/// Which solver steady problems use:
+///  - Direct (the default): SteadyDirectSolver, a sparse Cholesky factor of Kt_FF;
+///  - Iterative: Jacobi-CG through PdeSession::solve_steady, no factorization memory,
+///    iteration counts that grow like h^-4;
+///  - Global: CG preconditioned by the surface multigrid or the Laplacian factor, chosen
+///    per mesh (pde/global_bilaplacian.h, Preconditioner::Auto), to a relative residual
+///    of 1e-10: for large free sets, where a factor of Kt_FF costs about 2 KB a vertex
+///    and this about 0.7-1 KB. Needs g2 > 0 and g0 = 0.
+enum class SteadySolver { Direct, Iterative, Global };
+
+struct SteadySolveResult {
+  Field values;                  ///< u with the free rows solved
+  int iterations = 0;            ///< CG iterations (0 for Direct)
+  double relative_residual = 0;  ///< |b - Kt_FF x| / |b|, worst column
+};
+
+/// The steady problem with the held values of u (its free rows are ignored) by Direct
+/// or Global (for Iterative, use PdeSession::solve_steady, which also takes a domain).
+/// 	hrow InputError for Iterative, or for Global with g2 <= 0 or g0 != 0;
+///        SolverError when Global does not converge, or as SteadyDirectSolver.
+SteadySolveResult solve_steady(const Mesh& mesh, const FemOperators& ops, const PdeCoefficients& coefficients,
+                               const std::vector<int>& free, const Field& u, SteadySolver solver);
 
 /// Kt_FF = g0 M_FF + g1 K_FF + g2 (K_SF)^T D_S K_SF (+ diag(extra_diagonal) on the free
 /// rows when given, #V values), rows and columns in the order of `free`: the principal
