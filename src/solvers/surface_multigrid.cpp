@@ -424,11 +424,12 @@ struct BilaplacianMultigrid::Impl {
     L.d.resize(n, m);
     const double* dinv = L.inv_diag.data();
     double *D = L.d.data(), *X = x.data(), *R = L.r.data();
+    const double inv_theta = 1 / theta;
     for_row_ranges(n, [&](Eigen::Index begin, Eigen::Index end, int) {
       for (Eigen::Index i = begin; i < end; ++i)
         for (Eigen::Index c = 0; c < m; ++c) {
           const Eigen::Index k = i * m + c;
-          D[k] = dinv[i] / theta * R[k];
+          D[k] = dinv[i] * inv_theta * R[k];
           X[k] = zero_start ? D[k] : X[k] + D[k];
         }
     });
@@ -651,11 +652,15 @@ BilaplacianMultigrid::BilaplacianMultigrid(const Mesh& mesh, const FemOperators&
     if (l == 0) {
       // A_1 = (K P)^T (g2 D) (K P) + g1 P^T K_FF P, the Galerkin product of the
       // finest operator without assembling it.
-      const RowSparse G = m.KRF * P;
+      RowSparse G = m.KRF * P;
+      RowSparse g1_part;
+      if (g1 > 0) g1_part = g1 * RowSparse(Pt * RowSparse(G.topRows(m.nF)));
       const RowSparse Gt = G.transpose();
-      const RowSparse DG = m.dR.asDiagonal() * G;
-      A = Gt * DG;
-      if (g1 > 0) A += g1 * RowSparse(Pt * RowSparse(G.topRows(m.nF)));
+      // (g2 D) G in place: one matrix of the finest level's size fewer to allocate.
+      for (Eigen::Index i = 0; i < G.outerSize(); ++i)
+        for (RowSparse::InnerIterator it(G, i); it; ++it) it.valueRef() *= m.dR[i];
+      A = Gt * G;
+      if (g1 > 0) A += g1_part;
     } else {
       A = Pt * (m.levels[l].A * P);
     }
