@@ -185,108 +185,128 @@ std::pair<Nodes, RowSparse> coarsen(const Nodes& fine, Position&& position, Norm
     int row, col;
     double w;
   };
-  std::vector<Weight> weights;
-  weights.reserve(static_cast<std::size_t>(fine.free_count) * 3);
-  std::vector<Spoke> spokes;
-  Eigen::VectorXd fit_weights;
+  // Cells are independent: on large levels the threads take cells in turn, each with
+  // its own weights (rows are sorted below, so the order they come in does not
+  // matter) and scratch. A tangent plane is cached per node and only the cell's own
+  // coarse node asks for it, so no two threads write the same entry.
   constexpr double two_pi = 2 * std::numbers::pi;
-  for (int c = 0; c < nc; ++c) {
-    const Eigen::Vector3d xc = position(coarse.vertex[static_cast<std::size_t>(c)]);
-    Eigen::Vector3d t1 = Eigen::Vector3d::UnitX(), t2 = Eigen::Vector3d::UnitY();
-    spokes.clear();
-    const bool interpolate = cell_off[c + 1] - cell_off[c] > 1;
-    if (interpolate) {
-      const Eigen::Vector3d nrm = normal(coarse.vertex[static_cast<std::size_t>(c)]);
-      t1 = (std::abs(nrm.x()) < 0.9 ? nrm.cross(Eigen::Vector3d::UnitX()) : nrm.cross(Eigen::Vector3d::UnitY()))
-               .normalized();
-      t2 = nrm.cross(t1);
-      for (int q = coarse.off[c]; q < coarse.off[c + 1]; ++q) {
-        const Eigen::Vector3d e = position(coarse.vertex[static_cast<std::size_t>(coarse.adj[q])]) - xc;
-        const double ex = e.dot(t1), ey = e.dot(t2);
-        if (ex * ex + ey * ey > 0) spokes.push_back({std::atan2(ey, ex), ex, ey, coarse.adj[q]});
-      }
-      std::sort(spokes.begin(), spokes.end(), [](const Spoke& a, const Spoke& b) { return a.angle < b.angle; });
-    }
-    const int k = static_cast<int>(spokes.size());
-    // Minimum weighted-norm weights w (c first, then the spokes) with sum w = 1 and
-    // sum w q = p: w = Phi Q^T (Q Phi Q^T)^-1 (1, px, py), Q the 3 x (k+1) matrix of
-    // (1, q), Phi = diag(1 / (1 + |q|^2 / h^2)) favouring near nodes.
-    auto fan_fit = [&](double px, double py) {
-      Eigen::MatrixXd Q(3, k + 1);
-      Eigen::VectorXd phi(k + 1);
-      double h2 = 0;
-      for (const Spoke& sp : spokes) h2 += sp.x * sp.x + sp.y * sp.y;
-      h2 /= k;
-      Q.col(0) << 1, 0, 0;
-      phi[0] = 1;
-      for (int s2 = 0; s2 < k; ++s2) {
-        const Spoke& sp = spokes[static_cast<std::size_t>(s2)];
-        Q.col(s2 + 1) << 1, sp.x, sp.y;
-        phi[s2 + 1] = 1 / (1 + (sp.x * sp.x + sp.y * sp.y) / h2);
-      }
-      const Eigen::Matrix3d G = Q * phi.asDiagonal() * Q.transpose();
-      const Eigen::LDLT<Eigen::Matrix3d> ldlt(G);
-      if (ldlt.info() != Eigen::Success || !(ldlt.vectorD().minCoeff() > 1e-10 * ldlt.vectorD().maxCoeff()))
-        return false;  // the fan spans no plane (all spokes on a line)
-      fit_weights = phi.asDiagonal() * (Q.transpose() * ldlt.solve(Eigen::Vector3d(1, px, py)));
-      return true;
-    };
-    for (int e = cell_off[c]; e < cell_off[c + 1]; ++e) {
-      const int i = cell[static_cast<std::size_t>(e)];
-      const int u = fine.unknown[static_cast<std::size_t>(i)];
-      if (u < 0) continue;
-      auto add = [&](int node, double w) { weights.push_back({u, node, w}); };
-      if (i == owner[i] || k == 0) {
-        add(c, 1.0);
-        continue;
-      }
-      const Eigen::Vector3d d = position(fine.vertex[static_cast<std::size_t>(i)]) - xc;
-      const double px = d.dot(t1), py = d.dot(t2);
-      const double pa = std::atan2(py, px);
-      bool done = false;
-      for (int s = 0; s < k && k >= 2; ++s) {
-        const Spoke& a = spokes[static_cast<std::size_t>(s)];
-        const Spoke& b = spokes[static_cast<std::size_t>((s + 1) % k)];
-        double gap = b.angle - a.angle, off = pa - a.angle;
-        if (gap <= 0) gap += two_pi;
-        if (off < 0) off += two_pi;
-        if (off > gap) continue;
-        if (gap >= std::numbers::pi * (1 - 1e-9)) break;  // an open side: the fan's fit below
-        const double det = a.x * b.y - a.y * b.x;
-        double la = std::max((px * b.y - py * b.x) / det, 0.0), lb = std::max((a.x * py - a.y * px) / det, 0.0);
-        const double lc = 1 - la - lb;
-        if (lc < -1e-9) break;  // beyond the far edge: the fan's fit below
-        add(c, std::max(lc, 0.0));
-        add(a.node, la);
-        add(b.node, lb);
-        done = true;
-        break;
-      }
-      if (!done && k >= 2 && fan_fit(px, py)) {
-        // Outside every triangle of the fan (beyond a far edge, or on an open side):
-        // the smallest weights, each damped by its spoke's length, over c and its whole
-        // fan that reproduce constants and the tangent plane's linear functions exactly
-        // (negative weights allowed), so linear precision holds here too.
-        add(c, fit_weights[0]);
-        for (int s2 = 0; s2 < k; ++s2)
-          add(spokes[static_cast<std::size_t>(s2)].node, fit_weights[static_cast<std::size_t>(s2) + 1]);
-        done = true;
-      }
-      if (!done) {
-        // Along the spoke nearest in angle, clamped to the segment.
-        const Spoke* best = &spokes[0];
-        double best_off = two_pi;
-        for (const Spoke& sp : spokes) {
-          double off = std::abs(pa - sp.angle);
-          if (off > std::numbers::pi) off = two_pi - off;
-          if (off < best_off) best_off = off, best = &sp;
+  [[maybe_unused]] const bool parallel = n >= kParallelRows;
+  std::vector<std::vector<Weight>> weights_of(static_cast<std::size_t>(parallel ? max_threads() : 1));
+#ifdef MESHPDE_HAVE_OPENMP
+#pragma omp parallel if (parallel) num_threads(static_cast<int>(weights_of.size()))
+#endif
+  {
+#ifdef MESHPDE_HAVE_OPENMP
+    std::vector<Weight>& weights = weights_of[static_cast<std::size_t>(omp_get_thread_num())];
+#else
+    std::vector<Weight>& weights = weights_of[0];
+#endif
+    weights.reserve(static_cast<std::size_t>(fine.free_count) * 3 / weights_of.size() + 16);
+    std::vector<Spoke> spokes;
+    Eigen::VectorXd fit_weights;
+#ifdef MESHPDE_HAVE_OPENMP
+#pragma omp for schedule(dynamic, 512)
+#endif
+    for (int c = 0; c < nc; ++c) {
+      const Eigen::Vector3d xc = position(coarse.vertex[static_cast<std::size_t>(c)]);
+      Eigen::Vector3d t1 = Eigen::Vector3d::UnitX(), t2 = Eigen::Vector3d::UnitY();
+      spokes.clear();
+      const bool interpolate = cell_off[c + 1] - cell_off[c] > 1;
+      if (interpolate) {
+        const Eigen::Vector3d nrm = normal(coarse.vertex[static_cast<std::size_t>(c)]);
+        t1 = (std::abs(nrm.x()) < 0.9 ? nrm.cross(Eigen::Vector3d::UnitX()) : nrm.cross(Eigen::Vector3d::UnitY()))
+                 .normalized();
+        t2 = nrm.cross(t1);
+        for (int q = coarse.off[c]; q < coarse.off[c + 1]; ++q) {
+          const Eigen::Vector3d e = position(coarse.vertex[static_cast<std::size_t>(coarse.adj[q])]) - xc;
+          const double ex = e.dot(t1), ey = e.dot(t2);
+          if (ex * ex + ey * ey > 0) spokes.push_back({std::atan2(ey, ex), ex, ey, coarse.adj[q]});
         }
-        const double t = std::clamp((px * best->x + py * best->y) / (best->x * best->x + best->y * best->y), 0.0, 1.0);
-        add(c, 1 - t);
-        add(best->node, t);
+        std::sort(spokes.begin(), spokes.end(), [](const Spoke& a, const Spoke& b) { return a.angle < b.angle; });
+      }
+      const int k = static_cast<int>(spokes.size());
+      // Minimum weighted-norm weights w (c first, then the spokes) with sum w = 1 and
+      // sum w q = p: w = Phi Q^T (Q Phi Q^T)^-1 (1, px, py), Q the 3 x (k+1) matrix of
+      // (1, q), Phi = diag(1 / (1 + |q|^2 / h^2)) favouring near nodes.
+      auto fan_fit = [&](double px, double py) {
+        Eigen::MatrixXd Q(3, k + 1);
+        Eigen::VectorXd phi(k + 1);
+        double h2 = 0;
+        for (const Spoke& sp : spokes) h2 += sp.x * sp.x + sp.y * sp.y;
+        h2 /= k;
+        Q.col(0) << 1, 0, 0;
+        phi[0] = 1;
+        for (int s2 = 0; s2 < k; ++s2) {
+          const Spoke& sp = spokes[static_cast<std::size_t>(s2)];
+          Q.col(s2 + 1) << 1, sp.x, sp.y;
+          phi[s2 + 1] = 1 / (1 + (sp.x * sp.x + sp.y * sp.y) / h2);
+        }
+        const Eigen::Matrix3d G = Q * phi.asDiagonal() * Q.transpose();
+        const Eigen::LDLT<Eigen::Matrix3d> ldlt(G);
+        if (ldlt.info() != Eigen::Success || !(ldlt.vectorD().minCoeff() > 1e-10 * ldlt.vectorD().maxCoeff()))
+          return false;  // the fan spans no plane (all spokes on a line)
+        fit_weights = phi.asDiagonal() * (Q.transpose() * ldlt.solve(Eigen::Vector3d(1, px, py)));
+        return true;
+      };
+      for (int e = cell_off[c]; e < cell_off[c + 1]; ++e) {
+        const int i = cell[static_cast<std::size_t>(e)];
+        const int u = fine.unknown[static_cast<std::size_t>(i)];
+        if (u < 0) continue;
+        auto add = [&](int node, double w) { weights.push_back({u, node, w}); };
+        if (i == owner[i] || k == 0) {
+          add(c, 1.0);
+          continue;
+        }
+        const Eigen::Vector3d d = position(fine.vertex[static_cast<std::size_t>(i)]) - xc;
+        const double px = d.dot(t1), py = d.dot(t2);
+        const double pa = std::atan2(py, px);
+        bool done = false;
+        for (int s = 0; s < k && k >= 2; ++s) {
+          const Spoke& a = spokes[static_cast<std::size_t>(s)];
+          const Spoke& b = spokes[static_cast<std::size_t>((s + 1) % k)];
+          double gap = b.angle - a.angle, off = pa - a.angle;
+          if (gap <= 0) gap += two_pi;
+          if (off < 0) off += two_pi;
+          if (off > gap) continue;
+          if (gap >= std::numbers::pi * (1 - 1e-9)) break;  // an open side: the fan's fit below
+          const double det = a.x * b.y - a.y * b.x;
+          double la = std::max((px * b.y - py * b.x) / det, 0.0), lb = std::max((a.x * py - a.y * px) / det, 0.0);
+          const double lc = 1 - la - lb;
+          if (lc < -1e-9) break;  // beyond the far edge: the fan's fit below
+          add(c, std::max(lc, 0.0));
+          add(a.node, la);
+          add(b.node, lb);
+          done = true;
+          break;
+        }
+        if (!done && k >= 2 && fan_fit(px, py)) {
+          // Outside every triangle of the fan (beyond a far edge, or on an open side):
+          // the smallest weights, each damped by its spoke's length, over c and its whole
+          // fan that reproduce constants and the tangent plane's linear functions exactly
+          // (negative weights allowed), so linear precision holds here too.
+          add(c, fit_weights[0]);
+          for (int s2 = 0; s2 < k; ++s2)
+            add(spokes[static_cast<std::size_t>(s2)].node, fit_weights[static_cast<std::size_t>(s2) + 1]);
+          done = true;
+        }
+        if (!done) {
+          // Along the spoke nearest in angle, clamped to the segment.
+          const Spoke* best = &spokes[0];
+          double best_off = two_pi;
+          for (const Spoke& sp : spokes) {
+            double off = std::abs(pa - sp.angle);
+            if (off > std::numbers::pi) off = two_pi - off;
+            if (off < best_off) best_off = off, best = &sp;
+          }
+          const double t = std::clamp((px * best->x + py * best->y) / (best->x * best->x + best->y * best->y), 0.0, 1.0);
+          add(c, 1 - t);
+          add(best->node, t);
+        }
       }
     }
   }
+  std::vector<Weight> weights;
+  for (auto& part : weights_of) weights.insert(weights.end(), part.begin(), part.end());
   // Rows in order, held coarse nodes and zero weights dropped.
   std::vector<int> p_off(static_cast<std::size_t>(fine.free_count) + 1, 0), p_col;
   std::vector<double> p_val;
