@@ -423,7 +423,9 @@ TEST(GlobalBilaplacian, AutoHandsBadlyShapedMeshesOnToTheFactor) {
   p.preconditioner = GlobalBilaplacianParams::Preconditioner::Multigrid;
   const GlobalBilaplacianResult mg = solve_global_bilaplacian(m, ops, free, u, p);
   ASSERT_TRUE(mg.converged);
-  EXPECT_GT(mg.iterations, 100);  // the case is a bad one for the multigrid (measured 226 at 1e-8)
+  // The premise: a bad case for the multigrid, beyond what Auto lets it take (measured
+  // 226 iterations at a relative residual of 1e-8).
+  EXPECT_GT(mg.iterations, p.max_multigrid_iterations);
   p.preconditioner = GlobalBilaplacianParams::Preconditioner::Auto;
   const GlobalBilaplacianResult r = solve_global_bilaplacian(m, ops, free, u, p);
   ASSERT_TRUE(r.converged);
