@@ -191,9 +191,10 @@ std::pair<Nodes, RowSparse> coarsen(const Nodes& fine, Position&& position, Norm
   // coarse node asks for it, so no two threads write the same entry.
   constexpr double two_pi = 2 * std::numbers::pi;
   [[maybe_unused]] const bool parallel = n >= kParallelRows;
-  std::vector<std::vector<Weight>> weights_of(static_cast<std::size_t>(parallel ? max_threads() : 1));
+  const int parts = parallel ? max_threads() : 1;
+  std::vector<std::vector<Weight>> weights_of(static_cast<std::size_t>(parts));
 #ifdef MESHPDE_HAVE_OPENMP
-#pragma omp parallel if (parallel) num_threads(static_cast<int>(weights_of.size()))
+#pragma omp parallel if (parallel) num_threads(parts)
 #endif
   {
 #ifdef MESHPDE_HAVE_OPENMP
@@ -298,7 +299,8 @@ std::pair<Nodes, RowSparse> coarsen(const Nodes& fine, Position&& position, Norm
             if (off > std::numbers::pi) off = two_pi - off;
             if (off < best_off) best_off = off, best = &sp;
           }
-          const double t = std::clamp((px * best->x + py * best->y) / (best->x * best->x + best->y * best->y), 0.0, 1.0);
+          const double t =
+              std::clamp((px * best->x + py * best->y) / (best->x * best->x + best->y * best->y), 0.0, 1.0);
           add(c, 1 - t);
           add(best->node, t);
         }
