@@ -391,6 +391,36 @@ TEST(GlobalBilaplacian, IterationsStayFlatUnderRefinementAndMatchTheDirectSolve)
                InputError);
 }
 
+TEST(GlobalBilaplacian, AFloatingPartIsNamed) {
+  // Two separate spheres, a vertex of the first held: the second has nothing to hold
+  // it, and with either preconditioner the error names a vertex there.
+  const GeneratedMesh a = icosphere(3), b = icosphere(3);
+  Positions V(a.V.rows() + b.V.rows(), 3);
+  V << a.V, (b.V.rowwise() + Eigen::RowVector3d(5, 0, 0));
+  Triangles F(a.F.rows() + b.F.rows(), 3);
+  F << a.F, (b.F.array() + static_cast<int>(a.V.rows())).matrix();
+  const Mesh m(V, F);
+  const FemOperators ops = build_operators(m);
+  std::vector<int> free;
+  for (int v = 1; v < m.num_vertices(); ++v) free.push_back(v);
+  Field u = Field::Zero(m.num_vertices(), 1);
+  u(0, 0) = 1;
+  for (const auto pre :
+       {GlobalBilaplacianParams::Preconditioner::Auto, GlobalBilaplacianParams::Preconditioner::LaplacianFactor}) {
+    GlobalBilaplacianParams p;
+    p.preconditioner = pre;
+    try {
+      (void)solve_global_bilaplacian(m, ops, free, u, p);
+      ADD_FAILURE() << "a floating part was accepted";
+    } catch (const SolverError& e) {
+      const std::string msg = e.what();
+      EXPECT_NE(msg.find("touches no held vertex"), std::string::npos) << msg;
+      const std::string part = std::to_string(b.V.rows()) + " free vertices (vertex " + std::to_string(a.V.rows());
+      EXPECT_NE(msg.find(part), std::string::npos) << msg;
+    }
+  }
+}
+
 TEST(GlobalBilaplacian, AutoKeepsTheMultigridOnWellShapedMeshes) {
   // The default rule on an icosphere: the multigrid's rate predicts about 20
   // iterations, so it finishes the solve, and the answer is the direct solve's.

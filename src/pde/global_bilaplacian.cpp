@@ -6,6 +6,7 @@
 #include <cmath>
 #include <functional>
 
+#include "free_parts.h"
 #include "meshpde/core/errors.h"
 #include "meshpde/solvers/surface_multigrid.h"
 
@@ -28,6 +29,10 @@ GlobalBilaplacianResult solve_global_bilaplacian(const Mesh& mesh, const FemOper
     if (v < 0 || v >= nv || local[v] >= 0) throw InputError(fmt::format("free vertex {} is invalid or repeated", v));
     local[v] = k;
   }
+  // A part of the free set that no held vertex touches makes either preconditioner
+  // fail without saying where: name it first.
+  detail::require_held_parts(
+      mesh, free, [&](int v) { return local[v]; }, [](int) { return false; });
   Eigen::VectorXd d(nv);
   for (int i = 0; i < nv; ++i) d[i] = ops.D(i);
   // Right-hand side: -(Kt w)_F with w the held values (free entries zero).

@@ -8,6 +8,7 @@
 #include <numeric>
 
 #include "../core/index_map.h"
+#include "free_parts.h"
 #include "meshpde/core/errors.h"
 #include "meshpde/core/parallel.h"
 #include "meshpde/pde/global_bilaplacian.h"
@@ -136,38 +137,10 @@ SteadyDirectSolver::SteadyDirectSolver(const Mesh& mesh, const FemOperators& ops
     if (v < 0 || v >= nv) throw InputError(fmt::format("free vertex {} does not exist (the mesh has {})", v, nv));
     if (!local_.emplace(v, k).second) throw InputError(fmt::format("free vertex {} is listed twice", v));
   }
-  const auto off = mesh.offsets();
-  const auto nbr = mesh.neighbors();
   // Parts of the free set that touch no held vertex are undetermined without g0.
-  if (c.g0 <= 0) {
-    std::vector<int> comp(n, -1);
-    for (int s = 0; s < n; ++s) {
-      if (comp[s] >= 0) continue;
-      std::vector<int> stack{s}, members;
-      comp[s] = s;
-      bool anchored = false;
-      while (!stack.empty()) {
-        const int k = stack.back();
-        stack.pop_back();
-        members.push_back(free_[k]);
-        if (extra && extra_diagonal[free_[k]] > 0) anchored = true;
-        for (int t = off[free_[k]]; t < off[free_[k] + 1]; ++t) {
-          const int j = local_index(nbr[t]);
-          if (j < 0)
-            anchored = true;
-          else if (comp[j] < 0) {
-            comp[j] = s;
-            stack.push_back(j);
-          }
-        }
-      }
-      if (!anchored)
-        throw SolverError(
-            fmt::format("a connected part of {} free vertices (vertex {} among them) touches no held "
-                        "vertex: its values are undetermined; constrain a vertex there",
-                        members.size(), members.front()));
-    }
-  }
+  if (c.g0 <= 0)
+    detail::require_held_parts(
+        mesh, free_, [&](int v) { return local_index(v); }, [&](int v) { return extra && extra_diagonal[v] > 0; });
   A_ = assemble_steady_matrix(mesh, ops, c, free_, extra_diagonal);
   for (Eigen::Index k = 0; k < A_.outerSize(); ++k) {  // ||A||_inf = ||A||_1 (symmetric)
     double sum = 0;

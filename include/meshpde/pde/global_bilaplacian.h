@@ -77,8 +77,9 @@ struct GlobalBilaplacianResult {
   double bytes_per_vertex = 0;
 };
 
-/// \throw InputError for bad vertices or g2 <= 0; SolverError if K_FF cannot be factored
-///        (a part of the free set without a held vertex).
+/// \throw InputError for bad vertices or g2 <= 0; SolverError naming a vertex of a
+///        connected part of the free set that touches no held vertex (its values would
+///        be undetermined), or if a preconditioner fails.
 GlobalBilaplacianResult solve_global_bilaplacian(const Mesh& mesh, const FemOperators& ops,
                                                  const std::vector<int>& free, const Field& u,
                                                  const GlobalBilaplacianParams& params = {});
