@@ -265,14 +265,26 @@ TEST(Direct, SteadySolveMatchesConjugateGradientsAndReusesItsFactor) {
   EXPECT_EQ(s.factor().factorizations(), 1);
 }
 
+namespace {
+
+// Two separate icospheres of the given level, the second 5 units along x: vertices
+// 0 .. n-1 and n .. 2n-1. With vertex 0 held, the second floats.
+Mesh two_spheres(int level) {
+  const GeneratedMesh a = icosphere(level);
+  const auto n = a.V.rows();
+  Positions V(2 * n, 3);
+  V << a.V, (a.V.rowwise() + Eigen::RowVector3d(5, 0, 0));
+  Triangles F(2 * a.F.rows(), 3);
+  F << a.F, (a.F.array() + static_cast<int>(n)).matrix();
+  return Mesh(V, F);
+}
+
+}  // namespace
+
 TEST(Direct, AFloatingPartIsNamed) {
   // Two separate spheres; only the first has a held vertex.
-  const GeneratedMesh a = icosphere(2), b = icosphere(2);
-  Positions V(a.V.rows() + b.V.rows(), 3);
-  V << a.V, (b.V.rowwise() + Eigen::RowVector3d(5, 0, 0));
-  Triangles F(a.F.rows() + b.F.rows(), 3);
-  F << a.F, (b.F.array() + static_cast<int>(a.V.rows())).matrix();
-  const Mesh m(V, F);
+  const Mesh m = two_spheres(2);
+  const int second = m.num_vertices() / 2;  // the first vertex of sphere 2
   const FemOperators ops = build_operators(m);
   std::vector<int> free;
   for (int v = 1; v < m.num_vertices(); ++v) free.push_back(v);
@@ -282,7 +294,7 @@ TEST(Direct, AFloatingPartIsNamed) {
   } catch (const SolverError& e) {
     const std::string msg = e.what();
     EXPECT_NE(msg.find("touches no held vertex"), std::string::npos) << msg;
-    EXPECT_NE(msg.find(std::to_string(a.V.rows())), std::string::npos) << msg;  // names a vertex of sphere 2
+    EXPECT_NE(msg.find(std::to_string(second)), std::string::npos) << msg;  // names a vertex of sphere 2
   }
   // With a foundation term the floating part is determined.
   EXPECT_NO_THROW(SteadyDirectSolver(m, ops, PdeCoefficients{.g0 = 1, .g1 = 1, .g2 = 0}, free));
@@ -394,12 +406,8 @@ TEST(GlobalBilaplacian, IterationsStayFlatUnderRefinementAndMatchTheDirectSolve)
 TEST(GlobalBilaplacian, AFloatingPartIsNamed) {
   // Two separate spheres, a vertex of the first held: the second has nothing to hold
   // it, and with either preconditioner the error names a vertex there.
-  const GeneratedMesh a = icosphere(3), b = icosphere(3);
-  Positions V(a.V.rows() + b.V.rows(), 3);
-  V << a.V, (b.V.rowwise() + Eigen::RowVector3d(5, 0, 0));
-  Triangles F(a.F.rows() + b.F.rows(), 3);
-  F << a.F, (b.F.array() + static_cast<int>(a.V.rows())).matrix();
-  const Mesh m(V, F);
+  const Mesh m = two_spheres(3);
+  const int second = m.num_vertices() / 2;  // sphere 2: vertices second .. 2 second - 1
   const FemOperators ops = build_operators(m);
   std::vector<int> free;
   for (int v = 1; v < m.num_vertices(); ++v) free.push_back(v);
@@ -415,7 +423,7 @@ TEST(GlobalBilaplacian, AFloatingPartIsNamed) {
     } catch (const SolverError& e) {
       const std::string msg = e.what();
       EXPECT_NE(msg.find("touches no held vertex"), std::string::npos) << msg;
-      const std::string part = std::to_string(b.V.rows()) + " free vertices (vertex " + std::to_string(a.V.rows());
+      const std::string part = std::to_string(second) + " free vertices (vertex " + std::to_string(second);
       EXPECT_NE(msg.find(part), std::string::npos) << msg;
     }
   }
