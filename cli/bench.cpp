@@ -36,6 +36,21 @@ std::string preconditioner_name(GlobalBilaplacianParams::Preconditioner p) {
   return p == GlobalBilaplacianParams::Preconditioner::Multigrid ? "multigrid" : "laplacian-factor";
 }
 
+// One global steady solve with the given preconditioner, timed.
+struct TimedGlobalSolve {
+  GlobalBilaplacianResult r;
+  double seconds = 0;
+};
+TimedGlobalSolve timed_global_solve(const Mesh& m, const FemOperators& o, const std::vector<int>& free, const Field& u,
+                                    GlobalBilaplacianParams::Preconditioner preconditioner) {
+  GlobalBilaplacianParams p;
+  p.preconditioner = preconditioner;
+  const auto t = clock_type::now();
+  TimedGlobalSolve out{solve_global_bilaplacian(m, o, free, u, p), 0};
+  out.seconds = seconds_since(t);
+  return out;
+}
+
 void progress(const std::string& what) {
   fmt::print(stderr, "[bench] {}\n", what);
 }
@@ -428,9 +443,8 @@ void add_bench_command(CLI::App& app) {
       std::vector<int> free;
       for (int v = 0; v < vertices; ++v)
         if (v != handle && m.positions()(v, 2) > -0.98) free.push_back(v);
-      const auto t_auto = clock_type::now();
-      const GlobalBilaplacianResult ra = solve_global_bilaplacian(m, o, free, u);
-      const double auto_s = seconds_since(t_auto);
+      using Preconditioner = GlobalBilaplacianParams::Preconditioner;
+      const auto [ra, auto_s] = timed_global_solve(m, o, free, u, Preconditioner::Auto);
       j["global_bilap_iters_" + tag] = ra.iterations;
       j["global_bilap_s_" + tag] = auto_s;
       j["global_bilap_bytes_per_vertex_" + tag] = ra.bytes_per_vertex;
@@ -438,11 +452,7 @@ void add_bench_command(CLI::App& app) {
       j["global_bilap_multigrid_iters_" + tag] = ra.multigrid_iterations;
       j["global_bilap_residual_" + tag] = ra.relative_residual;
       progress("global bi-Laplacian on " + tag + " with the Laplacian-factor preconditioner");
-      GlobalBilaplacianParams factor_params;
-      factor_params.preconditioner = GlobalBilaplacianParams::Preconditioner::LaplacianFactor;
-      const auto t_pcg = clock_type::now();
-      const GlobalBilaplacianResult r = solve_global_bilaplacian(m, o, free, u, factor_params);
-      const double pcg_s = seconds_since(t_pcg);
+      const auto [r, pcg_s] = timed_global_solve(m, o, free, u, Preconditioner::LaplacianFactor);
       j["global_bilap_factor_iters_" + tag] = r.iterations;
       j["global_bilap_factor_s_" + tag] = pcg_s;
       j["global_bilap_factor_bytes_per_vertex_" + tag] = r.bytes_per_vertex;
@@ -450,11 +460,7 @@ void add_bench_command(CLI::App& app) {
       // The same problem with the surface multigrid preconditioner, against the
       // Laplacian-factor solve just measured.
       progress("global bi-Laplacian on " + tag + " with the multigrid preconditioner");
-      GlobalBilaplacianParams mg_params;
-      mg_params.preconditioner = GlobalBilaplacianParams::Preconditioner::Multigrid;
-      const auto t_mg = clock_type::now();
-      const GlobalBilaplacianResult rmg = solve_global_bilaplacian(m, o, free, u, mg_params);
-      const double mg_s = seconds_since(t_mg);
+      const auto [rmg, mg_s] = timed_global_solve(m, o, free, u, Preconditioner::Multigrid);
       j["global_bilap_mg_s_" + tag] = mg_s;
       j["global_bilap_mg_iters_" + tag] = rmg.iterations;
       j["global_bilap_mg_setup_s_" + tag] = rmg.setup_seconds;
@@ -468,12 +474,9 @@ void add_bench_command(CLI::App& app) {
         // applies and the BLAS under CHOLMOD).
         const int limit = max_threads();
         set_max_threads(1);
-        const auto t_one = clock_type::now();
-        (void)solve_global_bilaplacian(m, o, free, u);
-        j["global_bilap_s_164k_1thread"] = seconds_since(t_one);
-        const auto t_factor_one = clock_type::now();
-        (void)solve_global_bilaplacian(m, o, free, u, factor_params);
-        j["global_bilap_factor_s_164k_1thread"] = seconds_since(t_factor_one);
+        j["global_bilap_s_164k_1thread"] = timed_global_solve(m, o, free, u, Preconditioner::Auto).seconds;
+        j["global_bilap_factor_s_164k_1thread"] =
+            timed_global_solve(m, o, free, u, Preconditioner::LaplacianFactor).seconds;
         set_max_threads(limit);
         j["global_bilap_speedup_2threads_164k"] = j["global_bilap_s_164k_1thread"].get<double>() / auto_s;
         j["global_bilap_factor_speedup_2threads_164k"] = j["global_bilap_factor_s_164k_1thread"].get<double>() / pcg_s;
@@ -500,9 +503,7 @@ void add_bench_command(CLI::App& app) {
         j["global_bilap_eigen_simplicial_max_difference_164k"] =
             (xe - x).cwiseAbs().maxCoeff() / x.cwiseAbs().maxCoeff();
         set_max_threads(1);
-        const auto t_mg_one = clock_type::now();
-        (void)solve_global_bilaplacian(m, o, free, u, mg_params);
-        j["global_bilap_mg_s_164k_1thread"] = seconds_since(t_mg_one);
+        j["global_bilap_mg_s_164k_1thread"] = timed_global_solve(m, o, free, u, Preconditioner::Multigrid).seconds;
         set_max_threads(limit);
         j["global_bilap_mg_speedup_2threads_164k"] =
             j["global_bilap_mg_s_164k_1thread"].get<double>() / j["global_bilap_mg_s_164k"].get<double>();
@@ -531,9 +532,9 @@ void add_bench_command(CLI::App& app) {
         std::vector<int> free;
         for (int v = 0; v < m.num_vertices(); ++v)
           if (v != handle && m.positions()(v, 2) > z0 + 0.02 * (z1 - z0)) free.push_back(v);
-        const auto t = clock_type::now();
-        const GlobalBilaplacianResult r = solve_global_bilaplacian(m, o, free, u);
-        j["global_bilap_s_1m"] = seconds_since(t);
+        using Preconditioner = GlobalBilaplacianParams::Preconditioner;
+        const auto [r, auto_s] = timed_global_solve(m, o, free, u, Preconditioner::Auto);
+        j["global_bilap_s_1m"] = auto_s;
         j["global_bilap_iters_1m"] = r.iterations;
         j["global_bilap_vertices_1m"] = m.num_vertices();
         j["global_bilap_bytes_per_vertex_1m"] = r.bytes_per_vertex;
@@ -543,25 +544,17 @@ void add_bench_command(CLI::App& app) {
         j["global_bilap_multigrid_iters_1m"] = r.multigrid_iterations;
         j["global_bilap_multigrid_predicted_iters_1m"] = r.multigrid_predicted_iterations;
         progress("global bi-Laplacian on fertility-4k subdivided 4 times with the Laplacian-factor preconditioner");
-        GlobalBilaplacianParams factor_params;
-        factor_params.preconditioner = GlobalBilaplacianParams::Preconditioner::LaplacianFactor;
-        const auto t_factor = clock_type::now();
-        const GlobalBilaplacianResult rf = solve_global_bilaplacian(m, o, free, u, factor_params);
-        j["global_bilap_factor_s_1m"] = seconds_since(t_factor);
+        const auto [rf, factor_s] = timed_global_solve(m, o, free, u, Preconditioner::LaplacianFactor);
+        j["global_bilap_factor_s_1m"] = factor_s;
         j["global_bilap_factor_iters_1m"] = rf.iterations;
         j["global_bilap_factor_bytes_per_vertex_1m"] = rf.bytes_per_vertex;
-        j["global_bilap_speedup_over_factor_1m"] =
-            j["global_bilap_factor_s_1m"].get<double>() / j["global_bilap_s_1m"].get<double>();
-        GlobalBilaplacianParams mg_params;
-        mg_params.preconditioner = GlobalBilaplacianParams::Preconditioner::Multigrid;
+        j["global_bilap_speedup_over_factor_1m"] = factor_s / auto_s;
         progress("global bi-Laplacian on fertility-4k subdivided 4 times with the multigrid preconditioner");
-        const auto t_mg = clock_type::now();
-        const GlobalBilaplacianResult rmg = solve_global_bilaplacian(m, o, free, u, mg_params);
-        j["global_bilap_mg_s_1m"] = seconds_since(t_mg);
+        const auto [rmg, mg_s] = timed_global_solve(m, o, free, u, Preconditioner::Multigrid);
+        j["global_bilap_mg_s_1m"] = mg_s;
         j["global_bilap_mg_iters_1m"] = rmg.iterations;
         j["global_bilap_mg_bytes_per_vertex_1m"] = rmg.bytes_per_vertex;
-        j["global_bilap_mg_speedup_over_factor_1m"] =
-            j["global_bilap_factor_s_1m"].get<double>() / j["global_bilap_mg_s_1m"].get<double>();
+        j["global_bilap_mg_speedup_over_factor_1m"] = factor_s / mg_s;
       } else {
         fmt::print(stderr, "warning: {} not found; global_bilap_s_1m skipped\n", fertility.string());
       }
