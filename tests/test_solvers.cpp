@@ -6,6 +6,7 @@
 #include <unordered_set>
 
 #include "meshpde/core/errors.h"
+#include "meshpde/core/parallel.h"
 #include "meshpde/mesh/generators.h"
 #include "meshpde/mesh/topology.h"
 #include "meshpde/operators/fem_operators.h"
@@ -280,6 +281,45 @@ Mesh two_spheres(int level) {
 }
 
 }  // namespace
+
+TEST(Direct, WrittenOutSweepsMatchCholmodsOwnOnOneAndTwoThreads) {
+  if (!SparseCholesky::cholmod_available()) GTEST_SKIP() << "meshpde was built without CHOLMOD";
+  // K + M on a 41k-vertex sphere (a factor large enough for the two-thread sweeps), on
+  // two separate spheres (a forest: the split falls between the trees), and the
+  // bi-Laplacian of a sphere with a cap held (larger supernodes).
+  const Mesh one = make(icosphere(6)), two = two_spheres(5), cap = make(icosphere(5));
+  const FemOperators o1 = build_operators(one), o2 = build_operators(two), o3 = build_operators(cap);
+  std::vector<int> free;
+  for (int v = 0; v < cap.num_vertices(); ++v)
+    if (cap.positions()(v, 2) > -0.9) free.push_back(v);
+  const std::vector<Eigen::SparseMatrix<double>> matrices{
+      stiffness_matrix(one, o1) + mass_matrix(o1), stiffness_matrix(two, o2) + mass_matrix(o2),
+      assemble_steady_matrix(cap, o3, PdeCoefficients{.g0 = 0, .g1 = 0, .g2 = 1}, free)};
+  const int limit = max_threads();
+  for (const auto& A : matrices)
+    for (const int columns : {1, 3, 5}) {
+      const Eigen::MatrixXd B = Eigen::MatrixXd::Random(A.rows(), columns);
+      SparseCholesky chol(SparseCholesky::Backend::Cholmod);
+      chol.factorize(A);
+      chol.set_sweeps(SparseCholesky::Sweeps::Cholmod);
+      const Eigen::MatrixXd reference = chol.solve(B);
+      chol.set_sweeps(SparseCholesky::Sweeps::WrittenOut);
+      set_max_threads(2);
+      const Eigen::MatrixXd x2 = chol.solve(B);
+      set_max_threads(1);
+      const Eigen::MatrixXd x1 = chol.solve(B);
+      set_max_threads(limit);
+      EXPECT_LE((x2 - reference).cwiseAbs().maxCoeff(), 1e-10 * reference.cwiseAbs().maxCoeff())
+          << A.rows() << " rows, " << columns << " columns";
+      EXPECT_LE((A * x2 - B).norm(), 1e-10 * B.norm());
+      // The groups' updates of shared rows are buffered and added in order: the thread
+      // count does not change a bit of the answer.
+      EXPECT_EQ((x1 - x2).cwiseAbs().maxCoeff(), 0.0);
+    }
+  SparseCholesky chol;
+  chol.factorize(matrices[0]);
+  EXPECT_THROW(chol.solve(Eigen::MatrixXd::Ones(5, 1)), SolverError);
+}
 
 TEST(Direct, AFloatingPartIsNamed) {
   // Two separate spheres; only the first has a held vertex.

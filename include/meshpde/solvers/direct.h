@@ -28,7 +28,17 @@ class SparseCholesky {
   /// \throw SolverError (in words) if A is not square, not finite, or not positive definite.
   void factorize(const Eigen::SparseMatrix<double>& A);
   /// X = A^-1 B for one or more columns. \pre factorize() succeeded.
+  /// \throw SolverError if B's row count is not the factor's.
   Eigen::MatrixXd solve(const Eigen::MatrixXd& B) const;
+
+  /// How solve() sweeps a CHOLMOD factor. WrittenOut (the default): meshpde's own loops
+  /// over the supernodes, the right-hand sides interleaved, two subtrees of the
+  /// elimination tree on two threads for large factors; about 1.5x faster than
+  /// cholmod_solve on surface meshes (docs/solvers.md). Cholmod: cholmod_solve, the
+  /// baseline the bench compares with. Both give the same answer to rounding; the
+  /// Eigen backend ignores this.
+  enum class Sweeps { WrittenOut, Cholmod };
+  void set_sweeps(Sweeps sweeps);
 
   const char* backend_name() const;
   /// Nonzeros of the factor L of the last factorization (memory: about 12 bytes each).
