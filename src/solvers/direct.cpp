@@ -231,9 +231,10 @@ Eigen::MatrixXd SparseCholesky::solve(const Eigen::MatrixXd& B) const {
   if (d.backend == Backend::Cholmod) {
     if (B.rows() != d.cholmod.rows())
       throw SolverError(fmt::format("direct solve: {} rows for a factor of {}", B.rows(), d.cholmod.rows()));
-    // Written-out sweeps (supernodal_sweeps.h): about twice as fast as cholmod_solve
-    // on the factors of surface meshes.
-    if (!d.sweeps.empty() && d.sweep_mode == Sweeps::WrittenOut) return d.sweeps.solve(B);
+    // Written-out sweeps (supernodal_sweeps.h) for up to four columns: 1.5-2x faster
+    // than cholmod_solve on the factors of surface meshes. From five columns on,
+    // cholmod_solve's BLAS-3 calls are faster (164k, eight columns: 111 against 157 ms).
+    if (!d.sweeps.empty() && d.sweep_mode == Sweeps::WrittenOut && B.cols() <= 4) return d.sweeps.solve(B);
     // Otherwise cholmod_solve. Triangular solves stream the factor once per column:
     // memory-bound, and a second BLAS thread makes them slower (164k-vertex Laplacian
     // factor, three columns: 43 ms on one thread, 48 ms on two), so they run on one.
@@ -254,7 +255,6 @@ namespace {
 struct CholmodInOrder {
   cholmod_common common{};
   cholmod_factor* L = nullptr;
-  detail::SupernodalSweeps sweeps;  // over L (identity permutation), when supernodal
 
   CholmodInOrder() {
     cholmod_start(&common);
@@ -282,7 +282,6 @@ struct CholmodInOrder {
   // Analyzes and factors A (compressed, symmetric; the lower triangle is read). Returns
   // false if A is not positive definite. The caller sets the BLAS and OpenMP threads.
   bool factorize(const Eigen::SparseMatrix<double>& A) {
-    sweeps = detail::SupernodalSweeps();  // it views L
     if (L) cholmod_free_factor(&L, &common);
     // A view of A's arrays (nothing copied); with stype -1 CHOLMOD reads the lower
     // triangle and ignores the upper one.
@@ -304,25 +303,14 @@ struct CholmodInOrder {
     const auto* perm = static_cast<const int*>(L->Perm);
     for (std::size_t k = 0; k < L->n; ++k)
       if (perm[k] != static_cast<int>(k)) throw SolverError("direct solve: CHOLMOD reordered a matrix given in order");
-    const bool ok = cholmod_factorize(&view, L, &common) && common.status == CHOLMOD_OK && L->minor == L->n;
-    sweeps = ok && L->is_super && L->is_ll && L->xtype == CHOLMOD_REAL && L->itype == CHOLMOD_INT
-                 ? detail::SupernodalSweeps(detail::SupernodalFactorView{.n = static_cast<Eigen::Index>(L->n),
-                                                                         .nsuper = static_cast<Eigen::Index>(L->nsuper),
-                                                                         .super = static_cast<const int*>(L->super),
-                                                                         .pi = static_cast<const int*>(L->pi),
-                                                                         .px = static_cast<const int*>(L->px),
-                                                                         .s = static_cast<const int*>(L->s),
-                                                                         .x = static_cast<const double*>(L->x),
-                                                                         .perm = static_cast<const int*>(L->Perm)})
-                 : detail::SupernodalSweeps();
-    return ok;
+    return cholmod_factorize(&view, L, &common) && common.status == CHOLMOD_OK && L->minor == L->n;
   }
 
-  // Y = L^-1 Y (sys CHOLMOD_L) or L^-T Y (CHOLMOD_Lt), all columns in one sweep: the
-  // written-out sweeps (supernodal_sweeps.h) when the factor is supernodal, else
-  // cholmod_solve.
+  // Y = L^-1 Y (sys CHOLMOD_L) or L^-T Y (CHOLMOD_Lt), all columns in one sweep. With
+  // cholmod_solve: the written-out sweeps of SparseCholesky were no faster on these
+  // factors of drag regions (coarse supernodes, see nrelax above; 10k region, one
+  // column: 1.2 against 1.0 ms).
   void sweep(int sys, Eigen::MatrixXd& Y) {
-    if (!sweeps.empty()) return sweeps.sweep(sys == CHOLMOD_L, Y);
     cholmod_dense b{};
     b.nrow = b.d = static_cast<std::size_t>(Y.rows());
     b.ncol = static_cast<std::size_t>(Y.cols());

@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cmath>
 #include <exception>
-#include <type_traits>
 #include <vector>
 
 #include "meshpde/core/parallel.h"
@@ -187,26 +186,6 @@ SupernodalSweeps::SupernodalSweeps(const SupernodalFactorView& L) : L_(L) {
   group_end_ = kids.back() + 1;
 }
 
-void SupernodalSweeps::sweep(bool lower, Eigen::MatrixXd& Y) const {
-  const Index n = L_.n, m = Y.cols();
-  auto run = [&](double* y, auto columns) {
-    constexpr int M = decltype(columns)::value;
-    if (lower)
-      forward<M>(L_, 0, L_.nsuper, y, m, 0, nullptr);
-    else
-      backward<M>(L_, 0, L_.nsuper, y, m);
-  };
-  if (m == 1) return run(Y.data(), std::integral_constant<int, 1>{});
-  // Row-major for the sweeps: one gather serves every column.
-  Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> y = Y;
-  if (m == 3)
-    run(y.data(), std::integral_constant<int, 3>{});
-  else
-    run(y.data(), std::integral_constant<int, 0>{});
-  (void)n;
-  Y = y;
-}
-
 Eigen::MatrixXd SupernodalSweeps::solve(const Eigen::MatrixXd& B) const {
   const Index n = L_.n, m = B.cols();
   // Row-major and permuted: row i of y is row perm[i] of B.
@@ -218,8 +197,14 @@ Eigen::MatrixXd SupernodalSweeps::solve(const Eigen::MatrixXd& B) const {
     case 1:
       sweep_both<1>(L_, group_begin_, split_, group_end_, two_threads, y.data(), m);
       break;
+    case 2:
+      sweep_both<2>(L_, group_begin_, split_, group_end_, two_threads, y.data(), m);
+      break;
     case 3:
       sweep_both<3>(L_, group_begin_, split_, group_end_, two_threads, y.data(), m);
+      break;
+    case 4:
+      sweep_both<4>(L_, group_begin_, split_, group_end_, two_threads, y.data(), m);
       break;
     default:
       sweep_both<0>(L_, group_begin_, split_, group_end_, two_threads, y.data(), m);

@@ -46,12 +46,9 @@ class SupernodalSweeps {
   /// Keeps the view (the factor must outlive this) and finds the two-thread split.
   explicit SupernodalSweeps(const SupernodalFactorView& L);
   bool empty() const { return L_.x == nullptr; }
-  /// X = A^-1 B, B of n rows (any number of columns).
+  /// X = A^-1 B, B of n rows (specialized for one to four columns; more work, but
+  /// slower than CHOLMOD's BLAS-3 calls).
   Eigen::MatrixXd solve(const Eigen::MatrixXd& B) const;
-  /// Y = L^-1 Y (`lower`) or L^-T Y in place, in the factor's own order (no
-  /// permutation), on the calling thread: for factors of a matrix given in order
-  /// (direct.h's leading-block and split factors, whose callers run parts on threads).
-  void sweep(bool lower, Eigen::MatrixXd& Y) const;
   /// Supernodes before `group_begin` and from `group_end` on run on one thread; the two
   /// groups [group_begin, split) and [split, group_end) on two (tests, docs).
   Eigen::Index group_begin() const { return group_begin_; }
