@@ -233,7 +233,8 @@ Eigen::MatrixXd SparseCholesky::solve(const Eigen::MatrixXd& B) const {
       throw SolverError(fmt::format("direct solve: {} rows for a factor of {}", B.rows(), d.cholmod.rows()));
     // Written-out sweeps (supernodal_sweeps.h) for up to four columns: 1.5-2x faster
     // than cholmod_solve on the factors of surface meshes. From five columns on,
-    // cholmod_solve's BLAS-3 calls are faster (164k, eight columns: 111 against 157 ms).
+    // cholmod_solve's BLAS-3 calls are as fast or faster (164k, eight columns: the
+    // Laplacian's factor 67 against 70 ms, K D K's 111 against 157 ms).
     if (!d.sweeps.empty() && d.sweep_mode == Sweeps::WrittenOut && B.cols() <= 4) return d.sweeps.solve(B);
     // Otherwise cholmod_solve. Triangular solves stream the factor once per column:
     // memory-bound, and a second BLAS thread makes them slower (164k-vertex Laplacian
@@ -307,9 +308,11 @@ struct CholmodInOrder {
   }
 
   // Y = L^-1 Y (sys CHOLMOD_L) or L^-T Y (CHOLMOD_Lt), all columns in one sweep. With
-  // cholmod_solve: the written-out sweeps of SparseCholesky were no faster on these
-  // factors of drag regions (coarse supernodes, see nrelax above; 10k region, one
-  // column: 1.2 against 1.0 ms).
+  // cholmod_solve: on drag regions the written-out sweeps of SparseCholesky were not
+  // faster (10k region's K D K, one column: 1.2 against 1.0 ms) and, tried here, they
+  // made growing a region by one ring (two columns) 10 instead of 3.6 ms, with a
+  // generic column loop that the two-column template has since replaced (not
+  // measured again).
   void sweep(int sys, Eigen::MatrixXd& Y) {
     cholmod_dense b{};
     b.nrow = b.d = static_cast<std::size_t>(Y.rows());

@@ -33,8 +33,9 @@ class SparseCholesky {
 
   /// How solve() sweeps a CHOLMOD factor. WrittenOut (the default): meshpde's own loops
   /// over the supernodes, the right-hand sides interleaved, two subtrees of the
-  /// elimination tree on two threads for large factors; about 1.5x faster than
-  /// cholmod_solve on surface meshes (docs/solvers.md). Cholmod: cholmod_solve, the
+  /// elimination tree on two threads for large factors, one to four
+  /// columns (more go to cholmod_solve); 1.5-2x faster than cholmod_solve on surface
+  /// meshes (docs/solvers.md). Cholmod: cholmod_solve, the
   /// baseline the bench compares with. Both give the same answer to rounding; the
   /// Eigen backend ignores this.
   enum class Sweeps { WrittenOut, Cholmod };
