@@ -308,11 +308,10 @@ struct CholmodInOrder {
   }
 
   // Y = L^-1 Y (sys CHOLMOD_L) or L^-T Y (CHOLMOD_Lt), all columns in one sweep. With
-  // cholmod_solve: on drag regions the written-out sweeps of SparseCholesky were not
-  // faster (10k region's K D K, one column: 1.2 against 1.0 ms) and, tried here, they
-  // made growing a region by one ring (two columns) 10 instead of 3.6 ms, with a
-  // generic column loop that the two-column template has since replaced (not
-  // measured again).
+  // cholmod_solve: tried here, the written-out sweeps of SparseCholesky were slower on
+  // these factors of drag regions, whose supernodes are coarse (nrelax above): on the
+  // bench's 10k region (655k sphere), growing by one ring 4.1-4.5 against 3.1-3.6 ms,
+  // adding a handle 2.8-3.3 against 1.5-1.8 ms.
   void sweep(int sys, Eigen::MatrixXd& Y) {
     cholmod_dense b{};
     b.nrow = b.d = static_cast<std::size_t>(Y.rows());
