@@ -233,9 +233,11 @@ Eigen::MatrixXd SparseCholesky::solve(const Eigen::MatrixXd& B) const {
       throw SolverError(fmt::format("direct solve: {} rows for a factor of {}", B.rows(), d.cholmod.rows()));
     // Written-out sweeps (supernodal_sweeps.h) for up to four columns: 1.5-2x faster
     // than cholmod_solve on the factors of surface meshes. From five columns on,
-    // cholmod_solve's BLAS-3 calls are as fast or faster (164k, eight columns: the
-    // Laplacian's factor 67 against 70 ms, K D K's 111 against 157 ms).
-    if (!d.sweeps.empty() && d.sweep_mode == Sweeps::WrittenOut && B.cols() <= 4) return d.sweeps.solve(B);
+    // cholmod_solve's BLAS-3 calls are about as fast or faster (164k, eight columns,
+    // cholmod_solve against a generic-width version of these loops: the Laplacian's
+    // factor 69 against 66 ms, K D K's 111 against 157 ms).
+    if (!d.sweeps.empty() && d.sweep_mode == Sweeps::WrittenOut && B.cols() >= 1 && B.cols() <= 4)
+      return d.sweeps.solve(B);
     // Otherwise cholmod_solve. Triangular solves stream the factor once per column:
     // memory-bound, and a second BLAS thread makes them slower (164k-vertex Laplacian
     // factor, three columns: 43 ms on one thread, 48 ms on two), so they run on one.

@@ -1,10 +1,15 @@
 #include "supernodal_sweeps.h"
 
+#include <fmt/format.h>
+
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <exception>
+#include <type_traits>
 #include <vector>
 
+#include "meshpde/core/errors.h"
 #include "meshpde/core/parallel.h"
 
 #ifdef MESHPDE_HAVE_OPENMP
@@ -21,14 +26,14 @@ using Index = Eigen::Index;
 // join and the buffer, and the sweeps of a factor this small take well under 1 ms.
 constexpr double kTwoThreadsFrom = 500000;
 
-// Forward sweep y := L^-1 y over supernodes [k0, k1) for a row-major y with M columns
-// (M = 0: m columns). Updates of rows >= buffer_from go to `buffer` (rows counted from
+// Forward sweep y := L^-1 y over supernodes [k0, k1) for a row-major y with M columns.
+// Updates of rows >= buffer_from go to `buffer` (rows counted from
 // buffer_from) when it is given. Per supernode: the diagonal block's rows are
 // contiguous in y and solved in place; the rows below it are summed into a dense
 // scratch block column by column (contiguous in L) and scattered once.
 template <int M>
-void forward(const SupernodalFactorView& L, Index k0, Index k1, double* y, Index m, Index buffer_from, double* buffer) {
-  const Index cols = M > 0 ? M : m;
+void forward(const SupernodalFactorView& L, Index k0, Index k1, double* y, Index buffer_from, double* buffer) {
+  constexpr Index cols = M;
   std::vector<double> t;
   for (Index k = k0; k < k1; ++k) {
     const Index c0 = L.super[k], nc = L.super[k + 1] - c0, nr = L.pi[k + 1] - L.pi[k], below = nr - nc;
@@ -57,9 +62,10 @@ void forward(const SupernodalFactorView& L, Index k0, Index k1, double* y, Index
 // Backward sweep y := L^-T y over supernodes [k0, k1), last first: the rows below the
 // diagonal block gathered once into a dense scratch block.
 template <int M>
-void backward(const SupernodalFactorView& L, Index k0, Index k1, double* y, Index m) {
-  const Index cols = M > 0 ? M : m;
-  std::vector<double> g, acc(static_cast<std::size_t>(cols));
+void backward(const SupernodalFactorView& L, Index k0, Index k1, double* y) {
+  constexpr Index cols = M;
+  std::vector<double> g;
+  std::array<double, M> acc;
   for (Index k = k1; k-- > k0;) {
     const Index c0 = L.super[k], nc = L.super[k + 1] - c0, nr = L.pi[k + 1] - L.pi[k], below = nr - nc;
     const double* D = L.x + L.px[k];
@@ -70,7 +76,7 @@ void backward(const SupernodalFactorView& L, Index k0, Index k1, double* y, Inde
       for (Index c = 0; c < cols; ++c) g[static_cast<std::size_t>(i * cols + c)] = y[rows[nc + i] * cols + c];
     for (Index j = nc; j-- > 0;) {
       const double* col = D + j * nr;
-      std::fill(acc.begin(), acc.end(), 0.0);
+      acc.fill(0.0);
       for (Index i = j + 1; i < nc; ++i)
         for (Index c = 0; c < cols; ++c) acc[static_cast<std::size_t>(c)] += col[i] * yk[i * cols + c];
       for (Index i = 0; i < below; ++i)
@@ -84,24 +90,24 @@ void backward(const SupernodalFactorView& L, Index k0, Index k1, double* y, Inde
 }
 
 template <int M>
-void sweep_both(const SupernodalFactorView& L, Index g0, Index split, Index g1, bool two_threads, double* y, Index m) {
+void sweep_both(const SupernodalFactorView& L, Index g0, Index split, Index g1, bool two_threads, double* y) {
   const Index ns = L.nsuper;
   if (g0 == g1) {  // no split: one thread, no buffers
-    forward<M>(L, 0, ns, y, m, 0, nullptr);
-    backward<M>(L, 0, ns, y, m);
+    forward<M>(L, 0, ns, y, 0, nullptr);
+    backward<M>(L, 0, ns, y);
     return;
   }
   // Forward: the supernodes before the groups, then the groups (their updates of the
   // ancestors' rows, from `from` on, into one buffer each), the buffers added in
   // order, then the rest.
-  forward<M>(L, 0, g0, y, m, 0, nullptr);
+  forward<M>(L, 0, g0, y, 0, nullptr);
   const Index from = L.super[g1];
-  const auto tail = static_cast<std::size_t>((L.n - from) * m);
+  const auto tail = static_cast<std::size_t>((L.n - from) * M);
   std::vector<double> buffer[2] = {std::vector<double>(tail, 0.0), std::vector<double>(tail, 0.0)};
   auto group_forward = [&](int t) {
-    forward<M>(L, t == 0 ? g0 : split, t == 0 ? split : g1, y, m, from, buffer[t].data());
+    forward<M>(L, t == 0 ? g0 : split, t == 0 ? split : g1, y, from, buffer[t].data());
   };
-  auto group_backward = [&](int t) { backward<M>(L, t == 0 ? g0 : split, t == 0 ? split : g1, y, m); };
+  auto group_backward = [&](int t) { backward<M>(L, t == 0 ? g0 : split, t == 0 ? split : g1, y); };
   // The two groups on two threads (each on its own rows and buffer), or one after the
   // other: the same arithmetic either way.
   auto both = [&](auto&& f) {
@@ -126,15 +132,15 @@ void sweep_both(const SupernodalFactorView& L, Index g0, Index split, Index g1, 
     f(1);
   };
   both(group_forward);
-  double* t = y + from * m;
+  double* t = y + from * M;
   for (int g = 0; g < 2; ++g)
     for (std::size_t i = 0; i < tail; ++i) t[i] += buffer[g][i];
-  forward<M>(L, g1, ns, y, m, 0, nullptr);
+  forward<M>(L, g1, ns, y, 0, nullptr);
   // Backward: the rest first (the groups' ancestors), then the groups, then the
   // supernodes before them.
-  backward<M>(L, g1, ns, y, m);
+  backward<M>(L, g1, ns, y);
   both(group_backward);
-  backward<M>(L, 0, g0, y, m);
+  backward<M>(L, 0, g0, y);
 }
 
 }  // namespace
@@ -188,26 +194,27 @@ SupernodalSweeps::SupernodalSweeps(const SupernodalFactorView& L) : L_(L) {
 
 Eigen::MatrixXd SupernodalSweeps::solve(const Eigen::MatrixXd& B) const {
   const Index n = L_.n, m = B.cols();
+  if (m < 1 || m > 4) throw SolverError(fmt::format("triangular sweeps: {} columns (one to four)", m));
   // Row-major and permuted: row i of y is row perm[i] of B.
   std::vector<double> y(static_cast<std::size_t>(n * m));
   for (Index i = 0; i < n; ++i)
     for (Index c = 0; c < m; ++c) y[static_cast<std::size_t>(i * m + c)] = B(L_.perm[i], c);
   const bool two_threads = work_ >= kTwoThreadsFrom && max_threads() > 1;
+  auto run = [&](auto columns) {
+    sweep_both<decltype(columns)::value>(L_, group_begin_, split_, group_end_, two_threads, y.data());
+  };
   switch (m) {
     case 1:
-      sweep_both<1>(L_, group_begin_, split_, group_end_, two_threads, y.data(), m);
+      run(std::integral_constant<int, 1>{});
       break;
     case 2:
-      sweep_both<2>(L_, group_begin_, split_, group_end_, two_threads, y.data(), m);
+      run(std::integral_constant<int, 2>{});
       break;
     case 3:
-      sweep_both<3>(L_, group_begin_, split_, group_end_, two_threads, y.data(), m);
-      break;
-    case 4:
-      sweep_both<4>(L_, group_begin_, split_, group_end_, two_threads, y.data(), m);
+      run(std::integral_constant<int, 3>{});
       break;
     default:
-      sweep_both<0>(L_, group_begin_, split_, group_end_, two_threads, y.data(), m);
+      run(std::integral_constant<int, 4>{});
   }
   Eigen::MatrixXd X(n, m);
   for (Index i = 0; i < n; ++i)

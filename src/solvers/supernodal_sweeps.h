@@ -48,8 +48,8 @@ class SupernodalSweeps {
   /// Keeps the view (the factor must outlive this) and finds the two-thread split.
   explicit SupernodalSweeps(const SupernodalFactorView& L);
   bool empty() const { return L_.x == nullptr; }
-  /// X = A^-1 B, B of n rows (specialized for one to four columns; more work, but
-  /// slower than CHOLMOD's BLAS-3 calls).
+  /// X = A^-1 B, B of n rows and one to four columns (SparseCholesky sends more to
+  /// cholmod_solve, whose BLAS-3 calls are as fast there). \throw SolverError otherwise.
   Eigen::MatrixXd solve(const Eigen::MatrixXd& B) const;
   /// Supernodes before `group_begin` and from `group_end` on run on one thread; the two
   /// groups [group_begin, split) and [split, group_end) on two (tests, docs).
