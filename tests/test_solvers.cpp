@@ -519,6 +519,101 @@ TEST(GlobalBilaplacian, AutoHandsBadlyShapedMeshesOnToTheFactor) {
   EXPECT_LE((r.values - mg.values).cwiseAbs().maxCoeff(), 1e-6 * x.cwiseAbs().maxCoeff());
 }
 
+TEST(GlobalBilaplacian, ASolverKeepsItsPreconditionerForTheNextSolves) {
+  // One free set, two solves with other held values and another column count (the
+  // handle moved elsewhere, the held cap tilted): each answer is the direct solve's, and
+  // only the first builds a preconditioner, with the default rule (the multigrid here)
+  // and with the factor forced.
+  const auto [m, ops, u, free] = global_problem(5);
+  int handle = 0;
+  m.positions().col(2).maxCoeff(&handle);
+  Field tilted = Field::Zero(m.num_vertices(), 1);
+  tilted(handle, 0) = -0.05;
+  for (int v = 0; v < m.num_vertices(); ++v)
+    if (m.positions()(v, 2) <= -0.95) tilted(v, 0) = 0.01 * m.positions()(v, 0);
+  const SteadyDirectSolver direct(m, ops, PdeCoefficients{.g0 = 0, .g1 = 0.1, .g2 = 1}, free);
+  using Preconditioner = GlobalBilaplacianParams::Preconditioner;
+  for (const Preconditioner pre : {Preconditioner::Auto, Preconditioner::LaplacianFactor}) {
+    GlobalBilaplacianParams p{.g1 = 0.1, .g2 = 1, .tolerance = 1e-10};
+    p.preconditioner = pre;
+    GlobalBilaplacianSolver solver(m, ops, free, p);
+    EXPECT_EQ(solver.multigrid_builds() + solver.factorizations(), 0);
+    for (const Field* values : std::initializer_list<const Field*>{&u, &tilted}) {
+      const GlobalBilaplacianResult r = solver.solve(*values);
+      ASSERT_TRUE(r.converged);
+      EXPECT_EQ(r.used, pre == Preconditioner::Auto ? Preconditioner::Multigrid : Preconditioner::LaplacianFactor);
+      const Field x = direct.solve(*values);
+      ASSERT_EQ(r.values.cols(), values->cols());
+      EXPECT_LE((r.values - x).cwiseAbs().maxCoeff(), 1e-7 * x.cwiseAbs().maxCoeff());
+    }
+    EXPECT_EQ(solver.multigrid_builds(), pre == Preconditioner::Auto ? 1 : 0);
+    EXPECT_EQ(solver.factorizations(), pre == Preconditioner::Auto ? 0 : 1);
+    EXPECT_THROW((void)solver.solve(Field::Zero(3, 1)), InputError);
+  }
+}
+
+TEST(GlobalBilaplacian, AWarmStartFromThePreviousAnswerTakesFewerIterations) {
+  // The handle moved on by a tenth of its move: started from the previous answer, the
+  // solve needs fewer iterations than from zero, to the same answer (both
+  // preconditioners); started from its own answer, next to none.
+  const auto [m, ops, u, free] = global_problem(5);
+  int handle = 0;
+  m.positions().col(2).maxCoeff(&handle);
+  const SteadyDirectSolver direct(m, ops, PdeCoefficients{.g0 = 0, .g1 = 0.1, .g2 = 1}, free);
+  using Preconditioner = GlobalBilaplacianParams::Preconditioner;
+  for (const Preconditioner pre : {Preconditioner::Auto, Preconditioner::LaplacianFactor}) {
+    GlobalBilaplacianParams p{.g1 = 0.1, .g2 = 1, .tolerance = 1e-10};
+    p.preconditioner = pre;
+    GlobalBilaplacianSolver solver(m, ops, free, p);
+    const GlobalBilaplacianResult first = solver.solve(u);
+    ASSERT_TRUE(first.converged);
+    EXPECT_LE(solver.solve(first.values, true).iterations, 2);
+    Field next = first.values;
+    next.row(handle) *= 1.1;
+    const GlobalBilaplacianResult warm = solver.solve(next, true);
+    const GlobalBilaplacianResult cold = solver.solve(next);
+    ASSERT_TRUE(warm.converged && cold.converged);
+    EXPECT_LT(warm.iterations, cold.iterations);
+    const Field x = direct.solve(next);
+    EXPECT_LE((warm.values - x).cwiseAbs().maxCoeff(), 1e-7 * x.cwiseAbs().maxCoeff());
+    EXPECT_LE((cold.values - x).cwiseAbs().maxCoeff(), 1e-7 * x.cwiseAbs().maxCoeff());
+    Field bad = first.values;
+    bad(free[3], 1) = std::numeric_limits<double>::quiet_NaN();
+    EXPECT_THROW((void)solver.solve(bad, true), InputError);
+  }
+}
+
+TEST(GlobalBilaplacian, AfterAHandOnTheSolverStartsWithTheFactor) {
+  // The stretched icosphere of the test above: the first solve hands on to the factor,
+  // the second starts with it (no multigrid iteration, no new hierarchy or factor).
+  auto [m0, ops0, u, free] = global_problem(4);
+  Positions X = m0.positions();
+  X.col(0) *= 8;
+  const Mesh m(X, m0.triangles());
+  const FemOperators ops = build_operators(m);
+  int handle = 0;
+  m.positions().col(2).maxCoeff(&handle);
+  GlobalBilaplacianSolver solver(m, ops, free, GlobalBilaplacianParams{.tolerance = 1e-10, .max_iterations = 2000});
+  const GlobalBilaplacianResult first = solver.solve(u);
+  ASSERT_TRUE(first.converged);
+  EXPECT_EQ(first.used, GlobalBilaplacianParams::Preconditioner::LaplacianFactor);
+  EXPECT_GT(first.multigrid_iterations, 0);
+  Field moved = u;
+  moved.row(handle) << 0.05, -0.01, 0.02;
+  const GlobalBilaplacianResult second = solver.solve(moved);
+  ASSERT_TRUE(second.converged);
+  EXPECT_EQ(second.used, GlobalBilaplacianParams::Preconditioner::LaplacianFactor);
+  EXPECT_EQ(second.multigrid_iterations, 0);
+  EXPECT_GT(second.factor_nonzeros, 0);
+  EXPECT_EQ(solver.multigrid_builds(), 1);
+  EXPECT_EQ(solver.factorizations(), 1);
+  const SteadyDirectSolver direct(m, ops, PdeCoefficients{.g0 = 0, .g1 = 0, .g2 = 1}, free);
+  for (const auto& [r, values] : {std::pair{&first, &u}, std::pair{&second, &moved}}) {
+    const Field x = direct.solve(*values);
+    EXPECT_LE((r->values - x).cwiseAbs().maxCoeff(), 1e-6 * x.cwiseAbs().maxCoeff());
+  }
+}
+
 #include "meshpde/apps/fairing.h"
 #include "meshpde/apps/local_drag.h"
 

@@ -28,6 +28,7 @@
 // nearly flat.
 #pragma once
 
+#include <memory>
 #include <vector>
 
 #include "meshpde/mesh/mesh.h"
@@ -77,9 +78,46 @@ struct GlobalBilaplacianResult {
   double bytes_per_vertex = 0;
 };
 
-/// \throw InputError for bad vertices or g2 <= 0; SolverError naming a vertex of a
-///        connected part of the free set that touches no held vertex (its values would
-///        be undetermined), or if a preconditioner fails.
+/// The global solver for one free set, kept across solves: the preconditioner (the
+/// multigrid hierarchy or the Cholesky factor of K_FF) is built by the first solve() and
+/// reused by the next ones, whose held values (a new handle position, new constraint
+/// values on the same vertices) and column count may differ. A later solve costs its
+/// right-hand side and its iterations only (docs/solvers.md: at 164k about 0.4 s
+/// against 0.6 s for the first). Auto decides once: after it has handed a solve on to
+/// the factor, the next solves start with the factor; while the multigrid converges,
+/// each solve is judged as the first was. The mesh and operators are referenced and
+/// must outlive the solver; the free set and parameters are copied.
+class GlobalBilaplacianSolver {
+ public:
+  /// Checks the parameters and the free set (cost O(#F)); builds no preconditioner yet.
+  /// \throw InputError for bad vertices or g2 <= 0; SolverError naming a vertex of a
+  ///        connected part of the free set that touches no held vertex (its values
+  ///        would be undetermined).
+  GlobalBilaplacianSolver(const Mesh& mesh, const FemOperators& ops, std::vector<int> free,
+                          const GlobalBilaplacianParams& params = {});
+  ~GlobalBilaplacianSolver();
+  GlobalBilaplacianSolver(GlobalBilaplacianSolver&&) noexcept;
+  GlobalBilaplacianSolver& operator=(GlobalBilaplacianSolver&&) noexcept;
+
+  /// Solves with the held rows of u (one row per vertex, any number of columns). The
+  /// iterations start from zero, or with `warm_start` from the free rows of u (for
+  /// example the previous answer with the handle moved on: a small move then needs few
+  /// iterations); otherwise the free rows are not read. `setup_seconds` of the result
+  /// counts the right-hand side and whatever preconditioner this call had to build.
+  /// \throw InputError if u's row count is wrong or, with `warm_start`, a free value is
+  ///        not finite; SolverError if a preconditioner fails.
+  GlobalBilaplacianResult solve(const Field& u, bool warm_start = false);
+
+  int multigrid_builds() const;  ///< multigrid hierarchies built so far
+  int factorizations() const;    ///< Cholesky factors of K_FF built so far
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+/// One solve: `GlobalBilaplacianSolver(mesh, ops, free, params).solve(u)`.
+/// \throw as GlobalBilaplacianSolver and its solve().
 GlobalBilaplacianResult solve_global_bilaplacian(const Mesh& mesh, const FemOperators& ops,
                                                  const std::vector<int>& free, const Field& u,
                                                  const GlobalBilaplacianParams& params = {});
