@@ -553,12 +553,24 @@ class EditorServer {
   std::map<Hdl, Client> clients_;
 };
 
+// The built page: installed beside the tool (found from the executable's own path),
+// else the source tree's web/dist this binary was built from.
+std::string default_web_root() {
+  std::error_code ec;
+  const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
+  if (!ec) {
+    const fs::path installed = (exe.parent_path() / MESHPDE_INSTALLED_WEB_ROOT_FROM_BINDIR).lexically_normal();
+    if (fs::exists(installed / "index.html", ec)) return installed.string();
+  }
+  return MESHPDE_WEB_ROOT;
+}
+
 }  // namespace
 
 void add_serve_command(CLI::App& app) {
   auto* cmd = app.add_subcommand("serve", "Interactive browser editor: poke, correct, paint, heat and wave, live");
   auto a = std::make_shared<ServeArgs>();
-  a->web_root = MESHPDE_WEB_ROOT;
+  a->web_root = default_web_root();
   cmd->add_option("MESH", a->mesh, "Mesh to open (default: a generated dented bifurcation)");
   cmd->add_option("--port", a->port, "TCP port (0: any free port)")->capture_default_str();
   cmd->add_option("--host", a->host, "Address to bind (default loopback only; 0.0.0.0 exposes the editor)")

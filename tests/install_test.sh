@@ -8,6 +8,17 @@ T="$(mktemp -d)"
 trap 'rm -rf "$T"' EXIT
 cmake --install "$build" --prefix "$T/prefix" >/dev/null
 test -f "$T/prefix/lib/cmake/meshpde/meshpdeConfigVersion.cmake"
+# With the server built and the page built (scripts/build-web), the page is installed
+# and the installed tool serves it by default, not the source tree's copy.
+if "$T/prefix/bin/meshpde" serve --help >"$T/serve-help" 2>&1; then
+  if [ -f "$(dirname "$0")/../web/dist/index.html" ]; then
+    test -f "$T/prefix/share/meshpde/web/index.html"
+    grep -q -- "--web-root TEXT=$T/prefix/share/meshpde/web\$" "$T/serve-help" ||
+      { echo "installed serve does not default to the installed page:"; grep -- --web-root "$T/serve-help"; exit 1; }
+  elif [ "${CI:-}" = true ]; then
+    echo "web/dist/index.html missing under CI (scripts/build-web builds it)"; exit 1
+  fi
+fi
 extra=()
 # A sanitized static library needs its consumer linked with the same runtime.
 if grep -q "MESHPDE_SANITIZE:BOOL=ON" "$build/CMakeCache.txt"; then
