@@ -82,8 +82,8 @@ struct GlobalBilaplacianResult {
 /// multigrid hierarchy or the Cholesky factor of K_FF) is built by the first solve() and
 /// reused by the next ones, whose held values (a new handle position, new constraint
 /// values on the same vertices) and column count may differ. A later solve costs its
-/// right-hand side and its iterations only (docs/solvers.md: at 164k about 0.4 s
-/// against 0.6 s for the first). Auto decides once: after it has handed a solve on to
+/// right-hand side and its iterations only (docs/solvers.md: at 164k 0.43-0.46 s
+/// against 0.71-0.74 s for the first). Auto decides once: after it has handed a solve on to
 /// the factor, the next solves start with the factor; while the multigrid converges,
 /// each solve is judged as the first was. The mesh and operators are referenced and
 /// must outlive the solver; the free set and parameters are copied.
