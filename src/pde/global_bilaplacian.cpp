@@ -37,6 +37,7 @@ struct GlobalBilaplacianSolver::Impl {
   std::unique_ptr<BilaplacianMultigrid> multigrid;
   std::unique_ptr<SparseCholesky> factor;
   Eigen::VectorXd mass_f;
+  std::vector<int> all;  // every vertex: the rows of the factor path's whole-mesh applies
   double factor_nonzeros = 0, kff_nonzeros = 0;
   bool factor_only = false;  // LaplacianFactor asked for, or Auto after a hand-on
   int multigrid_builds = 0, factorizations = 0;
@@ -86,6 +87,8 @@ struct GlobalBilaplacianSolver::Impl {
     kff_nonzeros = static_cast<double>(KFF.nonZeros());
     mass_f.resize(n);
     for (int k = 0; k < n; ++k) mass_f[k] = ops.mass[free[static_cast<std::size_t>(k)]];
+    all.resize(static_cast<std::size_t>(nv));
+    for (int i = 0; i < nv; ++i) all[static_cast<std::size_t>(i)] = i;
     factor = std::move(f);
     ++factorizations;
   }
@@ -139,18 +142,9 @@ struct GlobalBilaplacianSolver::Impl {
       // first and then slows.
       Block xb = x;
       std::function<bool(int, double)> keep_going;
-      // Relative residual at the start (1 from zero) and after each iteration.
-      std::vector<double> history{1.0};
-      if (warm_start && p.preconditioner == Preconditioner::Auto) {
-        Block ax;
-        mg.apply(xb, ax);
-        const Eigen::MatrixXd r0 = b - Eigen::MatrixXd(ax);
-        history[0] = 0;
-        for (int c = 0; c < m; ++c) {
-          const double bc = b.col(c).norm();
-          history[0] = std::max(history[0], bc > 0 ? r0.col(c).norm() / bc : 0.0);
-        }
-      }
+      // Relative residual at the start (1 from zero, less from a warm start) and after
+      // each iteration, as the multigrid's solve reports them.
+      std::vector<double> history;
       if (p.preconditioner == Preconditioner::Auto)
         keep_going = [&](int k, double r) {
           history.push_back(r);
@@ -188,11 +182,6 @@ struct GlobalBilaplacianSolver::Impl {
     // of it here): scatter x into a field that is zero on held vertices, apply K (both
     // cores for large meshes), scale by D, apply K again, gather the free rows.
     Field full = Field::Zero(nv, m), kx(nv, m), dkx(nv, m), kdkx(nv, m);
-    const std::vector<int> all = [&] {
-      std::vector<int> a(static_cast<std::size_t>(nv));
-      for (int i = 0; i < nv; ++i) a[static_cast<std::size_t>(i)] = i;
-      return a;
-    }();
     auto apply = [&](const Eigen::MatrixXd& xs) -> Eigen::MatrixXd {
       for (int k = 0; k < n; ++k) full.row(free[static_cast<std::size_t>(k)]) = xs.row(k);
       apply_stiffness_rows(mesh, ops, full.data(), kx.data(), m, all);

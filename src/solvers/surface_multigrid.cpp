@@ -785,6 +785,7 @@ MultigridSolveResult BilaplacianMultigrid::solve(const Block& B, Block& X, doubl
   };
   res.relative_residual = worst(column_dots(r, r));
   if (res.relative_residual <= tolerance) return res.converged = true, res;
+  if (keep_going && !keep_going(0, res.relative_residual)) return res;
   precondition(r, z);
   p = z;
   Eigen::VectorXd rz = column_dots(r, z), alpha(m), beta(m);

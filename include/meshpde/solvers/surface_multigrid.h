@@ -114,9 +114,9 @@ class BilaplacianMultigrid {
   void precondition(const Block& R, Block& Z) const;
   /// Conjugate gradient on A X = B preconditioned by the cycle, from the given X
   /// (every column its own step lengths, one apply and one cycle for all columns).
-  /// `keep_going(iterations, relative_residual)`, when given, is called after every
-  /// iteration that has not converged; returning false stops the solve there (X holds
-  /// the iterate, `converged` is false).
+  /// `keep_going(iterations, relative_residual)`, when given, is called with the
+  /// starting residual (iterations 0) and after every iteration that has not converged;
+  /// returning false stops the solve there (X holds the iterate, `converged` is false).
   MultigridSolveResult solve(const Block& B, Block& X, double tolerance, int max_iterations = 500,
                              const std::function<bool(int, double)>& keep_going = {}) const;
 
