@@ -238,9 +238,8 @@ Eigen::MatrixXd SparseCholesky::solve(const Eigen::MatrixXd& B) const {
     // factor 69 against 66 ms, K D K's 111 against 157 ms).
     if (!d.sweeps.empty() && d.sweep_mode == Sweeps::WrittenOut && B.cols() >= 1 && B.cols() <= 4)
       return d.sweeps.solve(B);
-    // Otherwise cholmod_solve. Triangular solves stream the factor once per column:
-    // memory-bound, and a second BLAS thread makes them slower (164k-vertex Laplacian
-    // factor, three columns: 43 ms on one thread, 48 ms on two), so they run on one.
+    // Otherwise cholmod_solve, on one BLAS thread: a second made it slower (164k-vertex
+    // Laplacian factor, three columns: 43 ms on one thread, 48 ms on two).
     set_blas_threads(1);
     const OpenMpActiveLevels serial(0);
     return d.cholmod.solve(B);
@@ -426,7 +425,7 @@ Eigen::MatrixXd LeadingBlockCholesky::solve_leading(const Eigen::MatrixXd& B) co
   Y.topRows(n) = B;
 #ifdef MESHPDE_HAVE_CHOLMOD
   if (d.backend == SparseCholesky::Backend::Cholmod) {
-    set_blas_threads(1);  // as SparseCholesky::solve(): memory-bound sweeps
+    set_blas_threads(1);  // as SparseCholesky::solve(): a second BLAS thread slows the sweeps
     const OpenMpActiveLevels serial(0);
     d.cholmod.sweep(CHOLMOD_L, Y);
     Y.bottomRows(size_ - n).setZero();
