@@ -2,6 +2,9 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/SparseCore>
+#include <algorithm>
+#include <limits>
+#include <queue>
 #include <random>
 #include <unordered_set>
 
@@ -1156,7 +1159,96 @@ std::vector<int> ordering_region(const Mesh& mesh) {
   return geodesic_ball(mesh, top, 0.6);
 }
 
+// An icosphere with every vertex moved radially by up to 10 % (seeded): irregular
+// triangles, and no two edge paths of exactly the same length.
+Mesh bumpy_sphere(int level) {
+  GeneratedMesh g = icosphere(level);
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> scale(0.9, 1.1);
+  for (Eigen::Index i = 0; i < g.V.rows(); ++i) g.V.row(i) *= scale(rng);
+  return make(g);
+}
+
 }  // namespace
+
+TEST(Steady, AssembledMatrixIsThePrincipalBlockOfTheWholeMeshProduct) {
+  // Independent: g0 M + g1 K + g2 K D K from Eigen's sparse products over the whole
+  // mesh, then the rows and columns of the free vertices in the order given. Below and
+  // above the size where the columns are assembled on several threads, in a shuffled
+  // order; every column's row indices strictly increasing (CHOLMOD and the leading-block
+  // factors read them so).
+  const Mesh m = bumpy_sphere(5);
+  const FemOperators ops = build_operators(m);
+  const PdeCoefficients c{.g0 = 0.3, .g1 = 0.7, .g2 = 1.1};
+  const Eigen::SparseMatrix<double> K = stiffness_matrix(m, ops);
+  Eigen::SparseMatrix<double> D(m.num_vertices(), m.num_vertices());
+  for (int i = 0; i < m.num_vertices(); ++i) D.insert(i, i) = ops.D(i);
+  const Eigen::SparseMatrix<double> whole =
+      c.g0 * mass_matrix(ops) + c.g1 * K + c.g2 * Eigen::SparseMatrix<double>(K * D * K);
+  std::mt19937 rng(5);
+  const int limit = max_threads();
+  for (const double z : {0.8, -0.5}) {  // about 1k and 7.7k of the 10k vertices
+    std::vector<int> free;
+    for (int v = 0; v < m.num_vertices(); ++v)
+      if (m.positions()(v, 2) > z) free.push_back(v);
+    std::shuffle(free.begin(), free.end(), rng);
+    for (const int threads : {1, 2}) {
+      set_max_threads(threads);
+      const Eigen::SparseMatrix<double> A = assemble_steady_matrix(m, ops, c, free);
+      ASSERT_EQ(A.rows(), static_cast<Eigen::Index>(free.size()));
+      for (Eigen::Index j = 0; j < A.outerSize(); ++j)
+        for (int q = A.outerIndexPtr()[j] + 1; q < A.outerIndexPtr()[j + 1]; ++q)
+          ASSERT_LT(A.innerIndexPtr()[q - 1], A.innerIndexPtr()[q]) << "column " << j;
+      Eigen::SparseMatrix<double> pick(A.rows(), m.num_vertices());  // row i: e_{free[i]}
+      for (Eigen::Index i = 0; i < A.rows(); ++i) pick.insert(i, free[static_cast<std::size_t>(i)]) = 1;
+      const Eigen::SparseMatrix<double> expected = pick * whole * pick.transpose();
+      const Eigen::SparseMatrix<double> difference = A - expected;
+      EXPECT_LE(Eigen::VectorXd::Map(difference.valuePtr(), difference.nonZeros()).cwiseAbs().maxCoeff(),
+                1e-12 * Eigen::VectorXd::Map(expected.valuePtr(), expected.nonZeros()).cwiseAbs().maxCoeff())
+          << free.size() << " free vertices, " << threads << " threads";
+    }
+  }
+  set_max_threads(limit);
+}
+
+TEST(LocalDrag, GeodesicBallIsDijkstraOverTheWholeMesh) {
+  // Independent: Dijkstra over every vertex with std::priority_queue and whole-mesh
+  // arrays. The ball must hold exactly the vertices closer than the radius, the source
+  // first and the others in order of their distance.
+  const Mesh m = bumpy_sphere(5);
+  const int n = m.num_vertices();
+  for (const int source : {0, 777, 5000})
+    for (const double radius : {0.05, 0.3, 1.0, 10.0}) {
+      std::vector<double> dist(static_cast<std::size_t>(n), std::numeric_limits<double>::infinity());
+      using Item = std::pair<double, int>;
+      std::priority_queue<Item, std::vector<Item>, std::greater<>> heap;
+      dist[static_cast<std::size_t>(source)] = 0;
+      heap.emplace(0.0, source);
+      while (!heap.empty()) {
+        const auto [d, v] = heap.top();
+        heap.pop();
+        if (d > dist[static_cast<std::size_t>(v)]) continue;
+        for (int w : m.neighbors(v)) {
+          const double dw = d + (m.positions().row(v) - m.positions().row(w)).norm();
+          if (dw < dist[static_cast<std::size_t>(w)]) {
+            dist[static_cast<std::size_t>(w)] = dw;
+            heap.emplace(dw, w);
+          }
+        }
+      }
+      const std::vector<int> ball = geodesic_ball(m, source, radius);
+      std::vector<int> expected;
+      for (int v = 0; v < n; ++v)
+        if (dist[static_cast<std::size_t>(v)] < radius) expected.push_back(v);
+      ASSERT_FALSE(ball.empty());
+      EXPECT_EQ(ball.front(), source);
+      for (std::size_t k = 1; k < ball.size(); ++k)
+        EXPECT_LE(dist[static_cast<std::size_t>(ball[k - 1])], dist[static_cast<std::size_t>(ball[k])]);
+      std::vector<int> sorted = ball;
+      std::sort(sorted.begin(), sorted.end());
+      EXPECT_EQ(sorted, expected) << "source " << source << ", radius " << radius;
+    }
+}
 
 TEST(Ordering, IndexMapNumbersKeysInInsertionOrderAcrossGrowth) {
   IndexMap map(2);  // grows several times below
