@@ -506,6 +506,32 @@ SplitCholesky& SplitCholesky::operator=(SplitCholesky&&) noexcept = default;
 
 namespace {
 
+#ifdef MESHPDE_HAVE_BLAS
+// The BLAS that CHOLMOD links (Fortran interface; the trailing arguments are the hidden
+// lengths of the character arguments).
+extern "C" void dsyrk_(const char* uplo, const char* trans, const int* n, const int* k, const double* alpha,
+                       const double* a, const int* lda, const double* beta, double* c, const int* ldc, std::size_t,
+                       std::size_t);
+#endif
+
+// The lower triangle of C C^T for a lower triangular C (its upper part zero); the
+// strict upper triangle of the result is not meant to be read. With the BLAS, dsyrk:
+// for the 225-row separator of the bench's 10k drag region 0.3 ms against 1.0 ms for
+// Eigen's triangular product (compiled for any x86-64, where OpenBLAS picks its kernels
+// for the machine it runs on).
+[[maybe_unused]] Eigen::MatrixXd lower_gram(const Eigen::MatrixXd& C) {
+#ifdef MESHPDE_HAVE_BLAS
+  const int n = static_cast<int>(C.rows());
+  Eigen::MatrixXd G = Eigen::MatrixXd::Zero(n, n);
+  if (n == 0) return G;
+  const double one = 1, zero = 0;
+  dsyrk_("L", "N", &n, &n, &one, C.data(), &n, &zero, G.data(), &n, 1, 1);
+  return G;
+#else
+  return C.triangularView<Eigen::Lower>() * C.transpose();
+#endif
+}
+
 // The principal submatrix of A without the rows and columns [skip_begin, skip_end),
 // compressed. With `check_coupling`, a nonzero between a column before skip_begin and a
 // row in the skipped range throws.
@@ -559,9 +585,8 @@ void SplitCholesky::factorize(const Eigen::SparseMatrix<double>& A_in, Eigen::In
     ok[k] = d.part[k].factorize(M);
     if (!ok[k]) return;
     d.C[k] = d.part[k].trailing_block(d.s);
-    // C_k C_k^T on this part's thread, reading only C_k's lower triangle (the rest of
-    // the block is zero).
-    gram[k] = d.C[k].triangularView<Eigen::Lower>() * d.C[k].transpose();
+    // C_k C_k^T on this part's thread (only its lower triangle is read below).
+    gram[k] = lower_gram(d.C[k]);
   };
   on_two_threads([&] { factor_part(0); }, [&] { factor_part(1); });
   if (!ok[0] || !ok[1]) throw not_positive_definite("cholmod-supernodal, split");
