@@ -1304,6 +1304,27 @@ TEST(Ordering, NestedDissectionIsAPermutationWithAmdLevelFill) {
   }
 }
 
+TEST(Ordering, TwoThreadsGiveTheOneThreadOrder) {
+  // From 4,000 vertices the top level's halves are ordered on two threads at the same
+  // time; the order and the halves' sizes must be those of one thread.
+  const Mesh mesh = make(icosphere(6));
+  int top = 0;
+  mesh.positions().col(2).maxCoeff(&top);
+  const std::vector<int> region = geodesic_ball(mesh, top, 1.0);  // about 7.5k vertices
+  ASSERT_GT(region.size(), 4000u);
+  const int limit = max_threads();
+  set_max_threads(1);
+  const NestedDissection one = nested_dissection(mesh, region);
+  set_max_threads(2);
+  const NestedDissection two = nested_dissection(mesh, region);
+  set_max_threads(limit);
+  EXPECT_EQ(one.order, two.order);
+  EXPECT_EQ(one.parts[0], two.parts[0]);
+  EXPECT_EQ(one.parts[1], two.parts[1]);
+  EXPECT_GT(two.parts[0], 1000u);
+  EXPECT_GT(two.parts[1], 1000u);
+}
+
 TEST(Ordering, BadRequestsAreRefusedInWords) {
   const Mesh mesh = make(icosphere(2));
   auto message = [&](const std::vector<int>& v, const NestedDissectionParams& p) {
