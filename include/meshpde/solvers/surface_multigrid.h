@@ -51,8 +51,12 @@
 // above brought these to the sphere's figures; even a two-grid with exact nested
 // interpolation needs 55-83 iterations on subdivided fertility, and 76 on the cow with
 // 16 Gauss-Seidel sweeps: the coarse spaces miss low-energy modes of the cotangent
-// bi-Laplacian on such meshes. So the global solver keeps the factor preconditioner
-// as its default.
+// bi-Laplacian on such meshes. The weights are not the cause (a graph bi-Laplacian
+// on fertility fails alike), and even the ideal, dense interpolation on the same
+// coarse vertices needs 33 iterations there with degree-1 Chebyshev (11 with degree
+// 8), losing most of that when cut to a few rings: such meshes need wide coarse basis
+// functions and stronger smoothing. So the global solver's default hands them on to
+// the factor preconditioner (Auto).
 //
 // The finest level is applied as two sparse products with K on the free vertices and
 // their one-ring (nothing of K D K is assembled there), on both cores above 20k rows.
