@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <exception>
 
 #include "../core/index_map.h"
 #include "meshpde/core/errors.h"
@@ -67,8 +68,11 @@ struct Dissection {
       // The top level's halves are ordered at the same time, each into its own output
       // (the order is the same as one after the other): on a 10k drag region this took
       // the ordering from about 1.7 to 1.0 ms.
+      // An exception (out of memory) may not leave an OpenMP region: each is kept and
+      // rethrown after both.
       Dissection second{mesh, params, {}, {}};
       second.out.reserve(upper.size());
+      std::exception_ptr failed[2];
 #ifdef MESHPDE_HAVE_OPENMP
 #pragma omp parallel sections num_threads(2)
 #endif
@@ -76,12 +80,22 @@ struct Dissection {
 #ifdef MESHPDE_HAVE_OPENMP
 #pragma omp section
 #endif
-        order(std::move(lower));
+        try {
+          order(std::move(lower));
+        } catch (...) {
+          failed[0] = std::current_exception();
+        }
 #ifdef MESHPDE_HAVE_OPENMP
 #pragma omp section
 #endif
-        second.order(std::move(upper));
+        try {
+          second.order(std::move(upper));
+        } catch (...) {
+          failed[1] = std::current_exception();
+        }
       }
+      for (const std::exception_ptr& e : failed)
+        if (e) std::rethrow_exception(e);
       out.insert(out.end(), second.out.begin(), second.out.end());
     } else {
       order(std::move(lower));
