@@ -426,15 +426,22 @@ GlobalProblem stretched_global_problem(int level) {
   return s;
 }
 
+// The parameters these tests solve global_problem with (g1 0.1, g2 1, relative residual
+// 1e-10), with the given preconditioner.
+GlobalBilaplacianParams global_params(GlobalBilaplacianParams::Preconditioner preconditioner) {
+  GlobalBilaplacianParams p{.g1 = 0.1, .g2 = 1, .tolerance = 1e-10};
+  p.preconditioner = preconditioner;
+  return p;
+}
+
 }  // namespace
 
 TEST(GlobalBilaplacian, IterationsStayFlatUnderRefinementAndMatchTheDirectSolve) {
   std::vector<int> iterations;
   for (int level : {3, 4, 5}) {
     const auto [m, ops, u, free] = global_problem(level);
-    GlobalBilaplacianParams p{.g1 = 0.1, .g2 = 1, .tolerance = 1e-10};
-    p.preconditioner = GlobalBilaplacianParams::Preconditioner::LaplacianFactor;
-    const GlobalBilaplacianResult r = solve_global_bilaplacian(m, ops, free, u, p);
+    const GlobalBilaplacianResult r = solve_global_bilaplacian(
+        m, ops, free, u, global_params(GlobalBilaplacianParams::Preconditioner::LaplacianFactor));
     ASSERT_TRUE(r.converged) << "level " << level;
     EXPECT_EQ(r.used, GlobalBilaplacianParams::Preconditioner::LaplacianFactor);
     EXPECT_EQ(r.multigrid_iterations, 0);
@@ -544,9 +551,7 @@ TEST(GlobalBilaplacian, ASolverKeepsItsPreconditionerForTheNextSolves) {
   const SteadyDirectSolver direct(m, ops, PdeCoefficients{.g0 = 0, .g1 = 0.1, .g2 = 1}, free);
   using Preconditioner = GlobalBilaplacianParams::Preconditioner;
   for (const Preconditioner pre : {Preconditioner::Auto, Preconditioner::LaplacianFactor}) {
-    GlobalBilaplacianParams p{.g1 = 0.1, .g2 = 1, .tolerance = 1e-10};
-    p.preconditioner = pre;
-    GlobalBilaplacianSolver solver(m, ops, free, p);
+    GlobalBilaplacianSolver solver(m, ops, free, global_params(pre));
     EXPECT_EQ(solver.multigrid_builds() + solver.factorizations(), 0);
     for (const Field* values : std::initializer_list<const Field*>{&u, &tilted}) {
       const GlobalBilaplacianResult r = solver.solve(*values);
@@ -572,9 +577,7 @@ TEST(GlobalBilaplacian, AWarmStartFromThePreviousAnswerTakesFewerIterations) {
   const SteadyDirectSolver direct(m, ops, PdeCoefficients{.g0 = 0, .g1 = 0.1, .g2 = 1}, free);
   using Preconditioner = GlobalBilaplacianParams::Preconditioner;
   for (const Preconditioner pre : {Preconditioner::Auto, Preconditioner::LaplacianFactor}) {
-    GlobalBilaplacianParams p{.g1 = 0.1, .g2 = 1, .tolerance = 1e-10};
-    p.preconditioner = pre;
-    GlobalBilaplacianSolver solver(m, ops, free, p);
+    GlobalBilaplacianSolver solver(m, ops, free, global_params(pre));
     const GlobalBilaplacianResult first = solver.solve(u);
     ASSERT_TRUE(first.converged);
     EXPECT_LE(solver.solve(first.values, true).iterations, 2);
@@ -1014,9 +1017,8 @@ TEST(Multigrid, IterationsStayFlatUnderRefinementAndMatchTheDirectSolve) {
   std::vector<int> iterations;
   for (int level : {4, 5, 6}) {
     const auto [m, ops, u, free] = global_problem(level);
-    GlobalBilaplacianParams p{.g1 = 0.1, .g2 = 1, .tolerance = 1e-10};
-    p.preconditioner = GlobalBilaplacianParams::Preconditioner::Multigrid;
-    const GlobalBilaplacianResult r = solve_global_bilaplacian(m, ops, free, u, p);
+    const GlobalBilaplacianResult r =
+        solve_global_bilaplacian(m, ops, free, u, global_params(GlobalBilaplacianParams::Preconditioner::Multigrid));
     ASSERT_TRUE(r.converged) << "level " << level;
     EXPECT_EQ(r.level_unknowns.front(), static_cast<int>(free.size()));
     iterations.push_back(r.iterations);

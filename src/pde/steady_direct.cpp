@@ -77,7 +77,7 @@ Eigen::SparseMatrix<double> assemble_steady_matrix(const Mesh& mesh, const FemOp
   };
   const int threads = n >= kParallelColumns ? max_threads() : 1;
   std::vector<ColumnBlock> blocks(static_cast<std::size_t>(threads));
-  std::vector<int> outer(static_cast<std::size_t>(n) + 1, 0);
+  std::vector<int> column_size(static_cast<std::size_t>(n), 0);  // entries of each assembled column
   auto assemble_block = [&](int t) {
     const int k0 = static_cast<int>(static_cast<long>(n) * t / threads);
     const int k1 = static_cast<int>(static_cast<long>(n) * (t + 1) / threads);
@@ -116,7 +116,7 @@ Eigen::SparseMatrix<double> assemble_steady_matrix(const Mesh& mesh, const FemOp
         work[row] = 0;
         touched[row] = 0;
       }
-      outer[static_cast<std::size_t>(k) + 1] = static_cast<int>(pattern.size());
+      column_size[static_cast<std::size_t>(k)] = static_cast<int>(pattern.size());
     }
   };
 #ifdef MESHPDE_HAVE_OPENMP
@@ -139,8 +139,8 @@ Eigen::SparseMatrix<double> assemble_steady_matrix(const Mesh& mesh, const FemOp
   int k = 0;
   for (const ColumnBlock& block : blocks)
     for (std::size_t e = 0, end = 0; e < block.inner.size(); ++k) {
-      // column k of the assembly: outer[k + 1] entries, in order
-      for (end += static_cast<std::size_t>(outer[static_cast<std::size_t>(k) + 1]); e < end; ++e) {
+      // column k of the assembly, its entries in order
+      for (end += static_cast<std::size_t>(column_size[static_cast<std::size_t>(k)]); e < end; ++e) {
         const int at = start[static_cast<std::size_t>(block.inner[e])]++;
         inner[at] = k;
         values[at] = block.values[e];

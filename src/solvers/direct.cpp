@@ -19,6 +19,7 @@
 #include <omp.h>
 #endif
 
+#include "../core/two_threads.h"
 #include "meshpde/core/errors.h"
 #include "meshpde/core/parallel.h"
 #include "supernodal_sweeps.h"
@@ -447,44 +448,9 @@ namespace {
 // both have finished.
 template <class F0, class F1>
 void on_two_threads(F0&& f0, F1&& f1) {
-  std::exception_ptr e0, e1;
   set_blas_threads(1);
-#ifdef MESHPDE_HAVE_OPENMP
-  const int threads = std::min(2, max_threads());
-  const OpenMpActiveLevels levels(threads > 1 ? 1 : 0);
-#pragma omp parallel sections num_threads(threads)
-  {
-#pragma omp section
-    {
-      try {
-        f0();
-      } catch (...) {
-        e0 = std::current_exception();
-      }
-    }
-#pragma omp section
-    {
-      try {
-        f1();
-      } catch (...) {
-        e1 = std::current_exception();
-      }
-    }
-  }
-#else
-  try {
-    f0();
-  } catch (...) {
-    e0 = std::current_exception();
-  }
-  try {
-    f1();
-  } catch (...) {
-    e1 = std::current_exception();
-  }
-#endif
-  if (e0) std::rethrow_exception(e0);
-  if (e1) std::rethrow_exception(e1);
+  const OpenMpActiveLevels levels(max_threads() > 1 ? 1 : 0);
+  detail::run_both(f0, f1);
 }
 
 }  // namespace
