@@ -426,11 +426,17 @@ GlobalProblem stretched_global_problem(int level) {
   return s;
 }
 
+// The multigrid tests stop coarsening at 2,000 unknowns instead of the default (12,000
+// with CHOLMOD, where a mesh of up to 12k vertices is one factor and needs no coarse
+// level): their meshes of 2.5k-41k vertices still get three to five levels.
+constexpr int kTestCoarsest = 2000;
+
 // The parameters these tests solve global_problem with (g1 0.1, g2 1, relative residual
 // 1e-10), with the given preconditioner.
 GlobalBilaplacianParams global_params(GlobalBilaplacianParams::Preconditioner preconditioner) {
   GlobalBilaplacianParams p{.g1 = 0.1, .g2 = 1, .tolerance = 1e-10};
   p.preconditioner = preconditioner;
+  p.multigrid.coarsest_unknowns = kTestCoarsest;
   return p;
 }
 
@@ -495,7 +501,7 @@ TEST(GlobalBilaplacian, AutoKeepsTheMultigridOnWellShapedMeshes) {
   // iterations, so it finishes the solve, and the answer is the direct solve's.
   const auto [m, ops, u, free] = global_problem(5);
   const GlobalBilaplacianResult r =
-      solve_global_bilaplacian(m, ops, free, u, GlobalBilaplacianParams{.g1 = 0.1, .g2 = 1, .tolerance = 1e-10});
+      solve_global_bilaplacian(m, ops, free, u, global_params(GlobalBilaplacianParams::Preconditioner::Auto));
   ASSERT_TRUE(r.converged);
   EXPECT_EQ(r.used, GlobalBilaplacianParams::Preconditioner::Multigrid);
   EXPECT_EQ(r.multigrid_iterations, r.iterations);
@@ -516,6 +522,7 @@ TEST(GlobalBilaplacian, AutoHandsBadlyShapedMeshesOnToTheFactor) {
   const auto [m, ops, u, free] = stretched_global_problem(4);
   GlobalBilaplacianParams p{.tolerance = 1e-10, .max_iterations = 2000};
   p.preconditioner = GlobalBilaplacianParams::Preconditioner::Multigrid;
+  p.multigrid.coarsest_unknowns = kTestCoarsest;
   const GlobalBilaplacianResult mg = solve_global_bilaplacian(m, ops, free, u, p);
   ASSERT_TRUE(mg.converged);
   // The premise: a bad case for the multigrid, beyond what Auto lets it take (measured
@@ -602,7 +609,9 @@ TEST(GlobalBilaplacian, AfterAHandOnTheSolverStartsWithTheFactor) {
   const auto [m, ops, u, free] = stretched_global_problem(4);
   int handle = 0;
   m.positions().col(2).maxCoeff(&handle);
-  GlobalBilaplacianSolver solver(m, ops, free, GlobalBilaplacianParams{.tolerance = 1e-10, .max_iterations = 2000});
+  GlobalBilaplacianParams p{.tolerance = 1e-10, .max_iterations = 2000};
+  p.multigrid.coarsest_unknowns = kTestCoarsest;
+  GlobalBilaplacianSolver solver(m, ops, free, p);
   const GlobalBilaplacianResult first = solver.solve(u);
   ASSERT_TRUE(first.converged);
   EXPECT_EQ(first.used, GlobalBilaplacianParams::Preconditioner::LaplacianFactor);
@@ -981,6 +990,7 @@ TEST(Multigrid, CycleIsSymmetricPositiveDefiniteAndApplyIsTheBilaplacian) {
     SCOPED_TRACE(smoother == SurfaceMultigridParams::Smoother::Chebyshev ? "Chebyshev" : "Gauss-Seidel");
     SurfaceMultigridParams params;
     params.smoother = smoother;
+    params.coarsest_unknowns = kTestCoarsest;
     const BilaplacianMultigrid mg(m, ops, free, 0.1, 1, params);
     ASSERT_EQ(mg.unknowns(), n);
     const std::vector<int> levels = mg.level_unknowns();
@@ -1034,6 +1044,41 @@ TEST(Multigrid, IterationsStayFlatUnderRefinementAndMatchTheDirectSolve) {
   EXPECT_LE(iterations[2], iterations[0] + 6) << iterations[0] << " -> " << iterations[2];
 }
 
+TEST(Multigrid, TheDefaultCoarsestLevelIsOneFactor) {
+  // With the default coarsest size (12,000 unknowns with CHOLMOD, 2,000 without) the
+  // 10k sphere is below it: no coarse level, the assembled operator factored, CG done in
+  // one iteration. The 41k sphere coarsens once, to a level under that size, which is
+  // factored: an exact two-grid cycle. Both reach the direct solve's answer.
+  const int coarsest = SurfaceMultigridParams::default_coarsest_unknowns();
+  EXPECT_EQ(coarsest, SparseCholesky::cholmod_available() ? 12000 : 2000);
+  for (int level : {5, 6}) {
+    SCOPED_TRACE(level);
+    const auto [m, ops, u, free] = global_problem(level);
+    GlobalBilaplacianParams p = global_params(GlobalBilaplacianParams::Preconditioner::Multigrid);
+    p.multigrid = SurfaceMultigridParams{};
+    const GlobalBilaplacianResult r = solve_global_bilaplacian(m, ops, free, u, p);
+    ASSERT_TRUE(r.converged);
+    ASSERT_FALSE(r.level_unknowns.empty());
+    EXPECT_LE(r.level_unknowns.back(), coarsest);
+    if (static_cast<int>(free.size()) <= coarsest) {
+      EXPECT_EQ(r.level_unknowns.size(), 1u);
+      EXPECT_LE(r.iterations, 2);
+    } else {
+      EXPECT_GT(r.level_unknowns.size(), 1u);
+      EXPECT_GT(r.level_unknowns[r.level_unknowns.size() - 2], coarsest);  // stops at the first level below
+      EXPECT_LE(r.iterations, 25);
+    }
+    const SteadyDirectSolver direct(m, ops, PdeCoefficients{.g0 = 0, .g1 = 0.1, .g2 = 1}, free);
+    const Field x = direct.solve(u);
+    EXPECT_LE((r.values - x).cwiseAbs().maxCoeff(), 1e-7 * x.cwiseAbs().maxCoeff());
+  }
+  // Zero asks for the default; a negative size is refused.
+  const Mesh m = make(icosphere(3));
+  const FemOperators ops = build_operators(m);
+  EXPECT_THROW(BilaplacianMultigrid(m, ops, free_above(m, 0), 0, 1, SurfaceMultigridParams{.coarsest_unknowns = -1}),
+               InputError);
+}
+
 TEST(Multigrid, OneThreadAndTwoReachTheSameAnswer) {
   // The 10k icosphere: its finest level (10k rows) is split over the threads on two
   // (products, Chebyshev and CG updates, and CG's sums, each thread's part added in
@@ -1041,6 +1086,7 @@ TEST(Multigrid, OneThreadAndTwoReachTheSameAnswer) {
   const auto [m, ops, u, free] = global_problem(5);
   GlobalBilaplacianParams p{.tolerance = 1e-10};
   p.preconditioner = GlobalBilaplacianParams::Preconditioner::Multigrid;
+  p.multigrid.coarsest_unknowns = kTestCoarsest;
   const int limit = max_threads();
   set_max_threads(1);
   const GlobalBilaplacianResult one = solve_global_bilaplacian(m, ops, free, u, p);
@@ -1067,7 +1113,9 @@ TEST(Multigrid, HierarchyFollowsTheFreeRegionNotTheMesh) {
   u.row(handle) << 0, 0.01, 0.05;
   GlobalBilaplacianParams p{.tolerance = 1e-11};
   p.preconditioner = GlobalBilaplacianParams::Preconditioner::Multigrid;
+  p.multigrid.coarsest_unknowns = kTestCoarsest;
   const GlobalBilaplacianResult r = solve_global_bilaplacian(m, ops, free, u, p);
+  EXPECT_GE(r.level_unknowns.size(), 2u);
   ASSERT_TRUE(r.converged);
   EXPECT_EQ(r.level_unknowns.front(), static_cast<int>(free.size()));
   EXPECT_LT(static_cast<double>(free.size()), 0.15 * m.num_vertices());
@@ -1125,6 +1173,7 @@ TEST(Multigrid, RealMeshesConvergeToTheFactorSolvesAnswer) {
     const GlobalBilaplacianResult factor = solve_global_bilaplacian(m, ops, free, u, p);
     ASSERT_TRUE(factor.converged);
     p.preconditioner = GlobalBilaplacianParams::Preconditioner::Multigrid;
+    p.multigrid.coarsest_unknowns = kTestCoarsest;
     for (const auto smoother :
          {SurfaceMultigridParams::Smoother::Chebyshev, SurfaceMultigridParams::Smoother::GaussSeidel}) {
       p.multigrid.smoother = smoother;

@@ -102,6 +102,9 @@ SolverError not_positive_definite(const char* backend) {
 // Eigen's CHOLMOD wrapper with its factor in view, for the sweeps of
 // supernodal_sweeps.h.
 struct CholmodLLT : Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>> {
+  // A failure becomes a SolverError in words (factorize), not also a CHOLMOD warning
+  // on stderr.
+  CholmodLLT() { cholmod().print = 0; }
   // A view of the factor when it is supernodal LL^T with int indices (what Eigen's
   // supernodal wrapper asks CHOLMOD for), else an empty one.
   detail::SupernodalFactorView view() const {

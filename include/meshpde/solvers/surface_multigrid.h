@@ -39,7 +39,13 @@
 //     iteration count grew with the number of levels (22, 31, 43 at 10k, 41k, 164k;
 //     a two-grid stays at 16-17, so the coarse spaces are right and the V-cycle is
 //     what degrades, as it does for fourth-order problems), with W-cycles 17, 18, 19;
-//   - the coarsest level (at most coarsest_unknowns) is solved by sparse Cholesky.
+//   - the coarsest level (at most coarsest_unknowns, 12,000 by default with CHOLMOD) is
+//     solved by sparse Cholesky (SparseCholesky: CHOLMOD and meshpde's own sweeps). A
+//     coarse level that large costs one factorization (about 40 ms at 10k unknowns)
+//     and replaces the W-cycle's deepest, most often visited levels by one exact solve:
+//     at 164k (levels of 162k, 41k, 10k) 16 iterations of about 21 ms, where a
+//     coarsest level of 2,000 (five levels) needed 19 of about 24 ms; at 655k 20
+//     iterations against 22. A problem of at most that size is one factorization.
 //
 // Limits, measured (docs/solvers.md): on well-shaped meshes (icospheres, also with a
 // coarsening that is not the nested one) the iteration count is flat and the solve
@@ -78,7 +84,15 @@
 namespace meshpde {
 
 struct SurfaceMultigridParams {
-  int coarsest_unknowns = 2000;     ///< solve the coarsest level by Cholesky at or below this size
+  /// Stop coarsening at or below this many unknowns and solve that level by sparse
+  /// Cholesky (SparseCholesky: CHOLMOD with meshpde's own sweeps). 0 (the default):
+  /// default_coarsest_unknowns(). A problem of at most this size gets no coarse levels:
+  /// its operator is assembled and factored, and CG converges in one iteration.
+  int coarsest_unknowns = 0;
+  /// 12,000 when meshpde has CHOLMOD (a factor of that size costs about as much as one
+  /// more level's set-up and solves faster than cycling through three more levels;
+  /// docs/solvers.md), else 2,000 (Eigen's simplicial factor is several times slower).
+  static int default_coarsest_unknowns();
   int max_levels = 20;              ///< at most this many levels (the finest included)
   int smoothing_degree = 2;         ///< Chebyshev degree of each pre- and post-smoothing (coarse levels)
   int finest_smoothing_degree = 1;  ///< the same on the finest level (each degree costs one apply there)
