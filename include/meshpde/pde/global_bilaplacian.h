@@ -19,11 +19,12 @@
 //    grows like n log n, and the factorization like n^1.5. The g1 term is left out of
 //    this preconditioner (a lower-order perturbation of g2 K D K). Robust on any mesh.
 //  - Multigrid: one W-cycle of the geometric surface multigrid of
-//    solvers/surface_multigrid.h per iteration. Setup and iterations cost O(#F). On
-//    well-shaped meshes the iteration count stays nearly flat (15, 17, 19 at 10k, 41k,
-//    164k) and the solve is 3-4x faster than with the factor; on real meshes with
-//    obtuse triangles its coarse spaces are weak and it is slower (fertility
-//    subdivided to 1.15M: 170 iterations against 38).
+//    solvers/surface_multigrid.h per iteration, its coarsest level (12,000 unknowns by
+//    default) factored; a problem of at most that size is one factorization. Setup and
+//    iterations cost O(#F). On well-shaped meshes the iteration count stays nearly
+//    flat (14, 16, 20, 23 at 41k, 164k, 655k, 2.6M) and the solve is 2-4x faster than
+//    with the factor; on real meshes with obtuse triangles its coarse spaces are weak
+//    and it is slower (fertility subdivided to 1.15M: 167 iterations against 39).
 // Jacobi-CG's iteration count grows like h^-2 under refinement; both of these stay
 // nearly flat.
 #pragma once

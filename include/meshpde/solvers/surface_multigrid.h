@@ -50,9 +50,11 @@
 // Limits, measured (docs/solvers.md): on well-shaped meshes (icospheres, also with a
 // coarsening that is not the nested one) the iteration count is flat and the solve
 // is 2-4x faster than with the Laplacian factor. On real scanned and modelled meshes
-// (angles from 1-5 to 167-177 degrees) it is not: igea-134k 84 iterations, armadillo
-// 107, cow 217, the camel head (open boundary) 912, fertility-4k subdivided to 1.15M
-// 169, where the factor preconditioner needs 7-38. Neither the intrinsic Delaunay
+// (angles from 1-5 to 167-177 degrees) it is not: with a coarsest level of 2,000,
+// igea-134k 84 iterations, armadillo 107, cow 217, the camel head (open boundary) 912,
+// fertility-4k subdivided to 1.15M 169, where the factor preconditioner needs 7-38
+// (with the default coarsest level: igea 72, armadillo 71, fertility 1.15M 167; the
+// cow and the camel head fit in one factor). Neither the intrinsic Delaunay
 // operators, nor Gauss-Seidel, nor another coarse vertex order, nor the fan fit
 // above brought these to the sphere's figures; even a two-grid with exact nested
 // interpolation needs 55-83 iterations on subdivided fertility, and 76 on the cow with
