@@ -240,6 +240,36 @@ TEST(Direct, BackendsAgreeReuseTheAnalysisAndRejectIndefinite) {
   }
 }
 
+TEST(Direct, PivotRatioIsTheSmallestOverTheLargestPivot) {
+  // A diagonal matrix's pivots are its entries (LDL^T and LL^T alike): 0.5 / 8. The
+  // stiffness matrix of a closed mesh is singular (constants): its factorization, when
+  // rounding lets it through, shows a pivot ratio near machine precision, where
+  // K + M's is far from it.
+  const Mesh m = make(icosphere(4));
+  const FemOperators ops = build_operators(m);
+  const Eigen::SparseMatrix<double> K = stiffness_matrix(m, ops), KM = K + mass_matrix(ops);
+  const Eigen::Index n = K.rows();
+  Eigen::SparseMatrix<double> diag(n, n);
+  for (Eigen::Index i = 0; i < n; ++i) diag.insert(i, i) = i == 5 ? 0.5 : (i == 9 ? 8.0 : 1.0 + (i % 3));
+  std::vector<SparseCholesky::Backend> backends{SparseCholesky::Backend::Eigen};
+  if (SparseCholesky::cholmod_available()) backends.push_back(SparseCholesky::Backend::Cholmod);
+  for (const auto backend : backends) {
+    SparseCholesky s(backend);
+    SCOPED_TRACE(s.backend_name());
+    EXPECT_EQ(s.pivot_ratio(), 0);  // nothing factored yet
+    s.factorize(diag);
+    EXPECT_NEAR(s.pivot_ratio(), 0.5 / 8.0, 1e-15);
+    s.factorize(KM);
+    EXPECT_GT(s.pivot_ratio(), 1e-6);
+    try {
+      s.factorize(K);
+      EXPECT_LT(s.pivot_ratio(), 1e-12);
+    } catch (const SolverError&) {
+      // refused outright: a zero or negative pivot
+    }
+  }
+}
+
 TEST(Direct, SteadySolveMatchesConjugateGradientsAndReusesItsFactor) {
   Mesh m;
   if (!test::load_data("bunny-3k.off", m)) return;
@@ -1072,7 +1102,7 @@ TEST(Multigrid, TheDefaultCoarsestLevelIsOneFactor) {
     const Field x = direct.solve(u);
     EXPECT_LE((r.values - x).cwiseAbs().maxCoeff(), 1e-7 * x.cwiseAbs().maxCoeff());
   }
-  // Zero asks for the default; a negative size is refused.
+  // A negative size is refused (0, the default, is what the loop above used).
   const Mesh m = make(icosphere(3));
   const FemOperators ops = build_operators(m);
   EXPECT_THROW(BilaplacianMultigrid(m, ops, free_above(m, 0), 0, 1, SurfaceMultigridParams{.coarsest_unknowns = -1}),
@@ -1141,12 +1171,17 @@ TEST(Multigrid, BadRequestsAreRefusedInWords) {
   EXPECT_EQ(z.rows(), 0);
   Block x0;
   EXPECT_TRUE(none.solve(Block(0, 3), x0, 1e-8).converged);
-  // Every vertex free and no Laplacian term: constants cost no energy, nothing to hold them.
-  try {
-    BilaplacianMultigrid(m, ops, all, 0, 1);
-    ADD_FAILURE() << "a floating free set was accepted";
-  } catch (const SolverError& e) {
-    EXPECT_NE(std::string(e.what()).find("not positive definite"), std::string::npos) << e.what();
+  // Every vertex free and no Laplacian term: constants cost no energy, nothing to hold
+  // them. Refused whether the coarsest level is the whole problem (CHOLMOD's factor)
+  // or a small level of a hierarchy (Eigen's LDL^T below 700 unknowns, whose tiny
+  // positive pivot the pivot ratio catches).
+  for (const int coarsest : {0, 500}) {
+    try {
+      BilaplacianMultigrid(m, ops, all, 0, 1, SurfaceMultigridParams{.coarsest_unknowns = coarsest});
+      ADD_FAILURE() << "a floating free set was accepted (coarsest size " << coarsest << ")";
+    } catch (const SolverError& e) {
+      EXPECT_NE(std::string(e.what()).find("not positive definite"), std::string::npos) << e.what();
+    }
   }
 }
 

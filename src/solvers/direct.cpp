@@ -15,6 +15,7 @@
 
 #include <algorithm>
 #include <exception>
+#include <limits>
 #ifdef MESHPDE_HAVE_OPENMP
 #include <omp.h>
 #endif
@@ -226,6 +227,33 @@ double SparseCholesky::factor_nonzeros() const {
   if (d.backend == Backend::Cholmod) return const_cast<Impl&>(d).cholmod.cholmod().lnz;
 #endif
   return static_cast<double>(d.eigen.matrixL().nestedExpression().nonZeros());
+}
+
+double SparseCholesky::pivot_ratio() const {
+  const Impl& d = *impl_;
+  if (!d.factored) return 0;
+  double lo = std::numeric_limits<double>::infinity(), hi = 0;
+  auto take = [&](double pivot) {
+    lo = std::min(lo, pivot);
+    hi = std::max(hi, pivot);
+  };
+#ifdef MESHPDE_HAVE_CHOLMOD
+  if (d.backend == Backend::Cholmod) {
+    const detail::SupernodalFactorView L = d.cholmod.view();
+    if (!L.x) return 0;
+    for (Eigen::Index k = 0; k < L.nsuper; ++k) {
+      const int rows = L.pi[k + 1] - L.pi[k], cols = L.super[k + 1] - L.super[k];
+      for (int j = 0; j < cols; ++j) {
+        const double l = L.x[L.px[k] + static_cast<std::ptrdiff_t>(j) * rows + j];
+        take(l * l);
+      }
+    }
+    return hi > 0 ? lo / hi : 0;
+  }
+#endif
+  const auto D = d.eigen.vectorD();
+  for (Eigen::Index i = 0; i < D.size(); ++i) take(D[i]);
+  return hi > 0 ? lo / hi : 0;
 }
 
 Eigen::MatrixXd SparseCholesky::solve(const Eigen::MatrixXd& B) const {

@@ -7,6 +7,7 @@
 #include <array>
 #include <cmath>
 #include <numbers>
+#include <string>
 
 #include "meshpde/core/errors.h"
 #include "meshpde/core/parallel.h"
@@ -719,14 +720,21 @@ BilaplacianMultigrid::BilaplacianMultigrid(const Mesh& mesh, const FemOperators&
   } else {
     Ac = m.levels.back().A;
   }
+  // A floating part makes the coarsest level singular; rounding may leave its zero
+  // pivot tiny and positive instead of failing the factorization: relative test.
+  std::string failure;
   try {
     m.coarse.factorize(Ac);
+    if (!(m.coarse.pivot_ratio() > 1e-13))
+      failure = fmt::format("smallest pivot {:.1e} of the largest", m.coarse.pivot_ratio());
   } catch (const SolverError& e) {
+    failure = e.what();
+  }
+  if (!failure.empty())
     throw SolverError(fmt::format(
         "the bi-Laplacian on {} free vertices is not positive definite (its coarsest level of {} unknowns could not "
         "be factored: {}): is there a connected part of the free set with no held vertex?",
-        m.nF, Ac.rows(), e.what()));
-  }
+        m.nF, Ac.rows(), failure));
   if (params.smoother == SurfaceMultigridParams::Smoother::Chebyshev)
     for (std::size_t l = 0; l + 1 < m.levels.size(); ++l) m.estimate_lambda_max(l);
 }

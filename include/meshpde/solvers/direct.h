@@ -44,6 +44,11 @@ class SparseCholesky {
   const char* backend_name() const;
   /// Nonzeros of the factor L of the last factorization (memory: about 12 bytes each).
   double factor_nonzeros() const;
+  /// Smallest over largest pivot of the last factorization (D of LDL^T, the squared
+  /// diagonal of L for LL^T), in (0, 1]: a singular matrix can factor with a pivot
+  /// that rounding left tiny and positive, which this shows (about 1e-16 and below).
+  /// 0 before a successful factorize().
+  double pivot_ratio() const;
   int analyses() const { return analyses_; }       ///< symbolic analyses performed
   int factorizations() const { return factors_; }  ///< numeric factorizations performed
   static bool cholmod_available();
