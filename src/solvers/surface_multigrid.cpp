@@ -395,7 +395,8 @@ struct BilaplacianMultigrid::Impl {
     const int steps = static_cast<int>(std::min<Eigen::Index>(8, n));
     // The vector work fused into two passes a step, in place: at 164k it was most of
     // the finest level's estimate (25 ms of it, against 8 applies of about 1.2 ms).
-    Eigen::VectorXd s = L.inv_diag.cwiseSqrt(), v(n), v_prev = Eigen::VectorXd::Zero(n), w(n);
+    const Eigen::VectorXd s = L.inv_diag.cwiseSqrt();
+    Eigen::VectorXd v(n), v_prev = Eigen::VectorXd::Zero(n), w(n);
     Block x(n, 1), y;
     for (Eigen::Index i = 0; i < n; ++i) v[i] = std::sin(12.9898 * static_cast<double>(i) + 78.233) + 0.1;
     v /= v.norm();
@@ -680,7 +681,7 @@ BilaplacianMultigrid::BilaplacianMultigrid(const Mesh& mesh, const FemOperators&
   };
 
   // Coarser levels until the coarsest is small enough for a direct solve.
-  while (m.levels.back().n > m.params.coarsest_unknowns && static_cast<int>(m.levels.size()) < params.max_levels) {
+  while (m.levels.back().n > m.params.coarsest_unknowns && static_cast<int>(m.levels.size()) < m.params.max_levels) {
     auto [coarse_nodes, P] = coarsen(nodes, position, normal);
     const int nc = coarse_nodes.free_count;
     if (nc == 0 || nc > 0.85 * m.levels.back().n) break;  // no longer coarsening
