@@ -67,11 +67,8 @@ void print_report(const std::string& name, const MeshReport& r) {
 }
 
 struct GenerateArgs {
-  std::string kind, out;
-  int n = 15, level = 3, frequency = 4, rings = 20, segments = 24, nx = 20, ny = 20, k = 3;
-  double radius = 1.0, length = 10.0, size = 1.0, cell = 0.6;
-  bool dent = false;
-  std::string base = "icosahedron";
+  std::string kind, out, base = "icosahedron";
+  GeneratorParams p;  // defaults: the library's one table
 };
 
 }  // namespace
@@ -175,46 +172,33 @@ void add_mesh_commands(CLI::App& app) {
     auto a = std::make_shared<GenerateArgs>();
     cmd->add_option("KIND", a->kind, "latlong | icosphere | geodesic | tube | bifurcation | plane | fins")
         ->required()
-        ->check(CLI::IsMember({"latlong", "icosphere", "geodesic", "tube", "bifurcation", "plane", "fins"}));
+        ->check(CLI::IsMember(generator_names()));
     cmd->add_option("-o,--output", a->out, "Output mesh file")->required();
-    cmd->add_option("--n", a->n,
+    cmd->add_option("--n", a->p.n,
                     "latlong: rings of latitude n (n-1 rings plus 2 poles, 2n meridians); fins: quads per side")
         ->capture_default_str();
-    cmd->add_option("--level", a->level, "icosphere: subdivision level (5: 10,242 vertices, 8: 655,362)")
+    cmd->add_option("--level", a->p.level, "icosphere: subdivision level (5: 10,242 vertices, 8: 655,362)")
         ->capture_default_str();
     cmd->add_option("--base", a->base, "geodesic: icosahedron | tetrahedron")
         ->check(CLI::IsMember({"icosahedron", "tetrahedron"}))
         ->capture_default_str();
-    cmd->add_option("--frequency", a->frequency, "geodesic: each base edge split into this many")
+    cmd->add_option("--frequency", a->p.frequency, "geodesic: each base edge split into this many")
         ->capture_default_str();
-    cmd->add_option("--radius", a->radius, "sphere or tube radius")->capture_default_str();
-    cmd->add_option("--length", a->length, "tube length")->capture_default_str();
-    cmd->add_option("--rings", a->rings, "tube: rings along the axis")->capture_default_str();
-    cmd->add_option("--segments", a->segments, "tube: vertices per ring")->capture_default_str();
-    cmd->add_option("--nx", a->nx, "plane: quads along x")->capture_default_str();
-    cmd->add_option("--ny", a->ny, "plane: quads along y")->capture_default_str();
-    cmd->add_option("--size", a->size, "plane: side length")->capture_default_str();
-    cmd->add_option("--k", a->k, "fins: number of sheets sharing the axis edge")->capture_default_str();
-    cmd->add_option("--cell", a->cell, "bifurcation: grid spacing in mm (about the edge length)")
+    cmd->add_option("--radius", a->p.radius, "sphere or tube radius")->capture_default_str();
+    cmd->add_option("--length", a->p.length, "tube length")->capture_default_str();
+    cmd->add_option("--rings", a->p.rings, "tube: rings along the axis")->capture_default_str();
+    cmd->add_option("--segments", a->p.segments, "tube: vertices per ring")->capture_default_str();
+    cmd->add_option("--nx", a->p.nx, "plane: quads along x")->capture_default_str();
+    cmd->add_option("--ny", a->p.ny, "plane: quads along y")->capture_default_str();
+    cmd->add_option("--size", a->p.size, "plane: side length")->capture_default_str();
+    cmd->add_option("--k", a->p.k, "fins: number of sheets sharing the axis edge")->capture_default_str();
+    cmd->add_option("--cell", a->p.bifurcation.cell, "bifurcation: grid spacing in mm (about the edge length)")
         ->capture_default_str();
-    cmd->add_flag("--dent", a->dent, "bifurcation: push a dent into the trunk wall");
+    cmd->add_flag("--dent", a->p.bifurcation.dent, "bifurcation: push a dent into the trunk wall");
     cmd->callback([=] {
-      GeneratedMesh g;
-      if (a->kind == "latlong")
-        g = latlong_sphere(a->n, a->radius);
-      else if (a->kind == "icosphere")
-        g = icosphere(a->level, a->radius);
-      else if (a->kind == "geodesic")
-        g = geodesic_sphere(a->base == "tetrahedron" ? BaseSolid::Tetrahedron : BaseSolid::Icosahedron, a->frequency,
-                            a->radius);
-      else if (a->kind == "tube")
-        g = tube(a->radius, a->length, a->rings, a->segments);
-      else if (a->kind == "plane")
-        g = plane_grid(a->nx, a->ny, a->size, a->size);
-      else if (a->kind == "fins")
-        g = fins(a->k, a->n);
-      else
-        g = y_bifurcation(BifurcationParams{.cell = a->cell, .dent = a->dent});
+      GeneratorParams p = a->p;
+      p.base = a->base == "tetrahedron" ? BaseSolid::Tetrahedron : BaseSolid::Icosahedron;
+      const GeneratedMesh g = generate(a->kind, p);
       save_mesh(a->out, g.V, g.F);
       fmt::print("wrote {}: {} vertices, {} triangles\n", a->out, g.V.rows(), g.F.rows());
     });

@@ -26,27 +26,6 @@ namespace meshpde::cli {
 
 namespace {
 
-Eigen::Vector3d parse_vector(const std::string& s, const char* what) {
-  Eigen::Vector3d v;
-  std::stringstream ss(s);
-  std::string item;
-  int k = 0;
-  while (std::getline(ss, item, ',')) {
-    if (k >= 3) break;
-    try {
-      std::size_t used = 0;
-      v[k] = std::stod(item, &used);
-      if (used != item.size() || !std::isfinite(v[k])) throw std::invalid_argument(item);
-    } catch (const std::exception&) {
-      throw InputError(fmt::format("{} '{}': '{}' is not a number", what, s, item));
-    }
-    ++k;
-  }
-  if (k != 3 || ss.rdbuf()->in_avail() > 0)
-    throw InputError(fmt::format("{} '{}' must be three comma-separated numbers, e.g. 1.5,0,-2", what, s));
-  return v;
-}
-
 struct DragReport {
   DragResult result;
   double setup_ms = 0, solve_ms = 0;
@@ -99,27 +78,6 @@ struct CorrectArgs {
   double mass = 0.1, elasticity = 0.9, viscosity = 0.6;
   bool json = false, dynamic = false, allow_intersections = false;
 };
-
-// --move DX,DY,DZ, or normal:D for D mm along the outward normal at the handle
-// (outward: the side the enclosed volume is not on, for closed meshes of either
-// orientation; for open meshes the normal as the triangles orient it).
-Eigen::Vector3d parse_move(const Mesh& mesh, const MeshReport& report, std::optional<Eigen::MatrixX3d>& normals,
-                           int vertex, const std::string& text) {
-  if (text.rfind("normal:", 0) != 0) return parse_vector(text, "--move");
-  double dist = 0;
-  try {
-    std::size_t used = 0;
-    dist = std::stod(text.substr(7), &used);
-    if (used != text.size() - 7 || !std::isfinite(dist)) throw std::invalid_argument(text);
-  } catch (const std::exception&) {
-    throw InputError(fmt::format("--move '{}': expected normal:DISTANCE in mm, e.g. normal:2.5", text));
-  }
-  if (!normals) normals = vertex_normals(mesh);
-  const Eigen::Vector3d n = normals->row(vertex).transpose();
-  if (!(n.norm() > 0)) throw InputError(fmt::format("vertex {} has no normal (no incident area)", vertex));
-  const double sign = (report.boundary_loops == 0 && report.signed_volume < 0) ? -1.0 : 1.0;
-  return sign * dist * n;
-}
 
 Eigen::VectorXd stiffness_field(const Mesh& mesh, const MeshData& d, const CorrectArgs& a) {
   if (a.stiffness.empty() && a.brushes.empty()) return {};
@@ -184,12 +142,14 @@ void run_correct(const CorrectArgs& a) {
         fmt::format("{} --vertex but {} --move: give one displacement per handle", a.vertices.size(), a.moves.size()));
   MeshData data;
   const Mesh mesh = load_mesh(a.mesh, &data);
-  const MeshReport report = warn_about_shape(mesh, a.mesh);
+  warn_about_shape(mesh, a.mesh);
   CorrectionParams p;
-  std::optional<Eigen::MatrixX3d> normals;  // computed once, if a move is along a normal
-  for (std::size_t k = 0; k < a.vertices.size(); ++k) {
-    const int v = parse_vertex(mesh, a.vertices[k], "--vertex");
-    p.handles.push_back({v, parse_move(mesh, report, normals, v, a.moves[k])});
+  std::vector<int> handle_vertices;
+  for (const auto& spec : a.vertices) handle_vertices.push_back(parse_vertex(mesh, spec, "--vertex"));
+  try {
+    p.handles = parse_handles(mesh, handle_vertices, a.moves);
+  } catch (const InputError& e) {
+    throw InputError(fmt::format("--move: {}", e.what()));
   }
   p.radius = a.radius;
   p.rings = a.rings;

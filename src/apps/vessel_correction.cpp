@@ -8,6 +8,7 @@
 #include <cmath>
 #include <optional>
 #include <set>
+#include <sstream>
 #include <unordered_map>
 
 #include "meshpde/apps/local_drag.h"
@@ -21,6 +22,65 @@ CorrectionMethod parse_correction_method(const std::string& text) {
   if (text == "fem") return CorrectionMethod::Fem;
   if (text == "springs") return CorrectionMethod::Springs;
   throw InputError(fmt::format("unknown correction method '{}' (expected fem or springs)", text));
+}
+
+namespace {
+
+// "DX,DY,DZ": exactly three finite numbers.
+Eigen::Vector3d parse_displacement(const std::string& s) {
+  Eigen::Vector3d v;
+  std::stringstream ss(s);
+  std::string item;
+  int k = 0;
+  while (std::getline(ss, item, ',')) {
+    if (k >= 3) break;
+    try {
+      std::size_t used = 0;
+      v[k] = std::stod(item, &used);
+      if (used != item.size() || !std::isfinite(v[k])) throw std::invalid_argument(item);
+    } catch (const std::exception&) {
+      throw InputError(fmt::format("move '{}': '{}' is not a number", s, item));
+    }
+    ++k;
+  }
+  if (k != 3 || ss.rdbuf()->in_avail() > 0)
+    throw InputError(fmt::format("move '{}' must be three comma-separated numbers, e.g. 1.5,0,-2, or normal:D", s));
+  return v;
+}
+
+}  // namespace
+
+std::vector<CorrectionHandle> parse_handles(const Mesh& mesh, const std::vector<int>& vertices,
+                                            const std::vector<std::string>& moves) {
+  if (vertices.size() != moves.size())
+    throw InputError(
+        fmt::format("{} handle vertices but {} moves: give one move per handle", vertices.size(), moves.size()));
+  std::optional<Eigen::MatrixX3d> normals;  // computed once, if a move is along a normal
+  std::vector<CorrectionHandle> handles;
+  for (std::size_t k = 0; k < vertices.size(); ++k) {
+    const int v = vertices[k];
+    if (v < 0 || v >= mesh.num_vertices())
+      throw InputError(
+          fmt::format("handle vertex {} is out of range (the mesh has {} vertices)", v, mesh.num_vertices()));
+    const std::string& text = moves[k];
+    if (text.rfind("normal:", 0) != 0) {
+      handles.push_back({v, parse_displacement(text)});
+      continue;
+    }
+    double dist = 0;
+    try {
+      std::size_t used = 0;
+      dist = std::stod(text.substr(7), &used);
+      if (used != text.size() - 7 || !std::isfinite(dist)) throw std::invalid_argument(text);
+    } catch (const std::exception&) {
+      throw InputError(fmt::format("move '{}': expected normal:DISTANCE, e.g. normal:2.5", text));
+    }
+    if (!normals) normals = outward_vertex_normals(mesh);
+    const Eigen::Vector3d n = normals->row(v).transpose();
+    if (!(n.norm() > 0)) throw InputError(fmt::format("vertex {} has no normal (no incident area)", v));
+    handles.push_back({v, dist * n});
+  }
+  return handles;
 }
 
 namespace {

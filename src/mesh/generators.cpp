@@ -330,4 +330,23 @@ GeneratedMesh subdivide_midpoint(const Positions& V, const Triangles& F) {
   return m;
 }
 
+const std::vector<std::string>& generator_names() {
+  static const std::vector<std::string> names{"latlong",     "icosphere", "geodesic", "tube",
+                                              "bifurcation", "plane",     "fins"};
+  return names;
+}
+
+GeneratedMesh generate(const std::string& kind, const GeneratorParams& p) {
+  if (kind == "latlong") return latlong_sphere(p.n, p.radius);
+  if (kind == "icosphere") return icosphere(p.level, p.radius);
+  if (kind == "geodesic") return geodesic_sphere(p.base, p.frequency, p.radius);
+  if (kind == "tube") return tube(p.radius, p.length, p.rings, p.segments);
+  if (kind == "bifurcation") return y_bifurcation(p.bifurcation);
+  if (kind == "plane") return plane_grid(p.nx, p.ny, p.size, p.size);
+  if (kind == "fins") return fins(p.k, p.n);
+  std::string names;
+  for (const auto& n : generator_names()) names += (names.empty() ? "" : ", ") + n;
+  throw InputError(fmt::format("unknown mesh kind '{}' (expected one of: {})", kind, names));
+}
+
 }  // namespace meshpde

@@ -67,6 +67,13 @@ Eigen::MatrixX3d vertex_normals(const Mesh& mesh) {
   return N;
 }
 
+Eigen::MatrixX3d outward_vertex_normals(const Mesh& mesh) {
+  Eigen::MatrixX3d N = vertex_normals(mesh);
+  const MeshReport r = analyze(mesh);
+  if (r.boundary_loops == 0 && r.signed_volume < 0) N = -N;
+  return N;
+}
+
 std::vector<int> vertex_components(const Mesh& mesh, int* count) {
   const int nv = mesh.num_vertices();
   UnionFind uf(nv);

@@ -76,10 +76,21 @@ enum class CorrectionMethod { Fem, Springs };
 /// "fem" or "springs". \throw InputError otherwise.
 CorrectionMethod parse_correction_method(const std::string& text);
 
+/// A handle: a vertex moved by a prescribed displacement.
 struct CorrectionHandle {
-  int vertex = 0;
-  Eigen::Vector3d displacement = Eigen::Vector3d::Zero();  ///< mm
+  int vertex = 0;                                          ///< index into the mesh's vertices
+  Eigen::Vector3d displacement = Eigen::Vector3d::Zero();  ///< in the mesh's units (mm for vessels)
 };
+
+/// Handles from moves written as the user writes them, one per vertex:
+/// "DX,DY,DZ" (a displacement) or "normal:D" (D along the outward normal at the
+/// vertex, mesh/topology.h's outward_vertex_normals: D > 0 pushes the wall out of a
+/// closed vessel whatever its orientation). The one parser of moves for the CLI, the
+/// editor and Python.
+/// \throw InputError for a count mismatch, a vertex out of range, a malformed move
+///        (the message quotes it) or a normal move at a vertex without area.
+std::vector<CorrectionHandle> parse_handles(const Mesh& mesh, const std::vector<int>& vertices,
+                                            const std::vector<std::string>& moves);
 
 /// The thesis's tissue parameters, each in [0, 1].
 struct TissueParams {

@@ -3,6 +3,8 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <string>
+#include <vector>
 
 #include "meshpde/mesh/mesh.h"
 
@@ -58,6 +60,30 @@ struct BifurcationParams {
   int relax_iterations = 10;  ///< tangential smoothing + reprojection passes
 };
 GeneratedMesh y_bifurcation(const BifurcationParams& params = {});
+
+/// Every generator under one name, with one set of defaults: the table that
+/// `meshpde generate`, the editor and Python's `meshpde.generate` share.
+struct GeneratorParams {
+  int n = 15;                                  ///< latlong: rings of latitude; fins: quads per side
+  int level = 3;                               ///< icosphere: subdivision level (5: 10,242 vertices)
+  BaseSolid base = BaseSolid::Icosahedron;     ///< geodesic: solid projected to the sphere
+  int frequency = 4;                           ///< geodesic: each base edge split into this many
+  double radius = 1.0;                         ///< latlong, icosphere, geodesic, tube: radius
+  double length = 10.0;                        ///< tube: length along z
+  int rings = 20;                              ///< tube: rings along the axis
+  int segments = 24;                           ///< tube: vertices per ring
+  int nx = 20, ny = 20;                        ///< plane: quads along x and y
+  double size = 1.0;                           ///< plane: side length (both sides)
+  int k = 3;                                   ///< fins: sheets sharing the axis edge
+  BifurcationParams bifurcation{.cell = 0.6};  ///< bifurcation (mm); a finer grid than y_bifurcation's default
+};
+
+/// The names generate() takes: latlong, icosphere, geodesic, tube, bifurcation, plane, fins.
+const std::vector<std::string>& generator_names();
+
+/// The mesh `kind` (one of generator_names()) with `params`.
+/// \throw InputError naming the kinds for an unknown one, or for a bad parameter.
+GeneratedMesh generate(const std::string& kind, const GeneratorParams& params = {});
 
 /// Splits every triangle into four (midpoint subdivision); positions unchanged.
 GeneratedMesh subdivide_midpoint(const Positions& V, const Triangles& F);

@@ -64,6 +64,13 @@ double mean_edge_length(const Mesh& mesh);
 /// (inward on an inward-oriented mesh); zero rows where a vertex has no area.
 Eigen::MatrixX3d vertex_normals(const Mesh& mesh);
 
+/// Unit vertex normals that point out of the surface: for a closed mesh (no boundary
+/// loop) away from the enclosed volume, whichever way its triangles are oriented
+/// (vmtk's aortas are inward-oriented: signed volume < 0); for an open mesh, as its
+/// triangles orient it. #V x 3; zero rows where a vertex has no incident area.
+/// This is the one rule for "outward" used by `normal:D` moves, the editor and Python.
+Eigen::MatrixX3d outward_vertex_normals(const Mesh& mesh);
+
 /// Connected-component label per vertex (unreferenced vertices get their own label).
 std::vector<int> vertex_components(const Mesh& mesh, int* count = nullptr);
 

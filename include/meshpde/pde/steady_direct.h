@@ -37,7 +37,7 @@ struct SteadySolveResult {
 
 /// The steady problem with the held values of u (its free rows are ignored) by Direct
 /// or Global (for Iterative, use PdeSession::solve_steady, which also takes a domain).
-/// 	hrow InputError for Iterative, or for Global with g2 <= 0 or g0 != 0;
+/// \throw InputError for Iterative, or for Global with g2 <= 0 or g0 != 0;
 ///        SolverError when Global does not converge, or as SteadyDirectSolver.
 SteadySolveResult solve_steady(const Mesh& mesh, const FemOperators& ops, const PdeCoefficients& coefficients,
                                const std::vector<int>& free, const Field& u, SteadySolver solver);
