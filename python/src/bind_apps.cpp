@@ -1,0 +1,461 @@
+// meshpde's applications in Python: heat and wave, fairing, interpolation and vessel
+// correction. Each call converts its arguments, releases the GIL for the library's
+// work, and returns numpy arrays or a small result object.
+#include <fmt/format.h>
+#include <pybind11/functional.h>
+#include <pybind11/stl.h>
+#include <pybind11/stl/filesystem.h>
+
+#include "bindings.h"
+#include "convert.h"
+#include "meshpde/apps/fairing.h"
+#include "meshpde/apps/heat_wave.h"
+#include "meshpde/apps/interpolation.h"
+#include "meshpde/apps/selection.h"
+#include "meshpde/apps/vessel_correction.h"
+#include "meshpde/core/errors.h"
+#include "meshpde/mesh/topology.h"
+#ifdef MESHPDE_HAVE_MEDICAL
+#include "meshpde/io/medical_io.h"
+#endif
+
+namespace meshpde::python {
+
+namespace {
+
+// {vertex: value} or [(vertex, value), ...].
+std::vector<std::pair<int, double>> vertex_values_arg(const py::handle& obj, const char* name, Eigen::Index nv) {
+  std::vector<std::pair<int, double>> out;
+  if (obj.is_none()) return out;
+  auto add = [&](const py::handle& k, const py::handle& v) {
+    long long vertex = 0;
+    double value = 0;
+    try {
+      vertex = k.cast<long long>();
+      value = v.cast<double>();
+    } catch (const py::cast_error&) {
+      throw py::value_error(fmt::format("{}: expected vertex -> number pairs", name));
+    }
+    if (!std::isfinite(value)) throw py::value_error(fmt::format("{}: value at vertex {} is not finite", name, vertex));
+    out.emplace_back(vertex_arg(vertex, name, nv), value);
+  };
+  if (py::isinstance<py::dict>(obj)) {
+    for (const auto& [k, v] : obj.cast<py::dict>()) add(k, v);
+    return out;
+  }
+  for (const auto& item : obj) {
+    const py::sequence pair = py::reinterpret_borrow<py::sequence>(item);
+    if (!py::isinstance<py::sequence>(item) || pair.size() != 2)
+      throw py::value_error(fmt::format("{}: expected a dict or a list of (vertex, value) pairs", name));
+    add(pair[0], pair[1]);
+  }
+  return out;
+}
+
+SteadySolver solver_arg(const std::string& name) {
+  if (name == "direct") return SteadySolver::Direct;
+  if (name == "global") return SteadySolver::Global;
+  if (name == "iterative") return SteadySolver::Iterative;
+  throw py::value_error(fmt::format("solver: expected 'direct', 'global' or 'iterative', got '{}'", name));
+}
+
+// Vertex indices, or selection specs as `meshpde fair --fixed` takes them ("boundary",
+// "rings:V:K", "radius:V:R", "halfspace:NX,NY,NZ:D", "all", ...).
+std::vector<int> selection_arg(const Mesh& mesh, const py::handle& obj, const char* name) {
+  if (py::isinstance<py::str>(obj)) return select_vertices(mesh, obj.cast<std::string>());
+  if (py::isinstance<py::list>(obj) || py::isinstance<py::tuple>(obj)) {
+    const py::sequence seq = py::reinterpret_borrow<py::sequence>(obj);
+    if (seq.size() > 0 && py::isinstance<py::str>(seq[0]))
+      return select_vertices(mesh, seq.cast<std::vector<std::string>>());
+  }
+  return vertices_arg(obj, name, mesh.num_vertices());
+}
+
+py::object propagation_result(const PropagationResult& r) {
+  py::dict d;
+  d["values"] = to_numpy(r.values);
+  d["velocity"] = to_numpy(r.velocity);
+  d["cg_iterations"] = r.cg_iterations;
+  d["max_free_vertices"] = r.max_free_vertices;
+  return py::module_::import("types").attr("SimpleNamespace")(**d);
+}
+
+py::object run_propagation(Propagation eq, const py::handle& V, const py::handle& F, const py::handle& sources,
+                           const py::handle& flux, const py::handle& impulses, double dt, int steps, double diffusivity,
+                           double speed, double damping, const py::handle& initial, const py::handle& initial_velocity,
+                           bool local, const py::object& callback) {
+  const Mesh mesh = mesh_arg(V, F);
+  const Eigen::Index nv = mesh.num_vertices();
+  PropagationParams p{.equation = eq,
+                      .dt = dt,
+                      .steps = steps,
+                      .diffusivity = diffusivity,
+                      .wave_speed = speed,
+                      .damping = damping,
+                      .local = local};
+  p.fixed = vertex_values_arg(sources, "sources", nv);
+  p.flux = vertex_values_arg(flux, "flux", nv);
+  if (!initial.is_none()) p.initial = vector_arg(initial, "initial", nv);
+  if (!initial_velocity.is_none()) p.initial_velocity = vector_arg(initial_velocity, "initial_velocity", nv);
+  if (!impulses.is_none()) {
+    if (p.initial_velocity.size() == 0) p.initial_velocity = Eigen::VectorXd::Zero(nv);
+    for (const auto& [v, x] : vertex_values_arg(impulses, "impulses", nv)) p.initial_velocity[v] += x;
+  }
+  if (!callback.is_none() && !PyCallable_Check(callback.ptr())) throw py::type_error("callback: expected a callable");
+  PropagationResult r;
+  {
+    py::gil_scoped_release release;
+    const FemOperators ops = build_operators(mesh);
+    r = propagate(mesh, ops, p, [&](int step, const Eigen::VectorXd& u, const Eigen::VectorXd& ut) {
+      py::gil_scoped_acquire gil;
+      if (PyErr_CheckSignals() != 0) throw py::error_already_set();
+      if (!callback.is_none()) callback(step, to_numpy(u), to_numpy(ut));
+    });
+  }
+  return propagation_result(r);
+}
+
+// The correction's options, by the names of `meshpde correct`'s flags.
+struct CorrectionOptions {
+  CorrectionParams params;
+  std::string method = "fem";
+  std::optional<std::string> image_space;
+};
+
+Volume volume_arg(const py::handle& image) {
+  if (py::isinstance<py::tuple>(image)) {
+    const py::tuple t = image.cast<py::tuple>();
+    if (t.size() != 2) throw py::value_error("image: expected a path or a (values, affine) tuple");
+    const py::array_t<float, py::array::f_style | py::array::forcecast> a =
+        py::array_t<float, py::array::f_style | py::array::forcecast>::ensure(t[0]);
+    if (!a || a.ndim() != 3) throw py::value_error("image: values must be a 3-D array indexed [i, j, k]");
+    const Field A = field_arg(t[1], "image affine", 4, 4);
+    Volume v;
+    v.dims = {static_cast<int>(a.shape(0)), static_cast<int>(a.shape(1)), static_cast<int>(a.shape(2))};
+    const Eigen::Matrix3d L = A.topLeftCorner(3, 3);
+    for (int c = 0; c < 3; ++c) v.spacing[c] = L.col(c).norm();
+    if (!(v.spacing.minCoeff() > 0)) throw py::value_error("image affine: a voxel axis has zero length");
+    v.direction = L * v.spacing.cwiseInverse().asDiagonal();
+    v.origin = A.topRightCorner(3, 1);
+    v.values.assign(a.data(), a.data() + a.size());
+    v.name = "image";
+    v.validate();
+    return v;
+  }
+#ifdef MESHPDE_HAVE_MEDICAL
+  return read_volume(image.cast<std::filesystem::path>());
+#else
+  throw py::value_error("image: reading a volume file needs meshpde built with meshpde::medical (VTK)");
+#endif
+}
+
+CorrectionOptions correction_options(const Mesh& mesh, const py::handle& vertices, const py::handle& moves,
+                                     const py::dict& o) {
+  CorrectionOptions c;
+  CorrectionParams& p = c.params;
+  const std::vector<int> handles = vertices_arg(vertices, "vertices", mesh.num_vertices());
+  const py::sequence seq = py::reinterpret_borrow<py::sequence>(moves);
+  if (!py::isinstance<py::sequence>(moves) || py::isinstance<py::str>(moves))
+    throw py::value_error("moves: expected one move per vertex: (dx, dy, dz) or 'normal:D'");
+  if (seq.size() != handles.size())
+    throw py::value_error(
+        fmt::format("moves: {} moves for {} vertices: give one move per vertex", seq.size(), handles.size()));
+  for (std::size_t k = 0; k < handles.size(); ++k) {
+    const py::handle mv = seq[k];
+    if (py::isinstance<py::str>(mv)) {
+      p.handles.push_back(parse_handles(mesh, {handles[k]}, {mv.cast<std::string>()})[0]);
+    } else {
+      const Eigen::VectorXd d = vector_arg(mv, fmt::format("moves[{}]", k).c_str(), 3);
+      p.handles.push_back({handles[k], d});
+    }
+  }
+  auto get = [&](const char* key) -> py::object { return o.contains(key) ? o[key] : py::object(py::none()); };
+  auto num = [&](const char* key, double& x) {
+    if (const py::object v = get(key); !v.is_none()) x = v.cast<double>();
+  };
+  auto integer = [&](const char* key, int& x) {
+    if (const py::object v = get(key); !v.is_none()) x = v.cast<int>();
+  };
+  num("radius", p.radius);
+  integer("rings", p.rings);
+  if (p.radius <= 0 && p.rings <= 0) throw py::value_error("give radius (mesh units, mm) or rings (a count) > 0");
+  if (p.radius > 0 && p.rings > 0) throw py::value_error("give radius or rings, not both");
+  if (const py::object v = get("method"); !v.is_none()) c.method = v.cast<std::string>();
+  p.method = parse_correction_method(c.method);
+  num("g1", p.g1);
+  num("g2", p.g2);
+  if (const py::object v = get("laplacian"); !v.is_none()) p.laplacian = parse_laplacian_kind(v.cast<std::string>());
+  if (const py::object v = get("stiffness"); !v.is_none())
+    p.stiffness = vector_arg(v, "stiffness", mesh.num_vertices());
+  if (const py::object v = get("dynamic"); !v.is_none()) p.dynamic = v.cast<bool>();
+  integer("steps", p.steps);
+  num("mass", p.tissue.mass);
+  num("elasticity", p.tissue.elasticity);
+  num("viscosity", p.tissue.viscosity);
+  if (const py::object v = get("allow_intersections"); !v.is_none()) p.prevent_intersections = !v.cast<bool>();
+  integer("max_substeps", p.max_substeps);
+  if (const py::object image = get("image"); !image.is_none()) {
+    double sigma = 1.0;
+    num("image_sigma", sigma);
+    const std::string space = get("space").is_none() ? "lps" : get("space").cast<std::string>();
+    p.image.space = parse_space(space);
+    num("image_weight", p.image.weight);
+    num("search_radius", p.image.search_radius);
+    integer("cube", p.image.cube_size);
+    integer("passes", p.image.passes);
+    Volume volume = volume_arg(image);
+    py::gil_scoped_release release;
+    p.image.edges = std::make_shared<const Volume>(gradient_magnitude(volume, sigma));
+    c.image_space = to_string(p.image.space);
+  }
+  return c;
+}
+
+// A correction's report: the fields of `meshpde correct --json` under the same names,
+// plus the arrays (V, displacement, region).
+struct PyCorrectionResult {
+  CorrectionResult r;
+  std::string method;
+  bool dynamic = false;
+  int handles = 0;
+  std::optional<std::string> image_space;
+
+  py::object image() const {
+    if (!image_space) return py::none();
+    py::dict d;
+    d["pulled_vertices"] = r.pulled_vertices;
+    d["mean_edge_before"] = r.image_mean_edge_before;
+    d["mean_edge_after"] = r.image_mean_edge_after;
+    d["space"] = *image_space;
+    return d;
+  }
+  py::object accuracy_warning() const {
+    return r.accuracy_warning.empty() ? py::object(py::none()) : py::object(py::str(r.accuracy_warning));
+  }
+  py::dict to_dict() const {
+    py::dict j;
+    j["moved_vertices"] = r.moved_vertices;
+    j["max_displacement"] = r.max_displacement;
+    j["region_vertices"] = r.region.size();
+    j["new_self_intersections"] = r.new_self_intersections;
+    j["time_ms"] = r.time_ms;
+    j["method"] = method;
+    j["dynamic"] = dynamic;
+    j["laplacian"] = to_string(r.laplacian);
+    j["laplacian_reason"] = r.laplacian_reason;
+    j["relative_residual"] = r.relative_residual;
+    j["condition_estimate"] = r.condition_estimate;
+    j["error_bound"] = r.error_bound;
+    j["accuracy_warning"] = accuracy_warning();
+    j["applied_fraction"] = r.applied_fraction;
+    j["substeps"] = r.substeps;
+    j["intersection_action"] = r.intersection_action;
+    j["handles"] = handles;
+    if (image_space) j["image"] = image();
+    return j;
+  }
+};
+
+PyCorrectionResult wrap(CorrectionResult r, const CorrectionOptions& c) {
+  PyCorrectionResult out{std::move(r), c.method, c.params.dynamic, static_cast<int>(c.params.handles.size()),
+                         c.image_space};
+  if (!out.r.accuracy_warning.empty()) PyErr_WarnEx(PyExc_RuntimeWarning, out.r.accuracy_warning.c_str(), 1);
+  return out;
+}
+
+// CorrectionSession with the mesh it owns.
+class PyCorrectionSession {
+ public:
+  PyCorrectionSession(const py::handle& V, const py::handle& F) : session_(mesh_arg(V, F)) {}
+  PyCorrectionResult apply(const py::handle& vertices, const py::handle& moves, const py::dict& options) {
+    const CorrectionOptions c = correction_options(session_.mesh(), vertices, moves, options);
+    CorrectionResult r;
+    {
+      py::gil_scoped_release release;
+      r = session_.apply(c.params);
+    }
+    return wrap(std::move(r), c);
+  }
+  CorrectionSession session_;
+};
+
+}  // namespace
+
+void bind_apps(py::module_& m) {
+  m.def(
+      "_heat",
+      [](const py::handle& V, const py::handle& F, const py::handle& sources, const py::handle& flux, double dt,
+         int steps, double diffusivity, const py::handle& initial, bool local, const py::object& callback) {
+        return run_propagation(Propagation::Heat, V, F, sources, flux, py::none(), dt, steps, diffusivity, 1.0, 0.0,
+                               initial, py::none(), local, callback);
+      },
+      py::arg("V"), py::arg("F"), py::arg("sources"), py::arg("flux"), py::arg("dt"), py::arg("steps"),
+      py::arg("diffusivity"), py::arg("initial"), py::arg("local"), py::arg("callback"));
+  m.def(
+      "_wave",
+      [](const py::handle& V, const py::handle& F, const py::handle& sources, const py::handle& flux,
+         const py::handle& impulses, double dt, int steps, double speed, double damping, const py::handle& initial,
+         const py::handle& initial_velocity, bool local, const py::object& callback) {
+        return run_propagation(Propagation::Wave, V, F, sources, flux, impulses, dt, steps, 1.0, speed, damping,
+                               initial, initial_velocity, local, callback);
+      },
+      py::arg("V"), py::arg("F"), py::arg("sources"), py::arg("flux"), py::arg("impulses"), py::arg("dt"),
+      py::arg("steps"), py::arg("speed"), py::arg("damping"), py::arg("initial"), py::arg("initial_velocity"),
+      py::arg("local"), py::arg("callback"));
+  m.def(
+      "wave_energy",
+      [](const py::handle& V, const py::handle& F, const py::handle& u, const py::handle& ut, double speed) {
+        const Mesh mesh = mesh_arg(V, F);
+        const FemOperators ops = build_operators(mesh);
+        return wave_energy(mesh, ops, vector_arg(u, "u", mesh.num_vertices()),
+                           vector_arg(ut, "ut", mesh.num_vertices()), speed);
+      },
+      py::arg("V"), py::arg("F"), py::arg("u"), py::arg("ut"), py::arg("speed") = 1.0);
+
+  m.def(
+      "_fair",
+      [](const py::handle& V, const py::handle& F, const py::handle& fixed, int order, bool regularize, double dt,
+         int steps, double damping, const std::string& solver) {
+        const Mesh mesh = mesh_arg(V, F);
+        const std::vector<int> held = selection_arg(mesh, fixed, "fixed");
+        FairParams p;
+        p.order = order;
+        p.regularize = regularize;
+        p.dt = dt;
+        p.steps = steps;
+        p.damping = damping;
+        p.solver = solver_arg(solver);
+        FairResult r;
+        {
+          py::gil_scoped_release release;
+          r = fair(mesh, held, p);
+        }
+        auto quality = [](const TriangleQuality& q) {
+          py::dict d;
+          d["min_angle_deg"] = q.min_angle_deg;
+          d["area_ratio"] = q.area_ratio;
+          d["area_histogram"] = q.area_histogram;
+          return d;
+        };
+        py::dict d;
+        d["V"] = to_numpy(Eigen::MatrixXd(r.V));
+        d["before"] = quality(r.before);
+        d["after"] = quality(r.after);
+        d["cg_iterations"] = r.cg_iterations;
+        d["worst_residual"] = r.worst_residual;
+        return py::module_::import("types").attr("SimpleNamespace")(**d);
+      },
+      py::arg("V"), py::arg("F"), py::arg("fixed"), py::arg("order"), py::arg("regularize"), py::arg("dt"),
+      py::arg("steps"), py::arg("damping"), py::arg("solver"));
+
+  m.def(
+      "_interpolate",
+      [](const py::handle& V, const py::handle& F, const py::handle& vertices, const py::handle& values,
+         const std::string& kind, const std::string& method, double g1, double g2, const std::string& solver) {
+        const Mesh mesh = mesh_arg(V, F);
+        const std::vector<int> at = vertices_arg(vertices, "vertices", mesh.num_vertices());
+        FieldKind k = FieldKind::Scalar;
+        if (kind == "displacement")
+          k = FieldKind::Displacement;
+        else if (kind == "tangent")
+          k = FieldKind::Tangent;
+        else if (kind != "scalar")
+          throw py::value_error(fmt::format("kind: expected 'scalar', 'displacement' or 'tangent', got '{}'", kind));
+        const Field x =
+            field_arg(values, "values", static_cast<Eigen::Index>(at.size()), k == FieldKind::Scalar ? 1 : 3);
+        if (method != "componentwise" && method != "connection")
+          throw py::value_error(fmt::format("method: expected 'componentwise' or 'connection', got '{}'", method));
+        std::vector<InterpolationConstraint> cons;
+        for (std::size_t c = 0; c < at.size(); ++c)
+          cons.push_back({at[c], x.row(static_cast<Eigen::Index>(c)).transpose()});
+        InterpolationParams p;
+        p.g1 = g1;
+        p.g2 = g2;
+        p.method = method == "connection" ? TangentMethod::Connection : TangentMethod::Componentwise;
+        p.solver = solver_arg(solver);
+        InterpolationResult r;
+        {
+          py::gil_scoped_release release;
+          r = interpolate(mesh, build_operators(mesh), k, cons, p);
+        }
+        if (k == FieldKind::Scalar) return py::object(to_numpy(Eigen::VectorXd(r.values.col(0))));
+        return py::object(to_numpy(r.values));
+      },
+      py::arg("V"), py::arg("F"), py::arg("vertices"), py::arg("values"), py::arg("kind"), py::arg("method"),
+      py::arg("g1"), py::arg("g2"), py::arg("solver"));
+
+  py::class_<PyCorrectionResult>(
+      m, "CorrectionResult",
+      "A correction's report. Its scalar fields carry the names of `meshpde correct --json`'s keys.")
+      .def_property_readonly(
+          "V", [](const PyCorrectionResult& c) { return to_numpy(Eigen::MatrixXd(c.r.V)); },
+          "corrected positions, (n, 3), mesh units")
+      .def_property_readonly(
+          "displacement", [](const PyCorrectionResult& c) { return to_numpy(c.r.displacement); },
+          "displacement per vertex, (n, 3), mesh units")
+      .def_property_readonly(
+          "region", [](const PyCorrectionResult& c) { return to_numpy(c.r.region); },
+          "vertices of the region of influence (handles included)")
+      .def_property_readonly("moved_vertices", [](const PyCorrectionResult& c) { return c.r.moved_vertices; })
+      .def_property_readonly("max_displacement", [](const PyCorrectionResult& c) { return c.r.max_displacement; })
+      .def_property_readonly("region_vertices", [](const PyCorrectionResult& c) { return c.r.region.size(); })
+      .def_property_readonly("new_self_intersections",
+                             [](const PyCorrectionResult& c) { return c.r.new_self_intersections; })
+      .def_property_readonly("time_ms", [](const PyCorrectionResult& c) { return c.r.time_ms; })
+      .def_readonly("method", &PyCorrectionResult::method)
+      .def_readonly("dynamic", &PyCorrectionResult::dynamic)
+      .def_property_readonly("laplacian",
+                             [](const PyCorrectionResult& c) { return std::string(to_string(c.r.laplacian)); })
+      .def_property_readonly("laplacian_reason", [](const PyCorrectionResult& c) { return c.r.laplacian_reason; })
+      .def_property_readonly("relative_residual", [](const PyCorrectionResult& c) { return c.r.relative_residual; })
+      .def_property_readonly("condition_estimate", [](const PyCorrectionResult& c) { return c.r.condition_estimate; })
+      .def_property_readonly("error_bound", [](const PyCorrectionResult& c) { return c.r.error_bound; })
+      .def_property_readonly("accuracy_warning", &PyCorrectionResult::accuracy_warning)
+      .def_property_readonly("applied_fraction", [](const PyCorrectionResult& c) { return c.r.applied_fraction; })
+      .def_property_readonly("substeps", [](const PyCorrectionResult& c) { return c.r.substeps; })
+      .def_property_readonly("intersection_action", [](const PyCorrectionResult& c) { return c.r.intersection_action; })
+      .def_readonly("handles", &PyCorrectionResult::handles)
+      .def_property_readonly("image", &PyCorrectionResult::image)
+      .def("to_dict", &PyCorrectionResult::to_dict, "The report as a dict, with the keys of `meshpde correct --json`.")
+      .def("__repr__", [](const PyCorrectionResult& c) {
+        return fmt::format("<CorrectionResult moved_vertices={} max_displacement={:.4g} new_self_intersections={}>",
+                           c.r.moved_vertices, c.r.max_displacement, c.r.new_self_intersections);
+      });
+
+  m.def(
+      "_correct",
+      [](const py::handle& V, const py::handle& F, const py::handle& vertices, const py::handle& moves,
+         const py::dict& options) {
+        const Mesh mesh = mesh_arg(V, F);
+        const CorrectionOptions c = correction_options(mesh, vertices, moves, options);
+        CorrectionResult r;
+        {
+          py::gil_scoped_release release;
+          r = correct_vessel(mesh, c.params);
+        }
+        return wrap(std::move(r), c);
+      },
+      py::arg("V"), py::arg("F"), py::arg("vertices"), py::arg("moves"), py::arg("options"));
+
+  py::class_<PyCorrectionSession>(m, "_CorrectionSession")
+      .def(py::init<const py::handle&, const py::handle&>(), py::arg("V"), py::arg("F"))
+      .def("_apply", &PyCorrectionSession::apply, py::arg("vertices"), py::arg("moves"), py::arg("options"))
+      .def(
+          "undo", [](PyCorrectionSession& s) { s.session_.undo(); }, "Goes back one correction.")
+      .def(
+          "redo", [](PyCorrectionSession& s) { s.session_.redo(); }, "Re-applies the correction undone last.")
+      .def_property_readonly("can_undo", [](const PyCorrectionSession& s) { return s.session_.can_undo(); })
+      .def_property_readonly("can_redo", [](const PyCorrectionSession& s) { return s.session_.can_redo(); })
+      .def_property_readonly(
+          "V", [](const PyCorrectionSession& s) { return to_numpy(Eigen::MatrixXd(s.session_.mesh().positions())); },
+          "current positions, (n, 3)")
+      .def_property_readonly(
+          "original", [](const PyCorrectionSession& s) { return to_numpy(Eigen::MatrixXd(s.session_.original())); },
+          "positions before the first correction, (n, 3)")
+      .def_property_readonly("F", [](const PyCorrectionSession& s) { return to_numpy(s.session_.mesh().triangles()); })
+      .def(
+          "new_self_intersections", [](const PyCorrectionSession& s) { return s.session_.new_self_intersections(); },
+          "Triangle pairs intersecting now that did not in the original.");
+}
+
+}  // namespace meshpde::python

@@ -1,0 +1,383 @@
+// meshpde's mesh layer in Python: reading and writing, diagnostics, generators,
+// normals, self-intersections and pictures.
+#include <fmt/format.h>
+#include <pybind11/stl.h>
+#include <pybind11/stl/filesystem.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <optional>
+
+#include "bindings.h"
+#include "convert.h"
+#include "meshpde/core/errors.h"
+#include "meshpde/io/mesh_io.h"
+#include "meshpde/mesh/generators.h"
+#include "meshpde/mesh/self_intersections.h"
+#include "meshpde/mesh/topology.h"
+#include "meshpde/viz/render.h"
+#ifdef MESHPDE_HAVE_MEDICAL
+#include "meshpde/io/medical_io.h"
+#endif
+
+namespace meshpde::python {
+
+namespace {
+
+// FileNotFoundError (an OSError, as open() raises) rather than the library's InputError.
+void require_file(const std::filesystem::path& path) {
+  if (std::filesystem::exists(path)) return;
+  errno = ENOENT;
+  PyErr_SetFromErrnoWithFilename(PyExc_FileNotFoundError, path.c_str());
+  throw py::error_already_set();
+}
+
+MeshData read_by_extension(const std::filesystem::path& path) {
+#ifdef MESHPDE_HAVE_MEDICAL
+  return read_any_mesh(path);
+#else
+  return read_mesh(path);
+#endif
+}
+
+std::vector<std::string> write_by_extension(const std::filesystem::path& path, const MeshData& d, bool binary) {
+#ifdef MESHPDE_HAVE_MEDICAL
+  if (is_vtk_mesh_path(path)) return write_any_mesh(path, d);
+#endif
+  return write_mesh(path, d, WriteOptions{.binary = binary});
+}
+
+// Vertex fields as Python sees them: NAME_x, NAME_y, NAME_z (the library's storage of a
+// 3-vector field in every format) joined into one (n, 3) array NAME, other scalars as
+// (n,) arrays, VTK point arrays of other widths as (n, k).
+py::dict fields_to_python(const MeshData& d) {
+  py::dict out;
+  const auto& s = d.vertex_scalars;
+  for (const auto& [name, values] : s) {
+    if (name.size() > 2 && name.compare(name.size() - 2, 2, "_x") == 0) {
+      const std::string base = name.substr(0, name.size() - 2);
+      if (s.count(base + "_y") && s.count(base + "_z") && !s.count(base)) {
+        Eigen::MatrixXd m(values.size(), 3);
+        m << values, s.at(base + "_y"), s.at(base + "_z");
+        out[py::str(base)] = to_numpy(m);
+        continue;
+      }
+    }
+    if (name.size() > 2 &&
+        (name.compare(name.size() - 2, 2, "_y") == 0 || name.compare(name.size() - 2, 2, "_z") == 0)) {
+      const std::string base = name.substr(0, name.size() - 2);
+      if (s.count(base + "_x") && s.count(base + "_y") && s.count(base + "_z") && !s.count(base)) continue;
+    }
+    out[py::str(name)] = to_numpy(values);
+  }
+  for (const auto& [name, array] : d.point_arrays) out[py::str(name)] = to_numpy(array.values);
+  return out;
+}
+
+void fields_from_python(const py::handle& fields, Eigen::Index nv, MeshData& d) {
+  if (fields.is_none()) return;
+  if (!py::isinstance<py::dict>(fields)) throw py::type_error("fields: expected a dict of name -> array");
+  for (const auto& [key, value] : fields.cast<py::dict>()) {
+    const std::string name = py::str(key);
+    const std::string what = fmt::format("fields['{}']", name);
+    const Field f = field_arg(value, what.c_str(), nv);
+    if (f.cols() == 1) {
+      d.vertex_scalars[name] = f.col(0);
+    } else if (f.cols() == 3) {
+      d.vertex_scalars[name + "_x"] = f.col(0);
+      d.vertex_scalars[name + "_y"] = f.col(1);
+      d.vertex_scalars[name + "_z"] = f.col(2);
+    } else {
+      d.point_arrays[name] = DataArray{Eigen::MatrixXd(f), "Float64"};
+    }
+  }
+}
+
+py::dict report_to_python(const MeshReport& r) {
+  py::dict j;
+  j["vertices"] = r.vertices;
+  j["faces"] = r.faces;
+  j["edges"] = r.edges;
+  j["boundary_edges"] = r.boundary_edges;
+  j["boundary_loops"] = r.boundary_loops;
+  j["nonmanifold_edges"] = r.nonmanifold_edges;
+  j["nonmanifold_vertices"] = r.nonmanifold_vertices;
+  j["components"] = r.components;
+  j["degenerate_faces"] = r.degenerate_faces;
+  j["duplicate_vertices"] = r.duplicate_vertices;
+  j["unreferenced_vertices"] = r.unreferenced_vertices;
+  j["orientation_consistent"] = r.orientation_consistent;
+  j["inconsistent_edges"] = r.inconsistent_edges;
+  j["euler_characteristic"] = r.euler_characteristic;
+  j["area"] = r.area;
+  j["signed_volume"] = r.signed_volume;
+  j["min_angle_deg"] = r.min_angle_deg;
+  j["max_angle_deg"] = r.max_angle_deg;
+  j["area_ratio"] = r.area_ratio;
+  j["mean_edge_length"] = r.mean_edge_length;
+  j["bbox_min"] = py::make_tuple(r.bbox_min.x(), r.bbox_min.y(), r.bbox_min.z());
+  j["bbox_max"] = py::make_tuple(r.bbox_max.x(), r.bbox_max.y(), r.bbox_max.z());
+  j["warnings"] = r.warnings;
+  return j;
+}
+
+Colormap parse_colormap(const std::string& name) {
+  if (name == "viridis") return Colormap::Viridis;
+  if (name == "coolwarm") return Colormap::Coolwarm;
+  throw py::value_error(fmt::format("colormap: expected 'viridis' or 'coolwarm', got '{}'", name));
+}
+
+int parse_up(const std::string& up) {
+  if (up == "x") return 0;
+  if (up == "y") return 1;
+  if (up == "z") return 2;
+  throw py::value_error(fmt::format("up: expected 'x', 'y' or 'z', got '{}'", up));
+}
+
+py::tuple generated(const GeneratedMesh& g) {
+  return py::make_tuple(to_numpy(Eigen::MatrixXd(g.V)), to_numpy(g.F));
+}
+
+}  // namespace
+
+void bind_mesh(py::module_& m) {
+  m.def(
+      "read_mesh",
+      [](const std::filesystem::path& path) {
+        require_file(path);
+        MeshData d;
+        {
+          py::gil_scoped_release release;
+          d = read_by_extension(path);
+        }
+        for (const auto& w : d.warnings)
+          PyErr_WarnEx(PyExc_UserWarning, fmt::format("{}: {}", path.string(), w).c_str(), 1);
+        return py::make_tuple(to_numpy(Eigen::MatrixXd(d.V)), to_numpy(d.F), fields_to_python(d));
+      },
+      py::arg("path"));
+
+  m.def(
+      "write_mesh",
+      [](const std::filesystem::path& path, const py::handle& V, const py::handle& F, const py::handle& fields,
+         bool binary) {
+        MeshData d;
+        d.V = positions_arg(V);
+        d.F = triangles_arg(F, d.V.rows());
+        fields_from_python(fields, d.V.rows(), d);
+        std::vector<std::string> warnings;
+        {
+          py::gil_scoped_release release;
+          warnings = write_by_extension(path, d, binary);
+        }
+        for (const auto& w : warnings)
+          PyErr_WarnEx(PyExc_UserWarning, fmt::format("{}: {}", path.string(), w).c_str(), 1);
+        return warnings;
+      },
+      py::arg("path"), py::arg("V"), py::arg("F"), py::arg("fields") = py::none(), py::arg("binary") = true);
+
+  m.def(
+      "info",
+      [](const py::handle& V, const py::handle& F) {
+        const Mesh mesh = mesh_arg(V, F);
+        MeshReport r;
+        {
+          py::gil_scoped_release release;
+          r = analyze(mesh);
+        }
+        return report_to_python(r);
+      },
+      py::arg("V"), py::arg("F"));
+
+  m.def(
+      "vertex_normals",
+      [](const py::handle& V, const py::handle& F, bool outward) {
+        const Mesh mesh = mesh_arg(V, F);
+        return to_numpy(Eigen::MatrixXd(outward ? outward_vertex_normals(mesh) : vertex_normals(mesh)));
+      },
+      py::arg("V"), py::arg("F"), py::arg("outward") = true);
+
+  m.def(
+      "self_intersections",
+      [](const py::handle& V, const py::handle& F) {
+        const Mesh mesh = mesh_arg(V, F);
+        std::vector<std::pair<int, int>> pairs;
+        {
+          py::gil_scoped_release release;
+          pairs = SelfIntersectionChecker(mesh).all_pairs();
+        }
+        py::array_t<int> a({static_cast<py::ssize_t>(pairs.size()), py::ssize_t(2)});
+        auto w = a.mutable_unchecked<2>();
+        for (std::size_t k = 0; k < pairs.size(); ++k) {
+          w(k, 0) = pairs[k].first;
+          w(k, 1) = pairs[k].second;
+        }
+        return a;
+      },
+      py::arg("V"), py::arg("F"));
+
+  m.def(
+      "render",
+      [](const py::handle& V, const py::handle& F, const py::handle& field, const py::handle& vectors,
+         const py::handle& path, int width, int height, double azimuth, double elevation, const std::string& up,
+         double zoom, bool wireframe, const std::string& colormap, const py::handle& range, const std::string& title,
+         const std::string& field_name) -> py::object {
+        const Mesh mesh = mesh_arg(V, F);
+        if (width < 16 || height < 16 || width > 8192 || height > 8192)
+          throw py::value_error(fmt::format("width, height: expected 16..8192 pixels, got {} x {}", width, height));
+        RenderOptions o;
+        o.width = width;
+        o.height = height;
+        o.azimuth_deg = azimuth;
+        o.elevation_deg = elevation;
+        o.up_axis = parse_up(up);
+        o.zoom = zoom;
+        o.wireframe = wireframe;
+        o.colormap = parse_colormap(colormap);
+        o.title = title;
+        o.field_name = field_name;
+        if (!field.is_none()) o.field = vector_arg(field, "field", mesh.num_vertices());
+        if (!vectors.is_none()) o.vectors = Eigen::MatrixX3d(field_arg(vectors, "vectors", mesh.num_vertices(), 3));
+        if (!range.is_none()) {
+          const Eigen::VectorXd r = vector_arg(range, "range", 2);
+          o.range = std::make_pair(r[0], r[1]);
+        }
+        const std::optional<std::filesystem::path> png =
+            path.is_none() ? std::nullopt : std::optional(path.cast<std::filesystem::path>());
+        Image img;
+        {
+          py::gil_scoped_release release;
+          img = render(mesh.positions(), mesh.triangles(), o);
+          if (png) write_png(*png, img);
+        }
+        if (png) return py::none();
+        py::array_t<std::uint8_t> a({img.height, img.width, 3});
+        std::copy(img.rgb.begin(), img.rgb.end(), a.mutable_data());
+        return a;
+      },
+      py::arg("V"), py::arg("F"), py::arg("field") = py::none(), py::arg("vectors") = py::none(),
+      py::arg("path") = py::none(), py::arg("width") = 960, py::arg("height") = 720, py::arg("azimuth") = 30.0,
+      py::arg("elevation") = 20.0, py::arg("up") = "y", py::arg("zoom") = 1.0, py::arg("wireframe") = false,
+      py::arg("colormap") = "viridis", py::arg("range") = py::none(), py::arg("title") = "",
+      py::arg("field_name") = "");
+
+#ifdef MESHPDE_HAVE_MEDICAL
+  m.def(
+      "read_volume",
+      [](const std::filesystem::path& path) {
+        require_file(path);
+        Volume v;
+        {
+          py::gil_scoped_release release;
+          v = read_volume(path);
+        }
+        // values[i, j, k]: the file's i-fastest order is numpy's Fortran order.
+        py::array_t<float, py::array::f_style> a({v.dims[0], v.dims[1], v.dims[2]});
+        std::copy(v.values.begin(), v.values.end(), a.mutable_data());
+        Eigen::Matrix4d affine = Eigen::Matrix4d::Identity();
+        affine.topLeftCorner<3, 3>() = v.direction * v.spacing.asDiagonal();
+        affine.topRightCorner<3, 1>() = v.origin;
+        return py::make_tuple(std::move(a), to_numpy(Eigen::MatrixXd(affine)));
+      },
+      py::arg("path"));
+#endif
+
+  py::module_ g = m.def_submodule("generate", "Meshes the project generates (the table of `meshpde generate`).");
+  const GeneratorParams d;
+  g.def("names", [] { return generator_names(); });
+  g.def(
+      "latlong",
+      [](int n, double radius) {
+        GeneratorParams p;
+        p.n = n;
+        p.radius = radius;
+        return generated(generate("latlong", p));
+      },
+      py::arg("n") = d.n, py::arg("radius") = d.radius);
+  g.def(
+      "icosphere",
+      [](int level, double radius) {
+        GeneratorParams p;
+        p.level = level;
+        p.radius = radius;
+        return generated(generate("icosphere", p));
+      },
+      py::arg("level") = d.level, py::arg("radius") = d.radius);
+  g.def(
+      "geodesic",
+      [](const std::string& base, int frequency, double radius) {
+        GeneratorParams p;
+        if (base != "icosahedron" && base != "tetrahedron")
+          throw py::value_error(fmt::format("base: expected 'icosahedron' or 'tetrahedron', got '{}'", base));
+        p.base = base == "tetrahedron" ? BaseSolid::Tetrahedron : BaseSolid::Icosahedron;
+        p.frequency = frequency;
+        p.radius = radius;
+        return generated(generate("geodesic", p));
+      },
+      py::arg("base") = "icosahedron", py::arg("frequency") = d.frequency, py::arg("radius") = d.radius);
+  g.def(
+      "tube",
+      [](double radius, double length, int rings, int segments) {
+        GeneratorParams p;
+        p.radius = radius;
+        p.length = length;
+        p.rings = rings;
+        p.segments = segments;
+        return generated(generate("tube", p));
+      },
+      py::arg("radius") = d.radius, py::arg("length") = d.length, py::arg("rings") = d.rings,
+      py::arg("segments") = d.segments);
+  g.def(
+      "plane",
+      [](int nx, int ny, double size) {
+        GeneratorParams p;
+        p.nx = nx;
+        p.ny = ny;
+        p.size = size;
+        return generated(generate("plane", p));
+      },
+      py::arg("nx") = d.nx, py::arg("ny") = d.ny, py::arg("size") = d.size);
+  g.def(
+      "fins",
+      [](int k, int n) {
+        GeneratorParams p;
+        p.k = k;
+        p.n = n;
+        return generated(generate("fins", p));
+      },
+      py::arg("k") = d.k, py::arg("n") = d.n);
+  const BifurcationParams b = d.bifurcation;
+  g.def(
+      "bifurcation",
+      [](double cell, bool dent, double trunk_radius, double branch_radius, double trunk_length, double branch_length,
+         double angle_deg, double dent_depth, double dent_radius) {
+        GeneratorParams p;
+        p.bifurcation.cell = cell;
+        p.bifurcation.dent = dent;
+        p.bifurcation.trunk_radius = trunk_radius;
+        p.bifurcation.branch_radius = branch_radius;
+        p.bifurcation.trunk_length = trunk_length;
+        p.bifurcation.branch_length = branch_length;
+        p.bifurcation.angle_deg = angle_deg;
+        p.bifurcation.dent_depth = dent_depth;
+        p.bifurcation.dent_radius = dent_radius;
+        GeneratedMesh mesh;
+        {
+          py::gil_scoped_release release;
+          mesh = generate("bifurcation", p);
+        }
+        return generated(mesh);
+      },
+      py::arg("cell") = b.cell, py::arg("dent") = b.dent, py::arg("trunk_radius") = b.trunk_radius,
+      py::arg("branch_radius") = b.branch_radius, py::arg("trunk_length") = b.trunk_length,
+      py::arg("branch_length") = b.branch_length, py::arg("angle_deg") = b.angle_deg,
+      py::arg("dent_depth") = b.dent_depth, py::arg("dent_radius") = b.dent_radius);
+  g.def(
+      "subdivide",
+      [](const py::handle& V, const py::handle& F) {
+        const Mesh mesh = mesh_arg(V, F);
+        return generated(subdivide_midpoint(mesh.positions(), mesh.triangles()));
+      },
+      py::arg("V"), py::arg("F"));
+}
+
+}  // namespace meshpde::python

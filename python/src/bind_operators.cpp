@@ -1,0 +1,78 @@
+// meshpde's operators in Python: K and M as scipy.sparse matrices, the intrinsic
+// Delaunay pair, and mean curvature.
+#include <fmt/format.h>
+#include <pybind11/stl.h>
+
+#include "bindings.h"
+#include "convert.h"
+#include "meshpde/operators/curvature.h"
+#include "meshpde/operators/fem_operators.h"
+#include "meshpde/operators/intrinsic_delaunay.h"
+
+namespace meshpde::python {
+
+namespace {
+
+MeshOperators operators_of(const py::handle& V, const py::handle& F, const std::string& laplacian) {
+  const Mesh mesh = mesh_arg(V, F);
+  const LaplacianKind kind = parse_laplacian_kind(laplacian);
+  py::gil_scoped_release release;
+  return build_mesh_operators(mesh, kind);
+}
+
+}  // namespace
+
+void bind_operators(py::module_& m) {
+  m.def(
+      "stiffness",
+      [](const py::handle& V, const py::handle& F, const std::string& laplacian) {
+        const MeshOperators o = operators_of(V, F, laplacian);
+        return to_csr(stiffness_matrix(o.mesh, o.ops));
+      },
+      py::arg("V"), py::arg("F"), py::arg("laplacian") = "cotan");
+  m.def(
+      "mass",
+      [](const py::handle& V, const py::handle& F, const std::string& laplacian) {
+        const MeshOperators o = operators_of(V, F, laplacian);
+        return to_csr(mass_matrix(o.ops));
+      },
+      py::arg("V"), py::arg("F"), py::arg("laplacian") = "cotan");
+  m.def(
+      "intrinsic_delaunay",
+      [](const py::handle& V, const py::handle& F, double mollify_epsilon) {
+        const Mesh mesh = mesh_arg(V, F);
+        if (!(mollify_epsilon >= 0) || !std::isfinite(mollify_epsilon))
+          throw py::value_error(fmt::format("mollify_epsilon: expected a finite value >= 0, got {}", mollify_epsilon));
+        IntrinsicOperators o;
+        {
+          py::gil_scoped_release release;
+          o = build_intrinsic_delaunay_operators(
+              mesh, IntrinsicDelaunayOptions{.mollify_epsilon = mollify_epsilon, .vertex_weights = {}});
+        }
+        py::dict stats;
+        stats["flips"] = o.stats.flips;
+        stats["mollify_delta"] = o.stats.mollify_delta;
+        stats["non_delaunay_edges_before"] = o.stats.non_delaunay_edges_before;
+        stats["nonmanifold_edges"] = o.stats.nonmanifold_edges;
+        stats["delaunay"] = o.stats.delaunay;
+        return py::make_tuple(to_csr(stiffness_matrix(o.operator_mesh, o.ops)), to_csr(mass_matrix(o.ops)), stats);
+      },
+      py::arg("V"), py::arg("F"), py::arg("mollify_epsilon") = IntrinsicDelaunayOptions{}.mollify_epsilon);
+  m.def(
+      "curvature",
+      [](const py::handle& V, const py::handle& F, const std::string& scale) {
+        if (scale != "area" && scale != "valence")
+          throw py::value_error(fmt::format("scale: expected 'area' or 'valence', got '{}'", scale));
+        const Mesh mesh = mesh_arg(V, F);
+        Eigen::VectorXd H;
+        {
+          py::gil_scoped_release release;
+          H = mean_curvature(mesh, build_operators(mesh),
+                             scale == "area" ? CurvatureScale::Area : CurvatureScale::Valence);
+        }
+        return to_numpy(H);
+      },
+      py::arg("V"), py::arg("F"), py::arg("scale") = "area");
+}
+
+}  // namespace meshpde::python

@@ -1,0 +1,378 @@
+// meshpde's stateful classes in Python, with the C++ names: PdeSession,
+// HapticSession, DragSession and GlobalBilaplacianSolver. Each Python object owns its
+// mesh and operators (the C++ classes keep references to them), declared before the
+// session so that the session is destroyed first.
+#include <fmt/format.h>
+#include <pybind11/stl.h>
+
+#include <memory>
+
+#include "bindings.h"
+#include "convert.h"
+#include "meshpde/apps/haptics.h"
+#include "meshpde/apps/local_drag.h"
+#include "meshpde/pde/global_bilaplacian.h"
+#include "meshpde/pde/pde_session.h"
+
+namespace meshpde::python {
+
+namespace {
+
+py::dict step_result(const StepResult& r) {
+  py::dict d;
+  d["iterations"] = r.cg.iterations;
+  d["relative_residual"] = r.cg.relative_residual;
+  d["converged"] = r.cg.converged();
+  d["message"] = r.cg.message;
+  d["free_vertices"] = r.free_vertices;
+  d["grown"] = r.grown;
+  d["shrunk"] = r.shrunk;
+  return d;
+}
+
+struct PyPdeSession {
+  Mesh mesh;
+  FemOperators ops;
+  std::unique_ptr<PdeSession> s;
+
+  PyPdeSession(const py::handle& V, const py::handle& F, int components, const PdeCoefficients& c,
+               const DomainOptions& d)
+      : mesh(mesh_arg(V, F)), ops(build_operators(mesh)) {
+    if (components < 1) throw py::value_error(fmt::format("components: expected >= 1, got {}", components));
+    s = std::make_unique<PdeSession>(mesh, ops, components, c, d);
+  }
+  Field optional_field(const py::handle& f) const {
+    return f.is_none() ? Field() : field_arg(f, "f", mesh.num_vertices(), s->components());
+  }
+};
+
+struct PyHapticSession {
+  Mesh mesh;
+  FemOperators ops;
+  std::unique_ptr<HapticSession> s;
+  PyHapticSession(const py::handle& V, const py::handle& F, const HapticParams& p)
+      : mesh(mesh_arg(V, F)), ops(build_operators(mesh)), s(std::make_unique<HapticSession>(mesh, ops, p)) {}
+};
+
+struct PyDragSession {
+  Mesh mesh;
+  FemOperators ops;
+  std::unique_ptr<DragSession> s;
+  Eigen::MatrixXd handle_displacements(const py::handle& d) const {
+    return Eigen::MatrixXd(field_arg(d, "handle_displacements", static_cast<Eigen::Index>(s->handles().size()), 3));
+  }
+};
+
+struct PyGlobalSolver {
+  Mesh mesh;
+  FemOperators ops;
+  std::unique_ptr<GlobalBilaplacianSolver> s;
+};
+
+GlobalBilaplacianParams::Preconditioner preconditioner_arg(const std::string& name) {
+  using P = GlobalBilaplacianParams::Preconditioner;
+  if (name == "auto") return P::Auto;
+  if (name == "multigrid") return P::Multigrid;
+  if (name == "laplacian_factor") return P::LaplacianFactor;
+  throw py::value_error(
+      fmt::format("preconditioner: expected 'auto', 'multigrid' or 'laplacian_factor', got '{}'", name));
+}
+
+}  // namespace
+
+void bind_sessions(py::module_& m) {
+  const PdeCoefficients c0;
+  const DomainOptions d0;
+  py::class_<PyPdeSession>(m, "PdeSession")
+      .def(py::init([](const py::handle& V, const py::handle& F, int components, double alpha, double b1, double b2,
+                       double g0, double g1, double g2, bool self_adjusting, double grow_fraction, double rest_value,
+                       double rest_rate, int rest_steps, int seed_rings, int max_free, double tolerance,
+                       int max_iterations) {
+             auto p = std::make_unique<PyPdeSession>(
+                 V, F, components, PdeCoefficients{alpha, b1, b2, g0, g1, g2},
+                 DomainOptions{self_adjusting, grow_fraction, rest_value, rest_rate, rest_steps, seed_rings, max_free});
+             p->s->cg_options.tolerance = tolerance;
+             p->s->cg_options.max_iterations = max_iterations;
+             return p;
+           }),
+           py::arg("V"), py::arg("F"), py::arg("components") = 1, py::arg("alpha") = c0.alpha, py::arg("b1") = c0.b1,
+           py::arg("b2") = c0.b2, py::arg("g0") = c0.g0, py::arg("g1") = c0.g1, py::arg("g2") = c0.g2,
+           py::arg("self_adjusting") = d0.self_adjusting, py::arg("grow_fraction") = d0.grow_fraction,
+           py::arg("rest_value") = d0.rest_value, py::arg("rest_rate") = d0.rest_rate,
+           py::arg("rest_steps") = d0.rest_steps, py::arg("seed_rings") = d0.seed_rings,
+           py::arg("max_free") = d0.max_free, py::arg("tolerance") = CgOptions{}.tolerance,
+           py::arg("max_iterations") = CgOptions{}.max_iterations)
+      .def_property_readonly("components", [](const PyPdeSession& p) { return p.s->components(); })
+      .def_property_readonly("values", [](const PyPdeSession& p) { return to_numpy(p.s->values()); })
+      .def_property_readonly("velocities", [](const PyPdeSession& p) { return to_numpy(p.s->velocities()); })
+      .def(
+          "set_values",
+          [](PyPdeSession& p, const py::handle& u, bool as_rest) {
+            p.s->set_values(field_arg(u, "u", p.mesh.num_vertices(), p.s->components()), as_rest);
+          },
+          py::arg("u"), py::arg("as_rest") = true)
+      .def(
+          "set_velocities",
+          [](PyPdeSession& p, const py::handle& v) {
+            p.s->set_velocities(field_arg(v, "v", p.mesh.num_vertices(), p.s->components()));
+          },
+          py::arg("v"))
+      .def(
+          "constrain",
+          [](PyPdeSession& p, long long v, const py::handle& value) {
+            const int i = vertex_arg(v, "vertex", p.mesh.num_vertices());
+            const Eigen::VectorXd x = py::isinstance<py::float_>(value) || py::isinstance<py::int_>(value)
+                                          ? Eigen::VectorXd::Constant(1, value.cast<double>())
+                                          : vector_arg(value, "value", p.s->components());
+            if (x.size() != p.s->components())
+              throw py::value_error(fmt::format("value: expected {} components, got {}", p.s->components(), x.size()));
+            if (!std::isfinite(x[0])) throw py::value_error("value: not finite");
+            p.s->constrain(i, std::span<const double>(x.data(), static_cast<std::size_t>(x.size())));
+          },
+          py::arg("vertex"), py::arg("value"))
+      .def(
+          "release", [](PyPdeSession& p, long long v) { p.s->release(vertex_arg(v, "vertex", p.mesh.num_vertices())); },
+          py::arg("vertex"))
+      .def_property_readonly("constrained_vertices",
+                             [](const PyPdeSession& p) {
+                               const auto c = p.s->constrained_vertices();
+                               return to_numpy(std::vector<int>(c.begin(), c.end()));
+                             })
+      .def_property_readonly("reaction_forces", [](const PyPdeSession& p) { return to_numpy(p.s->reaction_forces()); })
+      .def_property_readonly("free_vertices",
+                             [](const PyPdeSession& p) {
+                               const auto f = p.s->domain().free_vertices();
+                               return to_numpy(std::vector<int>(f.begin(), f.end()));
+                             })
+      .def(
+          "activate",
+          [](PyPdeSession& p, const py::handle& vertices) {
+            const std::vector<int> v = vertices_arg(vertices, "vertices", p.mesh.num_vertices());
+            p.s->activate(v);
+          },
+          py::arg("vertices"))
+      .def("activate_all", [](PyPdeSession& p) { p.s->activate_all(); })
+      .def(
+          "activate_rings",
+          [](PyPdeSession& p, long long v, int k) {
+            if (k < 0) throw py::value_error("rings: expected >= 0");
+            p.s->activate_rings(vertex_arg(v, "vertex", p.mesh.num_vertices()), k);
+          },
+          py::arg("vertex"), py::arg("rings"))
+      .def("deactivate_all", [](PyPdeSession& p) { p.s->deactivate_all(); })
+      .def(
+          "step",
+          [](PyPdeSession& p, double dt, const py::handle& f) {
+            if (!(dt > 0) || !std::isfinite(dt)) throw py::value_error(fmt::format("dt: expected > 0, got {}", dt));
+            const Field force = p.optional_field(f);
+            StepResult r;
+            {
+              py::gil_scoped_release release;
+              r = p.s->step(dt, force.size() ? &force : nullptr);
+            }
+            return step_result(r);
+          },
+          py::arg("dt"), py::arg("f") = py::none())
+      .def(
+          "solve_steady",
+          [](PyPdeSession& p, const py::handle& f) {
+            const Field force = p.optional_field(f);
+            StepResult r;
+            {
+              py::gil_scoped_release release;
+              r = p.s->solve_steady(force.size() ? &force : nullptr);
+            }
+            return step_result(r);
+          },
+          py::arg("f") = py::none());
+
+  const HapticParams h0;
+  py::class_<PyHapticSession>(m, "HapticSession")
+      .def(py::init([](const py::handle& V, const py::handle& F, double influence, double stiffness, double mass,
+                       double damping, double stiffness_damping, double domain_tolerance, double rate_hz) {
+             HapticParams p;
+             p.influence = influence;
+             p.stiffness = stiffness;
+             p.mass = mass;
+             p.damping = damping;
+             p.stiffness_damping = stiffness_damping;
+             p.domain_tolerance = domain_tolerance;
+             p.rate_hz = rate_hz;
+             return std::make_unique<PyHapticSession>(V, F, p);
+           }),
+           py::arg("V"), py::arg("F"), py::arg("influence") = h0.influence, py::arg("stiffness") = h0.stiffness,
+           py::arg("mass") = h0.mass, py::arg("damping") = h0.damping,
+           py::arg("stiffness_damping") = h0.stiffness_damping, py::arg("domain_tolerance") = h0.domain_tolerance,
+           py::arg("rate_hz") = h0.rate_hz)
+      .def(
+          "touch", [](PyHapticSession& p, long long v) { p.s->touch(vertex_arg(v, "vertex", p.mesh.num_vertices())); },
+          py::arg("vertex"))
+      .def(
+          "touch_point", [](PyHapticSession& p, const py::handle& x) { p.s->touch_point(vector_arg(x, "point", 3)); },
+          py::arg("point"))
+      .def(
+          "move_probe", [](PyHapticSession& p, const py::handle& x) { p.s->move_probe(vector_arg(x, "offset", 3)); },
+          py::arg("offset"))
+      .def("release", [](PyHapticSession& p) { p.s->release(); })
+      .def_property_readonly("touching", [](const PyHapticSession& p) { return p.s->touching(); })
+      .def_property_readonly("contact_vertex", [](const PyHapticSession& p) { return p.s->contact_vertex(); })
+      .def(
+          "step",
+          [](PyHapticSession& p, double dt) {
+            if (!(dt > 0) || !std::isfinite(dt)) throw py::value_error(fmt::format("dt: expected > 0, got {}", dt));
+            Eigen::Vector3d f;
+            {
+              py::gil_scoped_release release;
+              f = p.s->step(dt);
+            }
+            return to_numpy(Eigen::VectorXd(f));
+          },
+          py::arg("dt"))
+      .def("start", [](PyHapticSession& p) { p.s->start(); })
+      .def("stop",
+           [](PyHapticSession& p) {
+             py::gil_scoped_release release;
+             p.s->stop();
+           })
+      .def_property_readonly("running", [](const PyHapticSession& p) { return p.s->running(); })
+      .def_property_readonly("latest_force",
+                             [](const PyHapticSession& p) { return to_numpy(Eigen::VectorXd(p.s->latest_force())); })
+      .def_property_readonly("displacement", [](const PyHapticSession& p) { return to_numpy(p.s->displacement()); })
+      .def_property_readonly("active_vertices", [](const PyHapticSession& p) { return p.s->active_vertices(); })
+      .def_property_readonly("misses", [](const PyHapticSession& p) { return p.s->misses(); })
+      .def("log", [](const PyHapticSession& p) {
+        const std::vector<HapticSample> log = p.s->log();
+        const auto n = static_cast<Eigen::Index>(log.size());
+        Eigen::VectorXd t(n), latency(n), free(n), iters(n), missed(n);
+        Eigen::MatrixXd probe(n, 3), force(n, 3);
+        for (Eigen::Index i = 0; i < n; ++i) {
+          const HapticSample& s = log[static_cast<std::size_t>(i)];
+          t[i] = s.time;
+          probe.row(i) = s.probe.transpose();
+          force.row(i) = s.force.transpose();
+          latency[i] = s.latency_us;
+          free[i] = s.free_vertices;
+          iters[i] = s.cg_iterations;
+          missed[i] = s.missed;
+        }
+        py::dict d;
+        d["time"] = to_numpy(t);
+        d["probe"] = to_numpy(probe);
+        d["force"] = to_numpy(force);
+        d["latency_us"] = to_numpy(latency);
+        d["free_vertices"] = to_numpy(free);
+        d["cg_iterations"] = to_numpy(iters);
+        d["missed"] = to_numpy(missed);
+        return d;
+      });
+
+  const DragSessionParams g0;
+  py::class_<PyDragSession>(m, "DragSession")
+      .def(py::init([](const py::handle& V, const py::handle& F, const py::handle& handles, double radius, int rings,
+                       double g1, double g2, bool margin, bool inner_margin) {
+             auto p = std::make_unique<PyDragSession>();
+             p->mesh = mesh_arg(V, F);
+             p->ops = build_operators(p->mesh);
+             const std::vector<int> h = vertices_arg(handles, "handles", p->mesh.num_vertices());
+             DragSessionParams q{
+                 .radius = radius, .rings = rings, .g1 = g1, .g2 = g2, .margin = margin, .inner_margin = inner_margin};
+             {
+               py::gil_scoped_release release;
+               p->s = std::make_unique<DragSession>(p->mesh, p->ops, h, q);
+             }
+             return p;
+           }),
+           py::arg("V"), py::arg("F"), py::arg("handles"), py::arg("radius") = g0.radius, py::arg("rings") = g0.rings,
+           py::arg("g1") = g0.g1, py::arg("g2") = g0.g2, py::arg("margin") = g0.margin,
+           py::arg("inner_margin") = g0.inner_margin)
+      .def(
+          "displacements",
+          [](const PyDragSession& p, const py::handle& d) {
+            return to_numpy(Eigen::MatrixXd(p.s->displacements(p.handle_displacements(d))));
+          },
+          py::arg("handle_displacements"))
+      .def(
+          "positions",
+          [](const PyDragSession& p, const py::handle& d) {
+            return to_numpy(Eigen::MatrixXd(p.s->positions(p.handle_displacements(d))));
+          },
+          py::arg("handle_displacements"))
+      .def(
+          "add_handle",
+          [](PyDragSession& p, long long v) {
+            const int i = vertex_arg(v, "vertex", p.mesh.num_vertices());
+            py::gil_scoped_release release;
+            p.s->add_handle(i);
+          },
+          py::arg("vertex"))
+      .def(
+          "grow",
+          [](PyDragSession& p, int rings) {
+            if (rings < 1) throw py::value_error("rings: expected >= 1");
+            py::gil_scoped_release release;
+            p.s->grow(rings);
+          },
+          py::arg("rings") = 1)
+      .def(
+          "shrink",
+          [](PyDragSession& p, int rings) {
+            if (rings < 1) throw py::value_error("rings: expected >= 1");
+            py::gil_scoped_release release;
+            p.s->shrink(rings);
+          },
+          py::arg("rings") = 1)
+      .def_property_readonly("handles", [](const PyDragSession& p) { return to_numpy(p.s->handles()); })
+      .def_property_readonly("region", [](const PyDragSession& p) { return to_numpy(p.s->region()); })
+      .def_property_readonly("basis", [](const PyDragSession& p) { return to_numpy(p.s->basis()); })
+      .def_property_readonly("factorizations", [](const PyDragSession& p) { return p.s->factorizations(); });
+
+  const GlobalBilaplacianParams q0;
+  py::class_<PyGlobalSolver>(m, "GlobalBilaplacianSolver")
+      .def(py::init([](const py::handle& V, const py::handle& F, const py::handle& free, double g1, double g2,
+                       double tolerance, int max_iterations, const std::string& preconditioner) {
+             auto p = std::make_unique<PyGlobalSolver>();
+             p->mesh = mesh_arg(V, F);
+             p->ops = build_operators(p->mesh);
+             GlobalBilaplacianParams q;
+             q.g1 = g1;
+             q.g2 = g2;
+             q.tolerance = tolerance;
+             q.max_iterations = max_iterations;
+             q.preconditioner = preconditioner_arg(preconditioner);
+             std::vector<int> f = vertices_arg(free, "free", p->mesh.num_vertices());
+             p->s = std::make_unique<GlobalBilaplacianSolver>(p->mesh, p->ops, std::move(f), q);
+             return p;
+           }),
+           py::arg("V"), py::arg("F"), py::arg("free"), py::arg("g1") = q0.g1, py::arg("g2") = q0.g2,
+           py::arg("tolerance") = q0.tolerance, py::arg("max_iterations") = q0.max_iterations,
+           py::arg("preconditioner") = "auto")
+      .def(
+          "solve",
+          [](PyGlobalSolver& p, const py::handle& u, bool warm_start) {
+            const Field held = field_arg(u, "u", p.mesh.num_vertices());
+            GlobalBilaplacianResult r;
+            {
+              py::gil_scoped_release release;
+              r = p.s->solve(held, warm_start);
+            }
+            py::dict info;
+            info["iterations"] = r.iterations;
+            info["relative_residual"] = r.relative_residual;
+            info["converged"] = r.converged;
+            info["preconditioner"] =
+                r.used == GlobalBilaplacianParams::Preconditioner::Multigrid ? "multigrid" : "laplacian_factor";
+            info["multigrid_iterations"] = r.multigrid_iterations;
+            info["setup_seconds"] = r.setup_seconds;
+            info["solve_seconds"] = r.solve_seconds;
+            info["bytes_per_vertex"] = r.bytes_per_vertex;
+            const bool column = u.is_none() ? false : py::array::ensure(u).ndim() == 1;
+            py::object values =
+                column ? py::object(to_numpy(Eigen::VectorXd(r.values.col(0)))) : py::object(to_numpy(r.values));
+            return py::make_tuple(values, info);
+          },
+          py::arg("u"), py::arg("warm_start") = false)
+      .def_property_readonly("multigrid_builds", [](const PyGlobalSolver& p) { return p.s->multigrid_builds(); })
+      .def_property_readonly("factorizations", [](const PyGlobalSolver& p) { return p.s->factorizations(); });
+}
+
+}  // namespace meshpde::python

@@ -1,0 +1,63 @@
+// Plain numpy data in and out of the Python module.
+//
+// Every argument a user passes is checked here before it reaches the library, so
+// that a wrong shape, a NaN or an index out of range raises a Python exception that
+// names the argument (ValueError for shapes, types and values, IndexError for
+// indices) instead of reaching an Eigen assertion or a crash. float32, integer,
+// int64 and Fortran-ordered arrays are converted (copied) to the library's types.
+#pragma once
+
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+
+#include <Eigen/Core>
+#include <Eigen/SparseCore>
+#include <string>
+#include <vector>
+
+#include "meshpde/mesh/mesh.h"
+#include "meshpde/operators/fem_operators.h"
+
+namespace meshpde::python {
+
+namespace py = pybind11;
+
+/// (n, 3) finite coordinates. \throw ValueError naming `name`.
+Positions positions_arg(const py::handle& obj, const char* name = "V");
+
+/// (m, 3) integer vertex indices in [0, num_vertices). \throw ValueError (shape,
+/// dtype, non-integral values), IndexError (an index out of range, naming the face).
+Triangles triangles_arg(const py::handle& obj, Eigen::Index num_vertices, const char* name = "F");
+
+/// Mesh from (V, F), both checked as above.
+Mesh mesh_arg(const py::handle& V, const py::handle& F);
+
+/// A 1-D array of finite numbers; `length` >= 0 requires that many entries.
+Eigen::VectorXd vector_arg(const py::handle& obj, const char* name, Eigen::Index length = -1);
+
+/// A (rows, cols) array of finite numbers (a 1-D array is one column); -1 leaves a
+/// dimension free.
+Field field_arg(const py::handle& obj, const char* name, Eigen::Index rows = -1, Eigen::Index cols = -1);
+
+/// Vertex indices (an int, a sequence or a 1-D integer array), each in [0, num_vertices).
+std::vector<int> vertices_arg(const py::handle& obj, const char* name, Eigen::Index num_vertices);
+
+/// One vertex index in [0, num_vertices). \throw IndexError naming `name`.
+int vertex_arg(long long v, const char* name, Eigen::Index num_vertices);
+
+/// numpy copies of library data.
+py::array_t<double> to_numpy(const Eigen::MatrixXd& m);
+py::array_t<double> to_numpy(const Field& m);
+py::array_t<double> to_numpy(const Eigen::VectorXd& v);
+py::array_t<int> to_numpy(const Triangles& F);
+py::array_t<int> to_numpy(const std::vector<int>& v);
+
+/// scipy.sparse.csr_matrix of an Eigen sparse matrix (any storage order).
+py::object to_csr(const Eigen::SparseMatrix<double>& A);
+
+/// Calls PyErr_CheckSignals with the GIL held and throws py::error_already_set on
+/// Ctrl-C, so that a loop in the library stops with KeyboardInterrupt. For callbacks
+/// that run while the GIL is released.
+void check_interrupt();
+
+}  // namespace meshpde::python

@@ -1,0 +1,170 @@
+"""heat, wave, fair, interpolate and correct against the command-line tool on the same
+input (equal to 1e-12 relative), and against the mathematics."""
+import json
+
+import numpy as np
+import pytest
+
+import meshpde
+from conftest import rel_diff
+
+
+@pytest.fixture(scope="module")
+def ico(tmp_path_factory):
+    V, F = meshpde.generate.icosphere(3)
+    path = tmp_path_factory.mktemp("ico") / "ico.ply"
+    meshpde.write_mesh(path, V, F)
+    return path, V, F
+
+
+def test_heat_equals_the_cli(cli, ico, tmp_path):
+    path, V, F = ico
+    out = tmp_path / "h.ply"
+    report = cli("heat", path, "--source", "0:1", "--flux", "7:0.5", "--dt", 0.01, "--steps", 20, "-o", out, "--json",
+                 json_out=True)
+    r = meshpde.heat(V, F, sources={0: 1.0}, flux={7: 0.5}, dt=0.01, steps=20)
+    assert rel_diff(r.values, meshpde.read_mesh(out)[2]["u"]) <= 1e-12
+    assert r.cg_iterations == report["cg_iterations"]
+
+
+def test_heat_decays_a_spherical_harmonic(ico):
+    # P2(z) on the unit sphere is an eigenfunction of lap with eigenvalue -6.
+    _, V, F = ico
+    V = V / np.linalg.norm(V, axis=1, keepdims=True)
+    u0 = 1.5 * V[:, 2] ** 2 - 0.5
+    t = 0.05
+    r = meshpde.heat(V, F, initial=u0, dt=t / 200, steps=200)
+    ratio = (r.values @ u0) / (u0 @ u0)
+    assert ratio == pytest.approx(np.exp(-6 * t), rel=0.03)
+
+
+def test_wave_with_impulse_equals_the_cli(cli, ico, tmp_path):
+    path, V, F = ico
+    out = tmp_path / "w.ply"
+    report = cli("wave", path, "--impulse", "3:1", "--speed", 2, "--damping", 0.1, "--steps", 30, "-o", out, "--json",
+                 json_out=True)
+    energies = []
+    r = meshpde.wave(V, F, impulses={3: 1.0}, speed=2.0, damping=0.1, steps=30,
+                     callback=lambda k, u, ut: energies.append(meshpde.wave_energy(V, F, u, ut, speed=2.0)))
+    assert rel_diff(r.values, meshpde.read_mesh(out)[2]["u"]) <= 1e-12
+    assert rel_diff(energies, report["energy"]) <= 1e-12
+
+
+def test_interpolate_scalar_equals_the_cli_and_is_exact_at_constraints(cli, ico, tmp_path):
+    path, V, F = ico
+    (tmp_path / "c.csv").write_text("vertex,value\n0,1\n10,-2\n100,0.5\n")
+    out = tmp_path / "i.ply"
+    cli("interpolate", path, "--constraints", tmp_path / "c.csv", "-o", out)
+    u = meshpde.interpolate(V, F, [0, 10, 100], [1.0, -2.0, 0.5])
+    assert rel_diff(u, meshpde.read_mesh(out)[2]["u"]) <= 1e-12
+    assert np.allclose(u[[0, 10, 100]], [1, -2, 0.5], rtol=0, atol=1e-12)
+
+
+def test_interpolate_reproduces_linear_fields():
+    V, F = meshpde.generate.plane(nx=8, ny=8)
+    f = lambda P: 1 + 2 * P[:, 0] - P[:, 1]  # noqa: E731
+    # two rings held: the bi-Laplacian's natural boundary does not reproduce linear fields
+    held = np.flatnonzero((V[:, 0] < 0.2) | (V[:, 0] > 0.8) | (V[:, 1] < 0.2) | (V[:, 1] > 0.8))
+    u = meshpde.interpolate(V, F, held, f(V[held]))
+    assert np.abs(u - f(V)).max() < 1e-9
+
+
+def test_interpolate_displacement_equals_the_cli(cli, ico, tmp_path):
+    path, V, F = ico
+    cons = {"constraints": [{"vertex": 0, "value": [0, 0, 0.1]}, {"vertex": 50, "value": [0.2, 0, 0]},
+                            {"vertex": 200, "value": [0, 0, 0]}]}
+    (tmp_path / "c.json").write_text(json.dumps(cons))
+    out = tmp_path / "d.ply"
+    cli("interpolate", path, "--constraints", tmp_path / "c.json", "--kind", "displacement", "-o", out)
+    d = meshpde.interpolate(V, F, [0, 50, 200], [[0, 0, 0.1], [0.2, 0, 0], [0, 0, 0]])
+    assert d.shape == (len(V), 3)
+    assert rel_diff(d, meshpde.read_mesh(out)[2]["d"]) <= 1e-12
+
+
+def test_fair_equals_the_cli(cli, tmp_path):
+    V, F = meshpde.generate.plane(nx=10, ny=10)
+    V = V.copy()
+    V[:, 2] = np.sin(3 * V[:, 0]) * V[:, 1]
+    path = tmp_path / "p.ply"
+    meshpde.write_mesh(path, V, F)
+    out = tmp_path / "f.ply"
+    cli("fair", path, "--fixed", "boundary", "--order", 2, "-o", out)
+    r = meshpde.fair(V, F, "boundary", order=2)
+    assert rel_diff(r.V, meshpde.read_mesh(out)[0]) <= 1e-12
+    boundary = np.flatnonzero((V[:, 0] < 1e-9) | (V[:, 0] > 1 - 1e-9) | (V[:, 1] < 1e-9) | (V[:, 1] > 1 - 1e-9))
+    assert np.array_equal(r.V[boundary], V[boundary])
+    assert r.after["min_angle_deg"] > 0
+
+
+CORRECT_KEYS = ["moved_vertices", "max_displacement", "region_vertices", "new_self_intersections", "method",
+                "dynamic", "laplacian", "laplacian_reason", "relative_residual", "applied_fraction", "substeps",
+                "intersection_action", "handles"]
+
+
+@pytest.mark.parametrize("extra", [[], ["--method", "springs", "--rings", 3], ["--dynamic", "--steps", 20]])
+def test_correct_equals_the_cli(cli, data, tmp_path, extra):
+    path = data("aorta-closed-6k.vtp")
+    out = tmp_path / "c.vtp"
+    region = ["--radius", 8] if "--rings" not in extra else []
+    report = cli("correct", path, "--vertex", 500, "--move", "normal:2", *region, *extra, "-o", out, "--json",
+                 json_out=True)
+    V, F, _ = meshpde.read_mesh(path)
+    kwargs = dict(radius=8.0) if not region == [] else {}
+    if "--method" in extra:
+        kwargs.update(method="springs", rings=3)
+    if "--dynamic" in extra:
+        kwargs.update(dynamic=True, steps=20)
+    r = meshpde.correct(V, F, [500], ["normal:2"], **kwargs)
+    for key in CORRECT_KEYS:
+        ours, theirs = getattr(r, key), report[key]
+        if isinstance(theirs, float):
+            assert ours == pytest.approx(theirs, rel=1e-9, abs=1e-14), key
+        else:
+            assert ours == theirs, key
+    assert set(report) - {"image"} <= set(r.to_dict())
+    V_cli, _, fields = meshpde.read_mesh(out)
+    assert rel_diff(r.V, V_cli) <= 1e-12
+    assert rel_diff(r.displacement, fields["displacement"]) <= 1e-12
+    # the input is not modified
+    assert np.array_equal(V, meshpde.read_mesh(path)[0])
+
+
+def test_correct_moves_the_handle_and_holds_the_outside():
+    V, F = meshpde.generate.icosphere(4, radius=10)
+    r = meshpde.correct(V, F, [0, 5], [(0, 0, 1), "normal:-0.5"], radius=3.0)
+    assert np.allclose(r.V[0] - V[0], [0, 0, 1], atol=1e-12)
+    n5 = V[5] / np.linalg.norm(V[5])
+    assert np.allclose(r.V[5] - V[5], -0.5 * n5, atol=1e-3)
+    outside = np.setdiff1d(np.arange(len(V)), r.region)
+    assert np.array_equal(r.V[outside], V[outside])
+    assert r.handles == 2 and r.new_self_intersections == 0
+
+
+def test_correction_session_undo_and_redo():
+    V, F = meshpde.generate.icosphere(3, radius=10)
+    s = meshpde.CorrectionSession(V, F)
+    assert not s.can_undo
+    a = s.apply([0], [(0, 0, 1)], radius=4.0)
+    b = s.apply([0], [(0, 0, 1)], radius=4.0)
+    assert np.allclose(s.V[0] - V[0], [0, 0, 2])
+    s.undo()
+    assert np.array_equal(s.V, a.V) and s.can_redo
+    s.redo()
+    assert np.array_equal(s.V, b.V)
+    s.undo()
+    s.undo()
+    assert np.array_equal(s.V, V) and np.array_equal(s.original, V)
+    with pytest.raises(meshpde.InputError):
+        s.undo()
+    assert s.new_self_intersections() == 0
+
+
+def test_correct_with_image_guidance_reports_the_image(data):
+    if not meshpde.has_medical:
+        pytest.skip("built without meshpde::medical")
+    V, F, _ = meshpde.read_mesh(data("aorta-closed-6k.vtp"))
+    r = meshpde.correct(V, F, [500], ["normal:1"], radius=9.0, image=str(data("aorta-mra.mha")), space="ras")
+    assert r.image["space"] == "RAS" and r.image["pulled_vertices"] > 0
+    values, affine = meshpde.read_volume(data("aorta-mra.mha"))
+    r2 = meshpde.correct(V, F, [500], ["normal:1"], radius=9.0, image=(values, affine), space="ras")
+    assert np.abs(r2.V - r.V).max() <= 1e-9

@@ -1,0 +1,105 @@
+"""The stateful classes against independent scipy solves."""
+import numpy as np
+import pytest
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+import meshpde
+
+
+def unit_edge_icosphere(level):
+    V, F = meshpde.generate.icosphere(level)
+    E = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
+    E = np.unique(np.sort(E, axis=1), axis=0)
+    return V / np.linalg.norm(V[E[:, 0]] - V[E[:, 1]], axis=1).mean(), F
+
+
+def dirichlet_solve(A, held, values):
+    """x with x[held] = values and (A x)[free] = 0."""
+    n = A.shape[0]
+    free = np.setdiff1d(np.arange(n), held)
+    x = np.zeros((n,) + np.shape(values)[1:])
+    x[held] = values
+    A = sp.csr_matrix(A)
+    x[free] = spla.spsolve(A[free][:, free].tocsc(), -(A[free][:, held] @ x[held]))
+    return x
+
+
+def test_haptic_settled_force_matches_a_full_matrix_solve():
+    # The C++ test Haptics.SettledForceMatchesAnIndependentFullMatrixSolve, from Python.
+    V, F = unit_edge_icosphere(4)
+    h = meshpde.HapticSession(V, F)
+    v, offset = 5, np.array([0.1, -0.25, 0.05])
+    h.touch(v)
+    h.move_probe(offset)
+    for _ in range(300):
+        f = h.step(5e-2)
+    K, M = meshpde.stiffness(V, F), meshpde.mass(V, F)
+    L = 3.0  # default influence: 3 mean edge lengths (here 1 each)
+    Kt = M + L ** 4 * (K @ sp.diags(1 / M.diagonal()) @ K)
+    u = dirichlet_solve(Kt, [v], offset[None, :])
+    reaction = (Kt @ u)[v]
+    assert np.linalg.norm(f + reaction) <= 0.01 * np.linalg.norm(reaction)
+    assert h.active_vertices < len(V) / 2
+    log = h.log()
+    assert log["force"].shape == (300, 3) and np.allclose(log["force"][-1], f)
+
+
+def test_pde_session_steady_reaction_is_the_assembled_row():
+    V, F = meshpde.generate.icosphere(3)
+    s = meshpde.PdeSession(V, F, components=1, g1=1.0, g2=0.1, g0=0.5, tolerance=1e-12)
+    s.activate_all()
+    s.constrain(0, 1.0)
+    s.constrain(7, -0.5)
+    r = s.solve_steady()
+    assert r["converged"]
+    K, M = meshpde.stiffness(V, F), meshpde.mass(V, F)
+    Kt = 0.5 * M + K + 0.1 * (K @ sp.diags(1 / M.diagonal()) @ K)
+    u = dirichlet_solve(Kt, [0, 7], [1.0, -0.5])
+    assert np.abs(s.values[:, 0] - u).max() <= 1e-9
+    assert np.allclose(s.reaction_forces[:, 0], (Kt @ u)[[0, 7]], rtol=1e-8, atol=1e-10)
+    assert list(s.constrained_vertices) == [0, 7]
+
+
+def test_pde_session_poke_grows_a_local_domain():
+    V, F = unit_edge_icosphere(4)
+    s = meshpde.PdeSession(V, F, components=3, alpha=1, b1=1, b2=0.01, g0=1, g2=100, self_adjusting=True)
+    s.constrain(0, [0, 0, -0.5])
+    sizes = [s.step(1e-3)["free_vertices"] for _ in range(20)]
+    assert 0 < sizes[-1] < len(V) / 2
+    assert np.linalg.norm(s.reaction_forces[0]) > 0
+    assert np.allclose(s.values[0], [0, 0, -0.5])
+
+
+def test_drag_session_equals_a_direct_solve_on_its_region():
+    V, F = meshpde.generate.icosphere(4, radius=10)
+    d = meshpde.DragSession(V, F, [0], radius=3.0)
+    P = d.positions([[0, 0, 1]])
+    region = d.region
+    assert 0 not in region and len(region) > 10
+    K, M = meshpde.stiffness(V, F), meshpde.mass(V, F)
+    held = np.setdiff1d(np.arange(len(V)), region)
+    move = np.zeros((len(held), 3))
+    move[held == 0] = [0, 0, 1]
+    ref = dirichlet_solve(K @ sp.diags(1 / M.diagonal()) @ K, held, move)
+    assert np.abs((P - V) - ref).max() <= 1e-9
+    # linear in the handle's displacement: no new solve
+    P2 = d.positions([[0, 0, 2]])
+    assert np.abs((P2 - V) - 2 * (P - V)).max() <= 1e-12
+    assert d.factorizations == 1
+
+
+def test_global_solver_equals_a_direct_solve():
+    V, F = meshpde.generate.icosphere(4)
+    held = np.flatnonzero(V[:, 2] < -0.5)
+    free = np.setdiff1d(np.arange(len(V)), held)
+    u = np.zeros(len(V))
+    u[held] = V[held, 0]
+    g = meshpde.GlobalBilaplacianSolver(V, F, free, tolerance=1e-12)
+    x, info = g.solve(u)
+    K, M = meshpde.stiffness(V, F), meshpde.mass(V, F)
+    ref = dirichlet_solve(K @ sp.diags(1 / M.diagonal()) @ K, held, u[held])
+    assert info["converged"] and np.abs(x - ref).max() <= 1e-8 * np.abs(ref).max()
+    x2, info2 = g.solve(2 * u)
+    assert np.abs(x2 - 2 * x).max() <= 1e-8 * np.abs(x).max()
+    assert g.multigrid_builds + g.factorizations == 1  # the preconditioner was kept
