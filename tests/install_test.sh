@@ -19,6 +19,15 @@ if "$T/prefix/bin/meshpde" serve --help >"$T/serve-help" 2>&1; then
     echo "web/dist/index.html missing under CI (scripts/build-web builds it)"; exit 1
   fi
 fi
+# The Python package, when built, is installed under the prefix's site-packages and
+# imports from there (its own copy, not the build tree's).
+if [ -d "$build/python/meshpde" ]; then
+  so="$(find "$T/prefix" -name '_meshpde*.so' | head -1)"
+  [ -n "$so" ] || { echo "the Python module was not installed"; exit 1; }
+  site="$(dirname "$(dirname "$so")")"
+  (cd "$T" && PYTHONPATH="$site" /usr/bin/python3 -c \
+    "import meshpde, sys; assert meshpde.__file__.startswith(sys.argv[1]), meshpde.__file__; V, F = meshpde.generate.icosphere(1); assert meshpde.stiffness(V, F).shape == (42, 42)" "$site")
+fi
 extra=()
 # A sanitized static library needs its consumer linked with the same runtime.
 if grep -q "MESHPDE_SANITIZE:BOOL=ON" "$build/CMakeCache.txt"; then

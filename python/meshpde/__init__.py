@@ -44,6 +44,8 @@ from ._meshpde import (  # noqa: F401  (re-exported)
     write_mesh,
 )
 
+from .interop import from_vtk, to_vtk  # noqa: F401,E402
+
 __version__ = _meshpde.__version__
 has_medical = _meshpde.has_medical
 if has_medical:
@@ -51,9 +53,9 @@ if has_medical:
 
 __all__ = [
     "CorrectionResult", "CorrectionSession", "DragSession", "Error", "GlobalBilaplacianSolver", "HapticSession",
-    "InputError", "PdeSession", "SolverError", "correct", "curvature", "fair", "generate", "heat", "info",
+    "InputError", "PdeSession", "SolverError", "correct", "curvature", "fair", "from_vtk", "generate", "heat", "info",
     "interpolate", "intrinsic_delaunay", "mass", "read_mesh", "read_volume", "render", "self_intersections",
-    "stiffness", "vertex_normals", "wave", "wave_energy", "write_mesh",
+    "stiffness", "to_vtk", "vertex_normals", "wave", "wave_energy", "write_mesh",
 ]
 
 
