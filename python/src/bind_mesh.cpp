@@ -219,8 +219,8 @@ void bind_mesh(py::module_& m) {
       "render",
       [](const py::handle& V, const py::handle& F, const py::handle& field, const py::handle& vectors,
          const py::handle& path, int width, int height, double azimuth, double elevation, const std::string& up,
-         double zoom, bool wireframe, const std::string& colormap, const py::handle& range, const std::string& title,
-         const std::string& field_name) -> py::object {
+         double zoom, const py::handle& center, bool wireframe, const std::string& colormap, const py::handle& range,
+         const std::string& title, const std::string& field_name) -> py::object {
         const Mesh mesh = mesh_arg(V, F);
         if (width < 16 || height < 16 || width > 8192 || height > 8192)
           throw py::value_error(fmt::format("width, height: expected 16..8192 pixels, got {} x {}", width, height));
@@ -231,6 +231,7 @@ void bind_mesh(py::module_& m) {
         o.elevation_deg = elevation;
         o.up_axis = parse_up(up);
         o.zoom = zoom;
+        if (!center.is_none()) o.center = Eigen::Vector3d(vector_arg(center, "center", 3));
         o.wireframe = wireframe;
         o.colormap = parse_colormap(colormap);
         o.title = title;
@@ -256,7 +257,8 @@ void bind_mesh(py::module_& m) {
       },
       py::arg("V"), py::arg("F"), py::arg("field") = py::none(), py::arg("vectors") = py::none(),
       py::arg("path") = py::none(), py::arg("width") = 960, py::arg("height") = 720, py::arg("azimuth") = 30.0,
-      py::arg("elevation") = 20.0, py::arg("up") = "y", py::arg("zoom") = 1.0, py::arg("wireframe") = false,
+      py::arg("elevation") = 20.0, py::arg("up") = "y", py::arg("zoom") = 1.0, py::arg("center") = py::none(),
+      py::arg("wireframe") = false,
       py::arg("colormap") = "viridis", py::arg("range") = py::none(), py::arg("title") = "",
       py::arg("field_name") = "");
 

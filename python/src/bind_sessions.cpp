@@ -5,6 +5,8 @@
 #include <fmt/format.h>
 #include <pybind11/stl.h>
 
+#include <chrono>
+#include <cmath>
 #include <memory>
 
 #include "bindings.h"
@@ -373,6 +375,41 @@ void bind_sessions(py::module_& m) {
           py::arg("u"), py::arg("warm_start") = false)
       .def_property_readonly("multigrid_builds", [](const PyGlobalSolver& p) { return p.s->multigrid_builds(); })
       .def_property_readonly("factorizations", [](const PyGlobalSolver& p) { return p.s->factorizations(); });
+
+  // Same-run C++ baselines for bench/python/bench_python.py (not part of the API).
+  py::module_ b = m.def_submodule("_bench", "C++ loops timed for the Python benchmarks");
+  b.def(
+      "poke_step_us",
+      [](PyPdeSession& p, long long vertex, const py::handle& direction, double depth, int steps, double dt) {
+        const int v = vertex_arg(vertex, "vertex", p.mesh.num_vertices());
+        const Eigen::Vector3d n = vector_arg(direction, "direction", 3);
+        std::vector<double> us(static_cast<std::size_t>(std::max(steps, 0)));
+        py::gil_scoped_release release;
+        for (int k = 0; k < steps; ++k) {
+          const Eigen::Vector3d target = depth * std::sin(M_PI * (k + 1) / steps) * n;
+          const auto t = std::chrono::steady_clock::now();
+          p.s->constrain(v, std::span<const double>(target.data(), 3));
+          p.s->step(dt);
+          us[static_cast<std::size_t>(k)] =
+              std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t).count();
+        }
+        return us;
+      },
+      py::arg("session"), py::arg("vertex"), py::arg("direction"), py::arg("depth"), py::arg("steps"),
+      py::arg("dt"));
+  b.def(
+      "stiffness_seconds",
+      [](const py::handle& V, const py::handle& F) {
+        const Positions P = positions_arg(V);
+        const Triangles T = triangles_arg(F, P.rows());
+        py::gil_scoped_release release;
+        const auto t = std::chrono::steady_clock::now();
+        const Mesh mesh(P, T);
+        const Eigen::SparseMatrix<double> K = stiffness_matrix(mesh, build_operators(mesh));
+        const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
+        return K.nonZeros() > 0 ? s : -1.0;
+      },
+      py::arg("V"), py::arg("F"));
 }
 
 }  // namespace meshpde::python

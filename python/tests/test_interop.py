@@ -55,3 +55,22 @@ def test_meshio_round_trips_through_arrays(tmp_path):
     meshpde.write_mesh(tmp_path / "o.obj", V, F)
     m2 = meshio.read(tmp_path / "o.obj")
     assert np.allclose(m2.points, V) and np.array_equal(m2.cells_dict["triangle"], F)
+
+
+def test_the_python_benchmark_runs_and_reports_its_baselines():
+    # Timings are not asserted (shared machines); the script must run and report both sides.
+    import json
+    import os
+    import pathlib
+    import subprocess
+    import sys
+    script = pathlib.Path(__file__).parents[2] / "bench" / "python" / "bench_python.py"
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(sys.path))
+    out = subprocess.run([sys.executable, str(script), "--quick", "--json"], capture_output=True, text=True,
+                         timeout=600, env=env)
+    assert out.returncode == 0, out.stderr
+    j = json.loads(out.stdout)
+    for key in ["python_poke_step_overhead_us", "python_poke_step_cpp_baseline_p50_us",
+                "python_stiffness_s_41k", "python_stiffness_cpp_baseline_s_41k"]:
+        assert key in j and j[key] == j[key], key  # present and not NaN
+    assert j["python_poke_step_cpp_baseline_p50_us"] > 0 and j["python_stiffness_cpp_baseline_s_41k"] > 0
