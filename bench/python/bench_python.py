@@ -13,7 +13,7 @@ Rounds alternate Python and C++ loops; the figure is the median over rounds.
 python_stiffness_s_655k: meshpde.stiffness(V, F) on the 655k icosphere (argument
 checks, connectivity, operators, scipy.sparse.csr_matrix) against the C++ time of
 Mesh + build_operators + stiffness_matrix on the same arrays (target <= 1.3x); best
-of three each, interleaved.
+of five each, interleaved (the first calls of a process pay for fresh pages).
 """
 import argparse
 import json
@@ -74,7 +74,7 @@ def main():
     V8, F8 = meshpde.generate.icosphere(6 if a.quick else 8)
     tag = "41k" if a.quick else "655k"
     py_s, cpp_s = [], []
-    for _ in range(3):
+    for _ in range(5):
         t = time.perf_counter()
         K = meshpde.stiffness(V8, F8)
         py_s.append(time.perf_counter() - t)

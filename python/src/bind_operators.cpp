@@ -3,6 +3,8 @@
 #include <fmt/format.h>
 #include <pybind11/stl.h>
 
+#include <optional>
+
 #include "bindings.h"
 #include "convert.h"
 #include "meshpde/operators/curvature.h"
@@ -13,11 +15,25 @@ namespace meshpde::python {
 
 namespace {
 
-MeshOperators operators_of(const py::handle& V, const py::handle& F, const std::string& laplacian) {
-  const Mesh mesh = mesh_arg(V, F);
+// K and M of the requested kind. The cotangent kind is built on the caller's mesh
+// directly (build_mesh_operators would keep a copy of it).
+struct Operators {
+  Mesh mesh;                           // the input mesh, or the intrinsic operator mesh
+  std::optional<MeshOperators> kinds;  // set for the other kinds
+  FemOperators cotan;
+  const Mesh& operator_mesh() const { return kinds ? kinds->mesh : mesh; }
+  const FemOperators& ops() const { return kinds ? kinds->ops : cotan; }
+};
+
+Operators operators_of(const py::handle& V, const py::handle& F, const std::string& laplacian) {
+  Operators o{mesh_arg(V, F), std::nullopt, {}};
   const LaplacianKind kind = parse_laplacian_kind(laplacian);
   py::gil_scoped_release release;
-  return build_mesh_operators(mesh, kind);
+  if (kind == LaplacianKind::Cotan)
+    o.cotan = build_operators(o.mesh);
+  else
+    o.kinds = build_mesh_operators(o.mesh, kind);
+  return o;
 }
 
 }  // namespace
@@ -26,15 +42,26 @@ void bind_operators(py::module_& m) {
   m.def(
       "stiffness",
       [](const py::handle& V, const py::handle& F, const std::string& laplacian) {
-        const MeshOperators o = operators_of(V, F, laplacian);
-        return to_csr(stiffness_matrix(o.mesh, o.ops));
+        const Operators o = operators_of(V, F, laplacian);
+        // Written straight into the arrays scipy keeps (no intermediate matrix).
+        const auto n = static_cast<std::size_t>(o.operator_mesh().num_vertices());
+        const std::size_t nnz = stiffness_nonzeros(o.operator_mesh());
+        py::array_t<double> data(static_cast<py::ssize_t>(nnz));
+        py::array_t<int> indices(static_cast<py::ssize_t>(nnz));
+        py::array_t<int> indptr(static_cast<py::ssize_t>(n + 1));
+        {
+          py::gil_scoped_release release;
+          stiffness_csr(o.operator_mesh(), o.ops(), std::span<int>(indptr.mutable_data(), n + 1),
+                        std::span<int>(indices.mutable_data(), nnz), std::span<double>(data.mutable_data(), nnz));
+        }
+        return csr_from_arrays(data, indices, indptr, n, n);
       },
       py::arg("V"), py::arg("F"), py::arg("laplacian") = "cotan");
   m.def(
       "mass",
       [](const py::handle& V, const py::handle& F, const std::string& laplacian) {
-        const MeshOperators o = operators_of(V, F, laplacian);
-        return to_csr(mass_matrix(o.ops));
+        const Operators o = operators_of(V, F, laplacian);
+        return to_csr(mass_matrix(o.ops()));
       },
       py::arg("V"), py::arg("F"), py::arg("laplacian") = "cotan");
   m.def(

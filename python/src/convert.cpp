@@ -64,24 +64,31 @@ Positions positions_arg(const py::handle& obj, const char* name) {
 
 Triangles triangles_arg(const py::handle& obj, Eigen::Index num_vertices, const char* name) {
   const py::array a = as_array(obj, name);
-  const char k = a.dtype().kind();
-  if (k != 'i' && k != 'u')
+  const char kind = a.dtype().kind();
+  if (kind != 'i' && kind != 'u')
     throw py::value_error(fmt::format("{}: expected integer vertex indices, got dtype {} (convert with .astype(int))",
                                       name, dtype_text(a)));
   if (a.ndim() != 2 || a.shape(1) != 3)
     throw py::value_error(fmt::format("{}: expected an (m, 3) array of triangles, got shape {}", name, shape_text(a)));
-  using Longs = py::array_t<long long, py::array::c_style | py::array::forcecast>;
-  const Longs l = Longs::ensure(a);
-  const auto r = l.unchecked<2>();
-  Triangles F(r.shape(0), 3);
-  for (py::ssize_t f = 0; f < r.shape(0); ++f)
-    for (int c = 0; c < 3; ++c) {
-      const long long v = r(f, c);
+  Triangles F(a.shape(0), 3);
+  // Read in the array's own integer type when it is int32 (no converted copy).
+  auto fill = [&](auto tag) {
+    using T = decltype(tag);
+    using Typed = py::array_t<T, py::array::c_style | py::array::forcecast>;
+    const Typed t = Typed::ensure(a);
+    const T* p = t.data();
+    for (py::ssize_t k = 0; k < 3 * t.shape(0); ++k) {
+      const auto v = static_cast<long long>(p[k]);
       if (v < 0 || v >= num_vertices)
         throw py::index_error(
-            fmt::format("{}: face {} has vertex index {}, out of range for {} vertices", name, f, v, num_vertices));
-      F(f, c) = static_cast<int>(v);
+            fmt::format("{}: face {} has vertex index {}, out of range for {} vertices", name, k / 3, v, num_vertices));
+      F.data()[k] = static_cast<int>(v);
     }
+  };
+  if (a.dtype().is(py::dtype::of<std::int32_t>()))
+    fill(std::int32_t{});
+  else
+    fill(std::int64_t{});
   return F;
 }
 
@@ -193,8 +200,16 @@ py::object to_csr(const Eigen::SparseMatrix<double>& A) {
   std::copy(R.valuePtr(), R.valuePtr() + R.nonZeros(), data.mutable_data());
   std::copy(R.innerIndexPtr(), R.innerIndexPtr() + R.nonZeros(), indices.mutable_data());
   std::copy(R.outerIndexPtr(), R.outerIndexPtr() + R.rows() + 1, indptr.mutable_data());
+  return csr_from_arrays(data, indices, indptr, static_cast<std::size_t>(R.rows()), static_cast<std::size_t>(R.cols()));
+}
+
+py::object csr_from_arrays(const py::array_t<double>& data, const py::array_t<int>& indices,
+                           const py::array_t<int>& indptr, std::size_t rows, std::size_t cols) {
   const py::object csr = py::module_::import("scipy.sparse").attr("csr_matrix");
-  return csr(py::make_tuple(data, indices, indptr), py::arg("shape") = py::make_tuple(R.rows(), R.cols()));
+  py::object A = csr(py::make_tuple(data, indices, indptr), py::arg("shape") = py::make_tuple(rows, cols),
+                     py::arg("copy") = false);
+  A.attr("has_sorted_indices") = true;  // saves scipy a scan when it needs sorted rows
+  return A;
 }
 
 void check_interrupt() {

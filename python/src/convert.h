@@ -12,6 +12,8 @@
 
 #include <Eigen/Core>
 #include <Eigen/SparseCore>
+#include <cstdint>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -54,6 +56,9 @@ py::array_t<int> to_numpy(const std::vector<int>& v);
 
 /// scipy.sparse.csr_matrix of an Eigen sparse matrix (any storage order).
 py::object to_csr(const Eigen::SparseMatrix<double>& A);
+/// scipy.sparse.csr_matrix over these arrays (sorted rows; not copied).
+py::object csr_from_arrays(const py::array_t<double>& data, const py::array_t<int>& indices,
+                           const py::array_t<int>& indptr, std::size_t rows, std::size_t cols);
 
 /// Calls PyErr_CheckSignals with the GIL held and throws py::error_already_set on
 /// Ctrl-C, so that a loop in the library stops with KeyboardInterrupt. For callbacks

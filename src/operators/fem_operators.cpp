@@ -206,17 +206,47 @@ Field apply_bilaplacian(const Mesh& mesh, const FemOperators& ops, const Field& 
   return apply_stiffness(mesh, ops, T);
 }
 
-Eigen::SparseMatrix<double> stiffness_matrix(const Mesh& mesh, const FemOperators& ops) {
-  std::vector<Eigen::Triplet<double>> t;
-  t.reserve(mesh.num_vertices() + mesh.neighbors().size());
+std::size_t stiffness_nonzeros(const Mesh& mesh) {
+  return static_cast<std::size_t>(mesh.num_vertices()) + mesh.neighbors().size();
+}
+
+void stiffness_csr(const Mesh& mesh, const FemOperators& ops, std::span<int> row_offsets, std::span<int> columns,
+                   std::span<double> values) {
+  const int n = mesh.num_vertices();
+  const std::size_t nnz = stiffness_nonzeros(mesh);
+  if (row_offsets.size() != static_cast<std::size_t>(n) + 1 || columns.size() != nnz || values.size() != nnz)
+    throw InputError(fmt::format("stiffness_csr: arrays of {}, {} and {} entries for {} rows and {} nonzeros",
+                                 row_offsets.size(), columns.size(), values.size(), n, nnz));
   const auto off = mesh.offsets();
   const auto nbr = mesh.neighbors();
-  for (int i = 0; i < mesh.num_vertices(); ++i) {
-    t.emplace_back(i, i, ops.Kii[i]);
-    for (int s = off[i]; s < off[i + 1]; ++s) t.emplace_back(i, nbr[s], ops.Kij[s]);
+  // Row i is its neighbours (sorted ascending in the mesh's CSR) with i inserted in
+  // order; row i starts i + off[i] entries in.
+  for (int i = 0; i < n; ++i) {
+    int k = i + off[i];
+    row_offsets[static_cast<std::size_t>(i)] = k;
+    int s = off[i];
+    for (; s < off[i + 1] && nbr[s] < i; ++s, ++k) {
+      columns[static_cast<std::size_t>(k)] = nbr[s];
+      values[static_cast<std::size_t>(k)] = ops.Kij[s];
+    }
+    columns[static_cast<std::size_t>(k)] = i;
+    values[static_cast<std::size_t>(k++)] = ops.Kii[i];
+    for (; s < off[i + 1]; ++s, ++k) {
+      columns[static_cast<std::size_t>(k)] = nbr[s];
+      values[static_cast<std::size_t>(k)] = ops.Kij[s];
+    }
   }
-  Eigen::SparseMatrix<double> K(mesh.num_vertices(), mesh.num_vertices());
-  K.setFromTriplets(t.begin(), t.end());
+  row_offsets[static_cast<std::size_t>(n)] = static_cast<int>(nnz);
+}
+
+Eigen::SparseMatrix<double> stiffness_matrix(const Mesh& mesh, const FemOperators& ops) {
+  // Filled in place: K's compressed-column arrays are its compressed-row ones.
+  const int n = mesh.num_vertices();
+  const std::size_t nnz = stiffness_nonzeros(mesh);
+  Eigen::SparseMatrix<double> K(n, n);
+  K.resizeNonZeros(static_cast<Eigen::Index>(nnz));
+  stiffness_csr(mesh, ops, std::span<int>(K.outerIndexPtr(), static_cast<std::size_t>(n) + 1),
+                std::span<int>(K.innerIndexPtr(), nnz), std::span<double>(K.valuePtr(), nnz));
   return K;
 }
 

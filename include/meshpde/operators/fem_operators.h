@@ -95,6 +95,17 @@ Field apply_bilaplacian(const Mesh& mesh, const FemOperators& ops, const Field& 
 
 /// Assembled sparse forms, for direct solvers and cross-checks.
 Eigen::SparseMatrix<double> stiffness_matrix(const Mesh& mesh, const FemOperators& ops);
+
+/// Number of stored entries of K: #V diagonal entries plus one per CSR slot (2 #E).
+std::size_t stiffness_nonzeros(const Mesh& mesh);
+
+/// K in compressed-row form, written into caller-provided arrays: row_offsets (#V + 1),
+/// columns and values (stiffness_nonzeros() each). Rows hold their columns in ascending
+/// order, the diagonal in its place. K is symmetric, so these are also its
+/// compressed-column arrays. For bindings that hand the arrays on without a copy
+/// (scipy.sparse.csr_matrix), and for stiffness_matrix().
+void stiffness_csr(const Mesh& mesh, const FemOperators& ops, std::span<int> row_offsets, std::span<int> columns,
+                   std::span<double> values);
 Eigen::SparseMatrix<double> mass_matrix(const FemOperators& ops);
 
 /// Y(rows) = K U on the listed rows only (other rows of Y untouched). U and Y are
