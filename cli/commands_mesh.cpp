@@ -66,6 +66,43 @@ void print_report(const std::string& name, const MeshReport& r) {
   for (const auto& w : r.warnings) fmt::print("  warning: {}\n", w);
 }
 
+nlohmann::json vec3(const Eigen::Vector3d& v) {
+  return {v.x(), v.y(), v.z()};
+}
+
+nlohmann::json volume_report_json(const VolumeReport& r) {
+  nlohmann::json dir = nlohmann::json::array();
+  for (int c = 0; c < 3; ++c) dir.push_back(vec3(r.direction.col(c)));
+  return {{"kind", "volume"},
+          {"dims", {r.dims[0], r.dims[1], r.dims[2]}},
+          {"spacing", vec3(r.spacing)},
+          {"origin", vec3(r.origin)},
+          {"direction", dir},
+          {"frame", "LPS"},
+          {"orientation", r.orientation},
+          {"oblique", r.oblique},
+          {"bbox_min", vec3(r.bbox_min)},
+          {"bbox_max", vec3(r.bbox_max)},
+          {"min", r.min},
+          {"max", r.max},
+          {"mean", r.mean},
+          {"nonfinite", r.nonfinite}};
+}
+
+void print_volume_report(const std::string& path, const VolumeReport& r) {
+  fmt::print("{}: volume of {} x {} x {} voxels\n", path, r.dims[0], r.dims[1], r.dims[2]);
+  fmt::print("  spacing      {:.6g} x {:.6g} x {:.6g} mm\n", r.spacing.x(), r.spacing.y(), r.spacing.z());
+  fmt::print("  origin       ({:.6g}, {:.6g}, {:.6g}) mm, LPS\n", r.origin.x(), r.origin.y(), r.origin.z());
+  for (int c = 0; c < 3; ++c)
+    fmt::print("  axis {}       ({:.6g}, {:.6g}, {:.6g}) LPS\n", "ijk"[c], r.direction(0, c), r.direction(1, c),
+               r.direction(2, c));
+  fmt::print("  orientation  {}{} (the patient direction of i, j, k)\n", r.orientation, r.oblique ? ", oblique" : "");
+  fmt::print("  extent       ({:.6g}, {:.6g}, {:.6g}) .. ({:.6g}, {:.6g}, {:.6g}) mm, LPS\n", r.bbox_min.x(),
+             r.bbox_min.y(), r.bbox_min.z(), r.bbox_max.x(), r.bbox_max.y(), r.bbox_max.z());
+  fmt::print("  values       {:.6g} .. {:.6g}, mean {:.6g}{}\n", r.min, r.max, r.mean,
+             r.nonfinite ? fmt::format(", {} not finite", r.nonfinite) : std::string());
+}
+
 struct GenerateArgs {
   std::string kind, out, base = "icosahedron";
   GeneratorParams p;  // defaults: the library's one table
@@ -78,9 +115,22 @@ void add_mesh_commands(CLI::App& app) {
     auto* cmd = app.add_subcommand("info", "Report counts, topology, defects and shape quality of a mesh");
     auto path = std::make_shared<std::string>();
     auto json = std::make_shared<bool>(false);
-    cmd->add_option("MESH", *path, "Mesh file (.obj .off .ply .stl .vtp .vtk)")->required();
+    cmd->add_option("FILE", *path,
+                    "Mesh (.obj .off .ply .stl .vtp .vtk) or, with the medical component, volume (.mha .mhd .nii "
+                    ".nii.gz .nrrd .nhdr)")
+        ->required();
     cmd->add_flag("--json", *json, "Print a JSON object");
     cmd->callback([=] {
+#ifdef MESHPDE_HAVE_MEDICAL
+      if (is_volume_path(*path)) {
+        const VolumeReport r = describe(read_volume(*path));
+        if (*json)
+          print_json(volume_report_json(r));
+        else
+          print_volume_report(*path, r);
+        return;
+      }
+#endif
       const Mesh mesh = load_mesh(*path);
       const MeshReport r = analyze(mesh);
       if (*json)

@@ -95,6 +95,17 @@ if [ -f "$DATA/aorta-closed-6k.vtp" ]; then
     check "missing volume exits 1" [ $? -eq 1 ]
     check "missing volume named" grep -q "absent.mha" "$T/err"
   fi
+  if [ -f "$DATA/aorta-mra.mha" ]; then
+    "$M" info "$DATA/aorta-mra.mha" --json >"$T/vol.json" || bad "info on a volume"
+    check "volume info dims" [ "$(json "$T/vol.json" "d['dims'] == [157, 393, 34]")" = True ]
+    check "volume info frame and orientation" [ "$(json "$T/vol.json" "d['frame'] + d['orientation']")" = LPSRAS ]
+    check "volume info range" [ "$(json "$T/vol.json" "d['min'] <= d['mean'] <= d['max']")" = True ]
+    "$M" info "$DATA/aorta-mra.mha" | grep -q "volume of 157 x 393 x 34 voxels" || bad "volume info text"
+    "$M" correct "$DATA/aorta-mra.mha" --vertex 0 --move 1,0,0 --radius 2 -o "$T/x.ply" 2>"$T/err" >/dev/null
+    check "a volume given as a mesh is named as one" grep -q "a volume, not a mesh" "$T/err"
+  fi
+  "$M" info "$T/missing.xyz" 2>"$T/err" >/dev/null
+  check "unknown extension lists every mesh format" grep -q "supported: .obj .off .ply .stl .vtp .vtk" "$T/err"
   "$M" info "$DATA/aorta-centerlines.vtp" 2>"$T/err" >/dev/null
   check "centerlines (lines only) exit 1" [ $? -eq 1 ]
   check "centerlines message" grep -q "aorta-centerlines.vtp: contains no polygons" "$T/err"

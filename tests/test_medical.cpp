@@ -5,11 +5,13 @@
 #include <gtest/gtest.h>
 #include <zlib.h>
 
+#include <Eigen/Geometry>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <limits>
 
 #include "meshpde/core/errors.h"
 #include "meshpde/io/medical_io.h"
@@ -366,6 +368,32 @@ TEST(Volume, MetaImageWithRotatedDirectionAndDetachedData) {
   expect_geometry(
       v, Space::LPS,
       [&](const Eigen::Vector3d& ijk) -> Eigen::Vector3d { return kOffset + R * kSpacing.cwiseProduct(ijk); }, 1, 0);
+}
+
+TEST(Volume, DescribeReportsGeometryOrientationAndValueRange) {
+  Volume v;
+  v.dims = {3, 4, 5};
+  v.spacing = Eigen::Vector3d(0.5, 1.0, 2.0);
+  v.origin = Eigen::Vector3d(10, -20, 30);
+  // i towards the patient's right, j anterior, k superior: a typical NIfTI (RAS).
+  v.direction = Eigen::Vector3d(-1, -1, 1).asDiagonal();
+  v.values.resize(v.num_voxels());
+  for (std::size_t n = 0; n < v.values.size(); ++n) v.values[n] = static_cast<float>(n) - 7.0f;
+  v.values[5] = std::numeric_limits<float>::quiet_NaN();
+  const VolumeReport r = describe(v);
+  EXPECT_EQ(r.orientation, "RAS");
+  EXPECT_FALSE(r.oblique);
+  EXPECT_EQ(r.nonfinite, 1u);
+  EXPECT_EQ(r.min, -7.0);
+  EXPECT_EQ(r.max, 59.0 - 7.0);
+  // corners of the voxel-centre box: origin + direction * spacing * (dims - 1)
+  EXPECT_TRUE(r.bbox_min.isApprox(Eigen::Vector3d(10 - 1.0, -20 - 3.0, 30)));
+  EXPECT_TRUE(r.bbox_max.isApprox(Eigen::Vector3d(10, -20, 30 + 8.0)));
+  // rotated by 30 degrees about z: oblique, still nearest to L and P
+  v.direction = Eigen::AngleAxisd(M_PI / 6, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  const VolumeReport o = describe(v);
+  EXPECT_TRUE(o.oblique);
+  EXPECT_EQ(o.orientation, "LPS");
 }
 
 TEST(Volume, NiftiSformQformScalingAndGzip) {

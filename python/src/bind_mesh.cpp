@@ -11,6 +11,7 @@
 #include "bindings.h"
 #include "convert.h"
 #include "meshpde/core/errors.h"
+#include "meshpde/image/volume.h"
 #include "meshpde/io/mesh_io.h"
 #include "meshpde/mesh/generators.h"
 #include "meshpde/mesh/self_intersections.h"
@@ -121,6 +122,26 @@ py::dict report_to_python(const MeshReport& r) {
   return j;
 }
 
+py::dict volume_report_to_python(const VolumeReport& r) {
+  auto vec = [](const Eigen::Vector3d& v) { return py::make_tuple(v.x(), v.y(), v.z()); };
+  py::dict j;
+  j["kind"] = "volume";
+  j["dims"] = py::make_tuple(r.dims[0], r.dims[1], r.dims[2]);
+  j["spacing"] = vec(r.spacing);
+  j["origin"] = vec(r.origin);
+  j["direction"] = py::make_tuple(vec(r.direction.col(0)), vec(r.direction.col(1)), vec(r.direction.col(2)));
+  j["frame"] = "LPS";
+  j["orientation"] = r.orientation;
+  j["oblique"] = r.oblique;
+  j["bbox_min"] = vec(r.bbox_min);
+  j["bbox_max"] = vec(r.bbox_max);
+  j["min"] = r.min;
+  j["max"] = r.max;
+  j["mean"] = r.mean;
+  j["nonfinite"] = r.nonfinite;
+  return j;
+}
+
 Colormap parse_colormap(const std::string& name) {
   if (name == "viridis") return Colormap::Viridis;
   if (name == "coolwarm") return Colormap::Coolwarm;
@@ -177,7 +198,31 @@ void bind_mesh(py::module_& m) {
 
   m.def(
       "info",
-      [](const py::handle& V, const py::handle& F) {
+      [](const py::handle& V, const py::handle& F) -> py::dict {
+        if (F.is_none()) {  // info(path): a mesh file, or a volume
+          const auto path = V.cast<std::filesystem::path>();
+          require_file(path);
+#ifdef MESHPDE_HAVE_MEDICAL
+          if (is_volume_path(path)) {
+            VolumeReport r;
+            {
+              py::gil_scoped_release release;
+              r = describe(read_volume(path));
+            }
+            return volume_report_to_python(r);
+          }
+#endif
+          MeshData d;
+          {
+            py::gil_scoped_release release;
+            d = read_by_extension(path);
+          }
+          const Mesh mesh(d.V, d.F);
+          py::gil_scoped_release release;
+          const MeshReport r = analyze(mesh);
+          py::gil_scoped_acquire acquire;
+          return report_to_python(r);
+        }
         const Mesh mesh = mesh_arg(V, F);
         MeshReport r;
         {
@@ -186,7 +231,7 @@ void bind_mesh(py::module_& m) {
         }
         return report_to_python(r);
       },
-      py::arg("V"), py::arg("F"));
+      py::arg("V"), py::arg("F") = py::none());
 
   m.def(
       "vertex_normals",
@@ -258,9 +303,8 @@ void bind_mesh(py::module_& m) {
       py::arg("V"), py::arg("F"), py::arg("field") = py::none(), py::arg("vectors") = py::none(),
       py::arg("path") = py::none(), py::arg("width") = 960, py::arg("height") = 720, py::arg("azimuth") = 30.0,
       py::arg("elevation") = 20.0, py::arg("up") = "y", py::arg("zoom") = 1.0, py::arg("center") = py::none(),
-      py::arg("wireframe") = false,
-      py::arg("colormap") = "viridis", py::arg("range") = py::none(), py::arg("title") = "",
-      py::arg("field_name") = "");
+      py::arg("wireframe") = false, py::arg("colormap") = "viridis", py::arg("range") = py::none(),
+      py::arg("title") = "", py::arg("field_name") = "");
 
 #ifdef MESHPDE_HAVE_MEDICAL
   m.def(

@@ -122,3 +122,24 @@ def test_read_volume_affine_maps_voxels_to_lps(data):
     phi = map_coordinates(values, ijk.T, order=1)
     spacing = np.linalg.norm(affine[:3, :3], axis=0)
     assert np.abs(phi).mean() < 0.1 * spacing.min()
+
+
+def test_info_of_a_volume_file_equals_the_cli(cli, data):
+    if not meshpde.has_medical:
+        pytest.skip("built without meshpde::medical")
+    path = data("aorta-mra.mha")
+    ours = meshpde.info(path)
+    theirs = cli("info", path, "--json", json_out=True)
+    assert ours["kind"] == "volume" and list(ours["dims"]) == theirs["dims"]
+    assert ours["orientation"] == theirs["orientation"] and ours["frame"] == "LPS"
+    for key in ["min", "max", "mean"]:
+        assert ours[key] == pytest.approx(theirs[key], rel=1e-12)
+    values, affine = meshpde.read_volume(path)
+    assert ours["min"] == values.min() and ours["max"] == values.max()
+    assert np.allclose(ours["origin"], affine[:3, 3])
+
+
+def test_info_of_a_mesh_file_equals_info_of_its_arrays(data):
+    path = data("bunny-3k.off")
+    V, F, _ = meshpde.read_mesh(path)
+    assert meshpde.info(path) == meshpde.info(V, F)

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <limits>
 
 #include "meshpde/core/errors.h"
 
@@ -167,6 +168,48 @@ Volume gradient_magnitude(const Volume& volume, double sigma_mm) {
         out.values[i + std::size_t(d[0]) * (j + std::size_t(d[1]) * k)] = static_cast<float>((J * g).norm());
       }
   return out;
+}
+
+VolumeReport describe(const Volume& v) {
+  VolumeReport r;
+  r.dims = v.dims;
+  r.spacing = v.spacing;
+  r.origin = v.origin;
+  r.direction = v.direction;
+  static const char* letters[3][2] = {{"L", "R"}, {"P", "A"}, {"S", "I"}};  // +x, -x in LPS, ...
+  for (int a = 0; a < 3; ++a) {
+    Eigen::Index k = 0;
+    const Eigen::Vector3d axis = v.direction.col(a);
+    const double largest = axis.cwiseAbs().maxCoeff(&k);
+    r.orientation += letters[k][axis[k] >= 0 ? 0 : 1];
+    if (largest < std::cos(M_PI / 180.0)) r.oblique = true;
+  }
+  r.bbox_min = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
+  r.bbox_max = -r.bbox_min;
+  for (int c = 0; c < 8; ++c) {
+    const Eigen::Vector3d ijk((c & 1) ? v.dims[0] - 1 : 0, (c & 2) ? v.dims[1] - 1 : 0, (c & 4) ? v.dims[2] - 1 : 0);
+    const Eigen::Vector3d p = v.index_to_lps(ijk);
+    r.bbox_min = r.bbox_min.cwiseMin(p);
+    r.bbox_max = r.bbox_max.cwiseMax(p);
+  }
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo, sum = 0;
+  std::size_t finite = 0;
+  for (const float x : v.values) {
+    if (!std::isfinite(x)) {
+      ++r.nonfinite;
+      continue;
+    }
+    lo = std::min(lo, static_cast<double>(x));
+    hi = std::max(hi, static_cast<double>(x));
+    sum += x;
+    ++finite;
+  }
+  if (finite > 0) {
+    r.min = lo;
+    r.max = hi;
+    r.mean = sum / static_cast<double>(finite);
+  }
+  return r;
 }
 
 }  // namespace meshpde

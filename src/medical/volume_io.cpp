@@ -250,12 +250,24 @@ Volume read_nrrd(const std::filesystem::path& path) {
 
 }  // namespace
 
+namespace {
+
+bool name_ends(const std::filesystem::path& path, const std::string& suffix) {
+  const std::string name = lower(path.filename().string());
+  return name.size() >= suffix.size() && name.compare(name.size() - suffix.size(), suffix.size(), suffix) == 0;
+}
+
+}  // namespace
+
+bool is_volume_path(const std::filesystem::path& path) {
+  for (const char* e : {".mha", ".mhd", ".nii", ".nii.gz", ".nrrd", ".nhdr"})
+    if (name_ends(path, e)) return true;
+  return false;
+}
+
 Volume read_volume(const std::filesystem::path& path) {
   if (!std::filesystem::exists(path)) throw InputError(fmt::format("{}: no such file", path.string()));
-  const std::string name = lower(path.filename().string());
-  auto ends = [&](const std::string& s) {
-    return name.size() >= s.size() && name.compare(name.size() - s.size(), s.size(), s) == 0;
-  };
+  auto ends = [&](const std::string& s) { return name_ends(path, s); };
   if (ends(".mha") || ends(".mhd")) return read_metaimage(path);
   if (ends(".nii") || ends(".nii.gz")) return read_nifti(path);
   if (ends(".nrrd") || ends(".nhdr")) return read_nrrd(path);

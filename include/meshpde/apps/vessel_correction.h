@@ -92,10 +92,16 @@ struct CorrectionHandle {
 std::vector<CorrectionHandle> parse_handles(const Mesh& mesh, const std::vector<int>& vertices,
                                             const std::vector<std::string>& moves);
 
-/// The thesis's tissue parameters, each in [0, 1].
+/// The thesis's tissue parameters, each in [0, 1] and unit-free (defaults: the thesis's).
 struct TissueParams {
+  /// Inertia: alpha of the dynamic mode (Fem) or m of eq. 12.1 (springs). Heavier
+  /// tissue settles more slowly. Default 0.1.
   double mass = 0.1;
+  /// Scales the stiffness: (g1, g2) -> elasticity (g1, g2) in the dynamic mode; the
+  /// spring constant c of the springs method. Default 0.9.
   double elasticity = 0.9;
+  /// Damping: 1 is critical damping of the region's slowest mode (dynamic mode); for
+  /// springs, how stretched each ring is left ("stable" threshold). Default 0.6.
   double viscosity = 0.6;
 };
 
@@ -108,21 +114,31 @@ struct ImageGuidance {
   int cube_size = 0;                    ///< springs only: thesis direction cube (odd, >= 3); 0: off
 };
 
+/// One correction's request. Exactly one of radius and rings is > 0.
 struct CorrectionParams {
-  std::vector<CorrectionHandle> handles;
-  double radius = 0;  ///< region of influence: edge-path distance (mm) from any handle; 0: use rings
-  int rings = 0;      ///< region of influence in rings (the thesis's level of influence)
-  CorrectionMethod method = CorrectionMethod::Fem;
-  double g1 = 0;  ///< membrane stiffness (Fem)
-  double g2 = 1;  ///< plate stiffness (Fem)
+  std::vector<CorrectionHandle> handles;  ///< at least one; parse_handles() reads the CLI's form
+  /// Region of influence: edge-path distance (mesh units, mm) from any handle; 0: use
+  /// rings. The free set is taken within radius - h (h the mean edge length), which
+  /// makes the result independent of the resolution (see above). Default 0.
+  double radius = 0;
+  int rings = 0;  ///< region of influence in rings of neighbours (the thesis's level of influence); default 0
+  CorrectionMethod method = CorrectionMethod::Fem;  ///< Fem (ours, default) or Springs (the thesis's baseline)
+  double g1 = 0;  ///< membrane (Laplacian) stiffness of Fem, unit-free weight; default 0
+  double g2 = 1;  ///< plate (bi-Laplacian) stiffness of Fem, unit-free weight; default 1
+  /// Operator of Fem: Auto (default) takes intrinsic Delaunay on badly shaped or
+  /// non-manifold meshes, the cotangent one otherwise.
   LaplacianKind laplacian = LaplacianKind::Auto;
-  Eigen::VectorXd stiffness;  ///< per-vertex tissue stiffness multiplier (#V, > 0); empty: 1
-  bool dynamic = false;       ///< Fem: integrate the tissue dynamics instead of the static solve
-  int steps = 50;             ///< dynamic steps
-  TissueParams tissue;
+  /// Per-vertex tissue stiffness multiplier (#V entries, each > 0; averaged per
+  /// triangle); empty (default): 1 everywhere.
+  Eigen::VectorXd stiffness;
+  bool dynamic = false;  ///< Fem: integrate the tissue dynamics instead of the static solve; default false
+  int steps = 50;        ///< dynamic steps, each a quarter of the region's 1/omega (50: settled to about exp(-7.5))
+  TissueParams tissue;   ///< mass, elasticity, viscosity of the dynamic mode and of Springs
+  /// Split or limit a Fem correction that would make the surface intersect itself
+  /// (default true); false applies it as solved (`--allow-intersections`).
   bool prevent_intersections = true;
-  int max_substeps = 8;
-  ImageGuidance image;
+  int max_substeps = 8;  ///< most steps a correction is split into before it is limited; default 8
+  ImageGuidance image;   ///< off unless image.edges is set
 };
 
 struct CorrectionResult {

@@ -67,6 +67,25 @@ struct Volume {
   void validate() const;
 };
 
+/// What `meshpde info` reports of a volume.
+struct VolumeReport {
+  std::array<int, 3> dims{0, 0, 0};
+  Eigen::Vector3d spacing = Eigen::Vector3d::Ones();        ///< mm
+  Eigen::Vector3d origin = Eigen::Vector3d::Zero();         ///< LPS mm of voxel (0, 0, 0)
+  Eigen::Matrix3d direction = Eigen::Matrix3d::Identity();  ///< columns: LPS axes of i, j, k
+  /// The anatomical direction each voxel axis points to, nearest of L/R, P/A, S/I, as
+  /// ITK writes it: "LPS" for an axial DICOM series, "RAS" for a typical NIfTI.
+  std::string orientation;
+  bool oblique = false;                                ///< an axis more than 1 degree off the nearest patient axis
+  Eigen::Vector3d bbox_min = Eigen::Vector3d::Zero();  ///< LPS mm, over the voxel centres
+  Eigen::Vector3d bbox_max = Eigen::Vector3d::Zero();
+  double min = 0, max = 0, mean = 0;  ///< over finite voxel values
+  std::size_t nonfinite = 0;          ///< NaN or infinite voxels
+};
+
+/// Geometry and value range of a volume.
+VolumeReport describe(const Volume& volume);
+
 /// The volume smoothed by a Gaussian of standard deviation `sigma_mm` (per axis in
 /// voxels: sigma_mm / spacing; edges clamped). sigma_mm = 0 returns a copy.
 Volume gaussian_smooth(const Volume& volume, double sigma_mm);

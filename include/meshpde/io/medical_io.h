@@ -45,5 +45,7 @@ bool is_vtk_mesh_path(const std::filesystem::path& path);
 
 /// .mha .mhd .nii .nii.gz .nrrd .nhdr. \throw InputError naming the file.
 Volume read_volume(const std::filesystem::path& path);
+/// Whether read_volume() reads this path (by its extension, any case).
+bool is_volume_path(const std::filesystem::path& path);
 
 }  // namespace meshpde
