@@ -500,7 +500,9 @@ void add_poke_command(CLI::App& app) {
   cmd->add_option("--depth", a->depth, "Default path: depth in mean edge lengths")->capture_default_str();
   cmd->add_option("--rate", a->h.rate_hz, "Servo rate (Hz)")->capture_default_str();
   cmd->add_option("--settle", a->settle, "Seconds to keep stepping after the release")->capture_default_str();
-  cmd->add_option("--influence", a->h.influence, "Decay length of a poke (mesh units; 0: 4 mean edges)")
+  cmd->add_option(
+         "--influence", a->h.influence,
+         fmt::format("Decay length of a poke (mesh units; 0: {} mean edges)", HapticParams::default_influence_edges))
       ->capture_default_str();
   cmd->add_option("--stiffness", a->h.stiffness, "Foundation stiffness g0 (g2 = g0 influence^4)")
       ->capture_default_str();

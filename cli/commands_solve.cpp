@@ -10,10 +10,12 @@
 
 #include "commands.h"
 #include "meshpde/apps/local_drag.h"
+#include "meshpde/apps/selection.h"
 #include "meshpde/apps/vessel_correction.h"
 #include "meshpde/image/volume.h"
 #include "meshpde/mesh/self_intersections.h"
 #include "meshpde/operators/intrinsic_delaunay.h"
+#include "meshpde/operators/laplacian.h"
 #ifdef MESHPDE_HAVE_MEDICAL
 #include "meshpde/io/medical_io.h"
 #endif
@@ -93,18 +95,11 @@ Eigen::VectorXd stiffness_field(const Mesh& mesh, const MeshData& d, const Corre
     w = it->second;
   }
   for (const auto& b : a.brushes) {
-    const auto last = b.rfind(':'), mid = last == std::string::npos ? last : b.rfind(':', last - 1);
-    if (mid == std::string::npos) throw InputError(fmt::format("--brush '{}' must be V:RADIUS:VALUE", b));
-    const int v = parse_vertex(mesh, b.substr(0, mid), "--brush");
-    double radius = 0, value = 0;
     try {
-      radius = std::stod(b.substr(mid + 1, last - mid - 1));
-      value = std::stod(b.substr(last + 1));
-    } catch (const std::exception&) {
-      throw InputError(fmt::format("--brush '{}': radius and value must be numbers", b));
+      apply_brush(mesh, w, parse_brush(mesh, b));
+    } catch (const InputError& e) {
+      throw InputError(fmt::format("--brush: {}", e.what()));
     }
-    if (!(radius > 0) || !(value > 0)) throw InputError(fmt::format("--brush '{}': radius and value must be > 0", b));
-    for (int u : geodesic_ball(mesh, v, radius)) w[u] = value;
   }
   return w;
 }

@@ -86,26 +86,23 @@ std::string mesh_bytes(const MeshData& d, const std::string& name) {
   return write_mesh_to_memory(d, format_from_path(name));
 }
 
-Loaded generated(const std::string& kind) {
+// The editor's "open" menu: the library's generator table (mesh/generators.h) with
+// presets sized for a vessel-scale view, plus "dented" (the bifurcation with its dent).
+Loaded generated(const std::string& requested) {
   Loaded l;
-  GeneratedMesh g;
-  if (kind == "bifurcation" || kind == "dented") {
-    BifurcationParams bp;
-    bp.dent = kind == "dented";
-    g = y_bifurcation(bp);
-    l.name = kind + "-bifurcation.ply";
-  } else if (kind == "sphere") {
-    g = icosphere(4, 10.0);
-    l.name = "sphere.ply";
-  } else if (kind == "tube") {
-    g = tube(4.0, 40.0, 60, 40);
-    l.name = "tube.ply";
-  } else if (kind == "plane") {
-    g = plane_grid(60, 60, 30.0, 30.0);
-    l.name = "plane.ply";
-  } else {
-    throw InputError(fmt::format("unknown generated mesh '{}' (dented, bifurcation, sphere, tube, plane)", kind));
-  }
+  const std::string kind = requested == "dented" ? "bifurcation" : requested == "sphere" ? "icosphere" : requested;
+  GeneratorParams p;
+  p.bifurcation = BifurcationParams{};
+  p.bifurcation.dent = requested == "dented";
+  p.level = 4;  // icosphere: 2,562 vertices
+  p.radius = kind == "tube" ? 4.0 : 10.0;
+  p.length = 40.0;
+  p.rings = 60;
+  p.segments = 40;
+  p.nx = p.ny = 60;
+  p.size = 30.0;
+  const GeneratedMesh g = generate(kind, p);
+  l.name = (requested == "dented" ? "dented-" : "") + kind + ".ply";
   l.data.V = g.V;
   l.data.F = g.F;
   return l;
@@ -348,12 +345,7 @@ class EditorServer {
       } else if (type == "poke_end") {
         s.poke_end();
       } else if (type == "brush") {
-        const int v = vertex_of(j);
-        const double radius = number(j, "radius", 3), value = number(j, "value", 5);
-        if (!(radius > 0) || !(value > 0)) throw InputError("brush radius and value must be > 0");
-        if (v < 0 || v >= s.mesh().num_vertices()) throw InputError(fmt::format("vertex {} does not exist", v));
-        if (c.stiffness.size() == 0) c.stiffness = Eigen::VectorXd::Ones(s.mesh().num_vertices());
-        for (int u : geodesic_ball(s.mesh(), v, radius)) c.stiffness[u] = value;
+        apply_brush(s.mesh(), c.stiffness, Brush{vertex_of(j), number(j, "radius", 3), number(j, "value", 5)});
         reply["brushed"] = true;
       } else if (type == "drag_begin") {
         const double radius = number(j, "radius", 8);
@@ -374,7 +366,7 @@ class EditorServer {
         if (!(p.radius > 0)) throw InputError("radius must be > 0");
         p.method = parse_correction_method(j.value("method", std::string("fem")));
         if (p.method == CorrectionMethod::Springs) {
-          p.rings = std::max(1, static_cast<int>(std::lround(p.radius / s.mean_edge_length())));
+          p.rings = rings_for_radius(s.mesh(), p.radius);
           p.radius = 0;
         }
         p.stiffness = c.stiffness;

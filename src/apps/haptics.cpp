@@ -17,7 +17,7 @@ HapticSession::HapticSession(const Mesh& mesh, const FemOperators& ops, const Ha
     if (!(x >= 0) || !std::isfinite(x)) throw InputError("haptic parameters must be finite and non-negative");
   if (!(params.rate_hz > 0)) throw InputError("the servo rate must be positive");
   const double h = mean_edge_length(mesh);
-  const double L = params.influence > 0 ? params.influence : 3 * h;
+  const double L = params.influence > 0 ? params.influence : HapticParams::default_influence_edges * h;
   const PdeCoefficients c{.alpha = params.mass,
                           .b1 = params.damping,
                           .b2 = params.stiffness_damping,

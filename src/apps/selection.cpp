@@ -150,4 +150,25 @@ std::vector<int> select_vertices(const Mesh& mesh, const std::vector<std::string
   return out;
 }
 
+Brush parse_brush(const Mesh& mesh, const std::string& text) {
+  const auto last = text.rfind(':');
+  const auto mid = last == std::string::npos || last == 0 ? std::string::npos : text.rfind(':', last - 1);
+  if (mid == std::string::npos) throw InputError(fmt::format("brush '{}' must be V:RADIUS:VALUE", text));
+  Brush b;
+  b.vertex = parse_vertex_spec(mesh, text.substr(0, mid));
+  try {
+    std::size_t used = 0;
+    const std::string r = text.substr(mid + 1, last - mid - 1), v = text.substr(last + 1);
+    b.radius = std::stod(r, &used);
+    if (used != r.size()) throw std::invalid_argument(r);
+    b.value = std::stod(v, &used);
+    if (used != v.size()) throw std::invalid_argument(v);
+  } catch (const std::exception&) {
+    throw InputError(fmt::format("brush '{}': radius and value must be numbers", text));
+  }
+  if (!(b.radius > 0) || !(b.value > 0))
+    throw InputError(fmt::format("brush '{}': radius and value must be > 0", text));
+  return b;
+}
+
 }  // namespace meshpde

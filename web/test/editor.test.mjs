@@ -141,8 +141,8 @@ try {
   // ---------------------------------------------------------------- page, poke
   const contextA = await browser.newContext({ viewport: { width: 1280, height: 800 }, acceptDownloads: true });
   const page = await openPage(contextA);
-  await loadGenerated(page, 'sphere');
-  check('generated sphere loaded', (await page.evaluate(() => meshpde.vertexCount)) === 2562);
+  await loadGenerated(page, 'icosphere');
+  check('generated icosphere loaded', (await page.evaluate(() => meshpde.vertexCount)) === 2562);
   const rest = await positions(page);
   const centre = await canvasCentre(page);
   await dragBy(page, centre, 0, -70);

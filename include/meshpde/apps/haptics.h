@@ -32,7 +32,9 @@ namespace meshpde {
 /// whose step system is well conditioned at 1 kHz: the inertia term (alpha + b1 dt) M
 /// dominates (b2 + dt) dt Kt by a few times, so CG needs about ten iterations.
 struct HapticParams {
-  double influence = 0;  ///< decay length of a poke (mesh units); 0: 3 mean edge lengths
+  /// The decay length `influence` = 0 stands for, in mean edge lengths.
+  static constexpr double default_influence_edges = 3;
+  double influence = 0;  ///< decay length of a poke (mesh units); 0: default_influence_edges mean edge lengths
   double stiffness = 1;  ///< g0, the foundation; g2 = g0 influence^4 follows from it
   double mass = 1e-2;    ///< alpha: inertia
   double damping = 0.2;  ///< b1: critical damping of the foundation mode (b1 = 2 sqrt(alpha g0)): no overshoot

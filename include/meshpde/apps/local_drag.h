@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "meshpde/mesh/mesh.h"
+#include "meshpde/mesh/regions.h"
 #include "meshpde/operators/fem_operators.h"
 #include "meshpde/pde/steady_direct.h"
 #include "meshpde/solvers/cg.h"
@@ -40,11 +41,7 @@ struct DragResult {
   CgResult cg;
 };
 
-/// Vertices whose shortest edge-path distance from `source` is below `radius`,
-/// found by Dijkstra restricted to that neighbourhood (cost ~ its size).
-std::vector<int> geodesic_ball(const Mesh& mesh, int source, double radius);
-/// Vertices within k rings of `source` (the source included).
-std::vector<int> ring_ball(const Mesh& mesh, int source, int rings);
+// geodesic_ball and ring_ball: mesh/regions.h.
 
 /// \throw InputError for a bad vertex or region; SolverError on a breakdown.
 DragResult drag_vertex(const Mesh& mesh, const FemOperators& ops, const DragParams& params);
@@ -169,5 +166,11 @@ class DragSession {
   int factorizations_ = 0, solves_ = 0;
   double residual_ = 0;
 };
+
+/// drag_vertex on plain (V, F) with the cotangent operators.
+inline DragResult drag_vertex(const Positions& V, const Triangles& F, const DragParams& params) {
+  const Mesh mesh(V, F);
+  return drag_vertex(mesh, build_operators(mesh), params);
+}
 
 }  // namespace meshpde

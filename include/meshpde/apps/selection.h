@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "meshpde/mesh/mesh.h"
+#include "meshpde/mesh/regions.h"
 
 namespace meshpde {
 
@@ -32,6 +33,10 @@ std::vector<int> select_vertices(const Mesh& mesh, const std::vector<std::string
 
 /// Vertex given as an index or @X,Y,Z. \throw InputError
 int parse_vertex_spec(const Mesh& mesh, const std::string& spec);
+
+/// A brush written "V:RADIUS:VALUE" (V an index or @X,Y,Z; radius in mesh units), as
+/// `--brush` and the editor take it. \throw InputError quoting the text.
+Brush parse_brush(const Mesh& mesh, const std::string& text);
 
 /// Vertices on boundary edges (edges with one incident triangle).
 std::vector<int> boundary_vertices(const Mesh& mesh);

@@ -1,0 +1,85 @@
+// mesh/regions.h: balls by distance or rings, the region rule, and brushes.
+#include <fmt/format.h>
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <set>
+
+#include "meshpde/apps/selection.h"
+#include "meshpde/core/errors.h"
+#include "meshpde/mesh/generators.h"
+#include "meshpde/mesh/regions.h"
+#include "meshpde/mesh/topology.h"
+#include "test_support.h"
+
+using namespace meshpde;
+using test::make;
+
+TEST(Regions, RingBallHoldsExactlyTheVerticesWithinKEdges) {
+  const Mesh m = make(icosphere(3));
+  // Independent: breadth-first hop counts over the edge list.
+  std::vector<int> hops(static_cast<std::size_t>(m.num_vertices()), -1);
+  hops[0] = 0;
+  for (int k = 0; k < 3; ++k)
+    for (int e = 0; e < m.num_edges(); ++e)
+      for (int s = 0; s < 2; ++s) {
+        const int a = m.edges()(e, s), b = m.edges()(e, 1 - s);
+        if (hops[static_cast<std::size_t>(a)] == k && hops[static_cast<std::size_t>(b)] < 0)
+          hops[static_cast<std::size_t>(b)] = k + 1;
+      }
+  const std::vector<int> ball = ring_ball(m, 0, 3);
+  EXPECT_EQ(ball.front(), 0);
+  std::set<int> expected;
+  for (int v = 0; v < m.num_vertices(); ++v)
+    if (hops[static_cast<std::size_t>(v)] >= 0) expected.insert(v);
+  EXPECT_EQ(std::set<int>(ball.begin(), ball.end()), expected);
+}
+
+TEST(Regions, RegionAroundTakesARadiusOrRingsNeverBoth) {
+  const Mesh m = make(icosphere(3));
+  EXPECT_EQ(region_around(m, 5, RegionSpec{.radius = 0.3, .rings = 0}), geodesic_ball(m, 5, 0.3));
+  EXPECT_EQ(region_around(m, 5, RegionSpec{.radius = 0, .rings = 2}), ring_ball(m, 5, 2));
+  EXPECT_THROW(region_around(m, 5, RegionSpec{.radius = 0.3, .rings = 2}), InputError);
+  EXPECT_THROW(region_around(m, 5, RegionSpec{}), InputError);
+  EXPECT_THROW(region_around(m, -1, RegionSpec{.radius = 1, .rings = 0}), InputError);
+  EXPECT_THROW(region_around(m, m.num_vertices(), RegionSpec{.radius = 1, .rings = 0}), InputError);
+}
+
+TEST(Regions, RingsForRadiusIsTheRadiusInMeanEdges) {
+  const Mesh m = make(icosphere(3));
+  const double h = mean_edge_length(m);
+  EXPECT_EQ(rings_for_radius(m, 4.2 * h), 4);
+  EXPECT_EQ(rings_for_radius(m, 4.6 * h), 5);
+  EXPECT_EQ(rings_for_radius(m, 0.1 * h), 1);  // at least one ring
+}
+
+TEST(Regions, BrushPaintsItsGeodesicBallAndNothingElse) {
+  const Mesh m = make(icosphere(3));
+  Eigen::VectorXd w;  // empty: starts at 1
+  apply_brush(m, w, Brush{.vertex = 7, .radius = 0.4, .value = 5});
+  const std::vector<int> ball = geodesic_ball(m, 7, 0.4);
+  const std::set<int> in(ball.begin(), ball.end());
+  ASSERT_EQ(w.size(), m.num_vertices());
+  for (int v = 0; v < m.num_vertices(); ++v) EXPECT_EQ(w[v], in.count(v) ? 5.0 : 1.0) << v;
+  // a second stroke paints over the first
+  apply_brush(m, w, Brush{.vertex = 7, .radius = 0.1, .value = 2});
+  EXPECT_EQ(w[7], 2.0);
+  EXPECT_THROW(apply_brush(m, w, Brush{.vertex = 7, .radius = 0, .value = 2}), InputError);
+  EXPECT_THROW(apply_brush(m, w, Brush{.vertex = 7, .radius = 1, .value = -1}), InputError);
+  EXPECT_THROW(apply_brush(m, w, Brush{.vertex = 9999, .radius = 1, .value = 1}), InputError);
+  Eigen::VectorXd short_field = Eigen::VectorXd::Ones(3);
+  EXPECT_THROW(apply_brush(m, short_field, Brush{.vertex = 7, .radius = 1, .value = 1}), InputError);
+}
+
+TEST(Regions, BrushesAreParsedAsTheCliWritesThem) {
+  const Mesh m = make(icosphere(2));
+  const Brush b = parse_brush(m, "12:2.5:3");
+  EXPECT_EQ(b.vertex, 12);
+  EXPECT_EQ(b.radius, 2.5);
+  EXPECT_EQ(b.value, 3);
+  const Eigen::Vector3d p = m.positions().row(20);
+  const Brush at = parse_brush(m, fmt::format("@{},{},{}:1:2", p.x(), p.y(), p.z()));
+  EXPECT_EQ(at.vertex, 20);
+  for (const char* bad : {"12:2.5", "12:x:3", "12:2:0", "12:2:3x", "99999:1:1"})
+    EXPECT_THROW(parse_brush(m, bad), InputError) << bad;
+}
