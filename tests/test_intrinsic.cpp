@@ -12,6 +12,7 @@
 #include "meshpde/mesh/topology.h"
 #include "meshpde/operators/fem_operators.h"
 #include "meshpde/operators/intrinsic_delaunay.h"
+#include "meshpde/operators/laplacian.h"
 #include "test_data.h"
 #include "test_support.h"
 

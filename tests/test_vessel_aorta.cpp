@@ -12,6 +12,7 @@
 #include "meshpde/io/medical_io.h"
 #include "meshpde/mesh/surface_distance.h"
 #include "meshpde/operators/intrinsic_delaunay.h"
+#include "meshpde/operators/laplacian.h"
 #include "meshpde/pde/steady_direct.h"
 #include "test_data.h"
 

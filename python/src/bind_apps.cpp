@@ -17,6 +17,7 @@
 #include "meshpde/mesh/topology.h"
 #ifdef MESHPDE_HAVE_MEDICAL
 #include "meshpde/io/medical_io.h"
+#include "meshpde/operators/laplacian.h"
 #endif
 
 namespace meshpde::python {

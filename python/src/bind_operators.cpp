@@ -10,6 +10,7 @@
 #include "meshpde/operators/curvature.h"
 #include "meshpde/operators/fem_operators.h"
 #include "meshpde/operators/intrinsic_delaunay.h"
+#include "meshpde/operators/laplacian.h"
 
 namespace meshpde::python {
 
@@ -56,6 +57,11 @@ void bind_operators(py::module_& m) {
         }
         return csr_from_arrays(data, indices, indptr, n, n);
       },
+      R"doc(stiffness(V, F, laplacian="cotan") -> scipy.sparse.csr_matrix (n x n)
+
+K, symmetric positive semi-definite, K 1 = 0: minus libigl's cotmatrix
+(K_ij = -(cot a_ij + cot b_ij) / 2). laplacian: "cotan", "intrinsic" (intrinsic
+Delaunay, an M-matrix on any mesh) or "auto" (intrinsic on badly shaped meshes).)doc",
       py::arg("V"), py::arg("F"), py::arg("laplacian") = "cotan");
   m.def(
       "mass",
@@ -63,6 +69,9 @@ void bind_operators(py::module_& m) {
         const Operators o = operators_of(V, F, laplacian);
         return to_csr(mass_matrix(o.ops()));
       },
+      R"doc(mass(V, F, laplacian="cotan") -> scipy.sparse.csr_matrix (n x n)
+
+Lumped mass M: M_ii = a third of the area of the triangles at i (length^2).)doc",
       py::arg("V"), py::arg("F"), py::arg("laplacian") = "cotan");
   m.def(
       "intrinsic_delaunay",
@@ -84,6 +93,10 @@ void bind_operators(py::module_& m) {
         stats["delaunay"] = o.stats.delaunay;
         return py::make_tuple(to_csr(stiffness_matrix(o.operator_mesh, o.ops)), to_csr(mass_matrix(o.ops)), stats);
       },
+      R"doc(intrinsic_delaunay(V, F, mollify_epsilon=1e-2) -> (K, M, stats)
+
+K and M on the intrinsic Delaunay triangulation of the same surface (Sharp and Crane
+2020): non-negative edge weights on any mesh, slivers and non-manifold ones included.)doc",
       py::arg("V"), py::arg("F"), py::arg("mollify_epsilon") = IntrinsicDelaunayOptions{}.mollify_epsilon);
   m.def(
       "curvature",
@@ -99,6 +112,10 @@ void bind_operators(py::module_& m) {
         }
         return to_numpy(H);
       },
+      R"doc(curvature(V, F, scale="area") -> (n,)
+
+Mean curvature H_i = |row_i(K V)| c_i / 2 (1 / length): 1/R on a sphere of radius R.
+scale: "area" (c_i = 3 / area around i) or "valence" (seed 000's flat-umbrella fit).)doc",
       py::arg("V"), py::arg("F"), py::arg("scale") = "area");
 }
 

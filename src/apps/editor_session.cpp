@@ -10,6 +10,7 @@
 #include "meshpde/core/errors.h"
 #include "meshpde/mesh/topology.h"
 #include "meshpde/operators/intrinsic_delaunay.h"
+#include "meshpde/operators/laplacian.h"
 
 namespace meshpde {
 

@@ -14,6 +14,7 @@
 #include "meshpde/apps/local_drag.h"
 #include "meshpde/core/errors.h"
 #include "meshpde/mesh/topology.h"
+#include "meshpde/operators/laplacian.h"
 #include "meshpde/pde/steady_direct.h"
 
 namespace meshpde {

@@ -6,17 +6,9 @@
 #include <vector>
 
 #include "meshpde/mesh/topology.h"
+#include "meshpde/operators/triangle_lengths.h"
 
 namespace meshpde {
-
-double heron_area(double a, double b, double c) {
-  // Sort so that a >= b >= c (Kahan, "Miscalculating area and angles of a needle-like triangle").
-  if (a < b) std::swap(a, b);
-  if (b < c) std::swap(b, c);
-  if (a < b) std::swap(a, b);
-  const double p = (a + (b + c)) * (c - (a - b)) * (c + (a - b)) * (a + (b - c));
-  return p > 0 ? 0.25 * std::sqrt(p) : 0.0;
-}
 
 Eigen::SparseMatrix<double> cotan_laplacian(const Mesh& mesh, CotanFormula formula) {
   const auto& V = mesh.positions();
@@ -38,7 +30,7 @@ Eigen::SparseMatrix<double> cotan_laplacian(const Mesh& mesh, CotanFormula formu
       // The angle at corner k faces edge (i, j).
       double half_cot;
       if (formula == CotanFormula::EdgeLengths) {
-        half_cot = 0.5 * (l2[(k + 1) % 3] + l2[(k + 2) % 3] - l2[k]) / (4.0 * A);
+        half_cot = 0.5 * cot_opposite(l[k], l[(k + 1) % 3], l[(k + 2) % 3]);
       } else {
         const Eigen::Vector3d u = V.row(i) - V.row(F(f, k)), w = V.row(j) - V.row(F(f, k));
         half_cot = 0.5 / std::tan(std::atan2(u.cross(w).norm(), u.dot(w)));

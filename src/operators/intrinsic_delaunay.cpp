@@ -9,6 +9,7 @@
 
 #include "meshpde/core/errors.h"
 #include "meshpde/mesh/topology.h"
+#include "meshpde/operators/triangle_lengths.h"
 
 namespace meshpde {
 namespace {
@@ -30,20 +31,9 @@ inline int prev(int h) {
   return h - h % 3 + (h % 3 + 2) % 3;
 }
 
-// Area from three lengths (Kahan's stable Heron); 0 if they violate the triangle inequality.
-double area_from_lengths(double a, double b, double c) {
-  if (a < b) std::swap(a, b);
-  if (a < c) std::swap(a, c);
-  if (b < c) std::swap(b, c);
-  const double p = (a + (b + c)) * (c - (a - b)) * (c + (a - b)) * (a + (b - c));
-  return p > 0 ? 0.25 * std::sqrt(p) : 0.0;
-}
-
 // Cotangent of the angle opposite halfedge h inside its triangle.
 double cot_opposite(const Cover& c, int h) {
-  const double a = c.len[h], b = c.len[next(h)], d = c.len[prev(h)];
-  const double A = area_from_lengths(a, b, d);
-  return A > 0 ? (b * b + d * d - a * a) / (4 * A) : 0.0;
+  return meshpde::cot_opposite(c.len[h], c.len[next(h)], c.len[prev(h)]);
 }
 
 // Builds the tufted cover: triangle 2f is face f's front (v0, v1, v2), 2f+1 its
@@ -282,7 +272,7 @@ IntrinsicOperators build_intrinsic_delaunay_operators(const Mesh& mesh, const In
     // l[a]: length of the edge opposite corner a (halfedge 3t + a + 1).
     const double l[3] = {c.len[static_cast<std::size_t>(3 * t + 1)], c.len[static_cast<std::size_t>(3 * t + 2)],
                          c.len[static_cast<std::size_t>(3 * t)]};
-    const double A = area_from_lengths(l[0], l[1], l[2]);
+    const double A = heron_area(l[0], l[1], l[2]);
     if (!(A > 0)) {
       ++ops.degenerate_faces;
       continue;
@@ -310,59 +300,6 @@ IntrinsicOperators build_intrinsic_delaunay_operators(const Mesh& mesh, const In
   for (std::size_t s = 0; s < om.neighbors().size(); ++s)
     ops.Kij[static_cast<Eigen::Index>(s)] = edge_value[om.edge_ids()[s]];
   for (int i = 0; i < nv; ++i) ops.zero_area_vertices += ops.mass[i] <= 0;
-  return out;
-}
-
-LaplacianKind parse_laplacian_kind(const std::string& text) {
-  if (text == "auto") return LaplacianKind::Auto;
-  if (text == "cotan") return LaplacianKind::Cotan;
-  if (text == "intrinsic" || text == "intrinsic-delaunay") return LaplacianKind::IntrinsicDelaunay;
-  throw InputError(fmt::format("unknown Laplacian '{}' (expected auto, cotan or intrinsic)", text));
-}
-
-const char* to_string(LaplacianKind kind) {
-  switch (kind) {
-    case LaplacianKind::Auto:
-      return "auto";
-    case LaplacianKind::Cotan:
-      return "cotan";
-    case LaplacianKind::IntrinsicDelaunay:
-      return "intrinsic";
-  }
-  return "?";
-}
-
-MeshOperators build_mesh_operators(const Mesh& mesh, LaplacianKind kind, const Eigen::VectorXd& vertex_weights) {
-  MeshOperators out;
-  if (kind == LaplacianKind::Auto) {
-    const MeshReport r = analyze(mesh);
-    const ShapeWarningThresholds t;
-    if (r.nonmanifold_edges > 0 || r.nonmanifold_vertices > 0) {
-      kind = LaplacianKind::IntrinsicDelaunay;
-      out.reason = "non-manifold mesh";
-    } else if (r.area_ratio > 0 && (r.min_angle_deg < t.min_angle_deg || r.area_ratio > t.area_ratio)) {
-      kind = LaplacianKind::IntrinsicDelaunay;
-      out.reason =
-          fmt::format("badly shaped (smallest angle {:.3g} deg, area ratio {:.3g})", r.min_angle_deg, r.area_ratio);
-    } else {
-      kind = LaplacianKind::Cotan;
-      out.reason = "well shaped";
-    }
-  }
-  out.kind = kind;
-  if (kind == LaplacianKind::IntrinsicDelaunay) {
-    IntrinsicDelaunayOptions o;
-    o.vertex_weights = vertex_weights;
-    IntrinsicOperators io = build_intrinsic_delaunay_operators(mesh, o);
-    out.mesh = std::move(io.operator_mesh);
-    out.ops = std::move(io.ops);
-    out.stats = io.stats;
-  } else {
-    OperatorOptions o;
-    if (vertex_weights.size()) o.face_weights = vertex_to_face_average(mesh, vertex_weights);
-    out.mesh = mesh;
-    out.ops = build_operators(mesh, o);
-  }
   return out;
 }
 

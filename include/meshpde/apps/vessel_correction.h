@@ -69,6 +69,7 @@
 #include "meshpde/mesh/self_intersections.h"
 #include "meshpde/operators/fem_operators.h"
 #include "meshpde/operators/intrinsic_delaunay.h"
+#include "meshpde/operators/laplacian.h"
 
 namespace meshpde {
 

@@ -15,15 +15,12 @@
 #include <Eigen/SparseCore>
 
 #include "meshpde/mesh/mesh.h"
+#include "meshpde/operators/triangle_lengths.h"  // heron_area, cot_opposite
 
 namespace meshpde {
 
 enum class CotanFormula { Angles, EdgeLengths };
 
 Eigen::SparseMatrix<double> cotan_laplacian(const Mesh& mesh, CotanFormula formula = CotanFormula::Angles);
-
-/// Area of a triangle with side lengths a, b, c (Kahan's formula; 0 if the lengths
-/// violate the triangle inequality by roundoff).
-double heron_area(double a, double b, double c);
 
 }  // namespace meshpde

@@ -26,13 +26,10 @@
 #include <Eigen/SparseCore>
 #include <span>
 
+#include "meshpde/mesh/field.h"
 #include "meshpde/mesh/mesh.h"
 
 namespace meshpde {
-
-/// Per-vertex fields: #V rows, one column per component (1 for scalars, 3 for
-/// displacements), row-major so a vertex's components are contiguous.
-using Field = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
 
 struct OperatorOptions {
   /// Optional per-triangle multiplier of the element stiffness (length #F), for
@@ -117,5 +114,25 @@ void apply_stiffness_rows(const Mesh& mesh, const FemOperators& ops, const doubl
 /// Y = K D K u for a scalar field over the whole mesh, with T (length #V) as scratch.
 /// The D scaling is fused into the first sweep, so memory is streamed twice.
 void apply_bilaplacian_scalar(const Mesh& mesh, const FemOperators& ops, const double* u, double* T, double* Y);
+
+/// Plain (V, F) forms of the whole-mesh products and matrices: each builds the mesh and
+/// its cotangent operators first (for repeated use, build them once and call the
+/// forms above). Shapes, units and signs as above.
+inline Field apply_stiffness(const Positions& V, const Triangles& F, const Field& U) {
+  const Mesh mesh(V, F);
+  return apply_stiffness(mesh, build_operators(mesh), U);
+}
+inline Field apply_bilaplacian(const Positions& V, const Triangles& F, const Field& U) {
+  const Mesh mesh(V, F);
+  return apply_bilaplacian(mesh, build_operators(mesh), U);
+}
+inline Eigen::SparseMatrix<double> stiffness_matrix(const Positions& V, const Triangles& F) {
+  const Mesh mesh(V, F);
+  return stiffness_matrix(mesh, build_operators(mesh));
+}
+inline Eigen::SparseMatrix<double> mass_matrix(const Positions& V, const Triangles& F) {
+  const Mesh mesh(V, F);
+  return mass_matrix(build_operators(mesh));
+}
 
 }  // namespace meshpde

@@ -40,8 +40,6 @@
 // all a caller does; outputs stay on the input triangles.
 #pragma once
 
-#include <string>
-
 #include "meshpde/mesh/mesh.h"
 #include "meshpde/operators/fem_operators.h"
 
@@ -70,28 +68,5 @@ struct IntrinsicOperators {
 
 /// \throw InputError if vertex_weights has the wrong length or a negative entry.
 IntrinsicOperators build_intrinsic_delaunay_operators(const Mesh& mesh, const IntrinsicDelaunayOptions& options = {});
-
-/// Which stiffness a solver uses. Auto picks intrinsic Delaunay when the mesh is
-/// badly shaped (smallest angle below 1 degree or area ratio above 1e4, the
-/// thresholds of analyze()) or non-manifold, and the plain cotangent otherwise.
-enum class LaplacianKind { Auto, Cotan, IntrinsicDelaunay };
-
-/// "auto", "cotan", "intrinsic" (or "intrinsic-delaunay"). \throw InputError otherwise.
-LaplacianKind parse_laplacian_kind(const std::string& text);
-const char* to_string(LaplacianKind kind);
-
-/// The operators a solver runs on, with the connectivity they are defined on.
-struct MeshOperators {
-  Mesh mesh;  ///< the input mesh (cotan) or the intrinsic operator mesh
-  FemOperators ops;
-  LaplacianKind kind = LaplacianKind::Cotan;  ///< the kind actually used (never Auto)
-  std::string reason;                         ///< why Auto chose it
-  IntrinsicDelaunayStats stats;               ///< intrinsic only
-};
-
-/// Builds K and M of the requested kind. vertex_weights: as in the options above
-/// (for the cotangent kind it is averaged per input triangle).
-MeshOperators build_mesh_operators(const Mesh& mesh, LaplacianKind kind,
-                                   const Eigen::VectorXd& vertex_weights = Eigen::VectorXd());
 
 }  // namespace meshpde

@@ -39,18 +39,10 @@
 #include "meshpde/mesh/mesh.h"
 #include "meshpde/operators/fem_operators.h"
 #include "meshpde/pde/active_domain.h"
+#include "meshpde/pde/coefficients.h"
 #include "meshpde/solvers/cg.h"
 
 namespace meshpde {
-
-struct PdeCoefficients {
-  double alpha = 0;  ///< inertia (mass density)
-  double b1 = 1;     ///< mass-proportional (Rayleigh) damping
-  double b2 = 0;     ///< stiffness-proportional (Rayleigh) damping
-  double g0 = 0;     ///< elastic foundation (zero-order stiffness), see above
-  double g1 = 1;     ///< Laplacian (membrane) stiffness
-  double g2 = 0;     ///< bi-Laplacian (plate) stiffness
-};
 
 /// How the active domain adjusts itself after each step (seed 000 section 4.2).
 /// Growth is relative to the current activity, so it does not depend on units;
