@@ -8,7 +8,7 @@ T="$(mktemp -d)"
 trap 'rm -rf "$T"' EXIT
 mkdir "$T/src"
 # The tracked files and the page's sources only: no build trees, no node_modules.
-(cd "$src" && git ls-files -z 2>/dev/null | xargs -0 cp --parents -t "$T/src") ||
+(cd "$src" && git ls-files -z --cached --others --exclude-standard 2>/dev/null | xargs -0 cp --parents -t "$T/src") ||
   cp -r "$src"/{CMakeLists.txt,setup.py,pyproject.toml,cmake,include,src,python,docs} "$T/src"
 "$python" -c "import setuptools" 2>/dev/null || { echo "python3-setuptools missing"; exit 1; }
 "$python" -m pip --version >/dev/null 2>&1 || { echo "pip missing (Debian: python3-pip)"; [ "${CI:-}" = true ] && exit 1; exit 77; }

@@ -1,6 +1,7 @@
 #include <gtest/gtest.h>
 
 #include <cctype>
+#include <string>
 
 #include "meshpde/core/errors.h"
 #include "meshpde/mesh/generators.h"
@@ -162,6 +163,11 @@ TEST_P(RealMeshInfo, MatchesManifest) {
 }
 
 // Figures from ../shared/data/MANIFEST.md.
+// What gtest prints for a case (ctest -N, failures): its file.
+void PrintTo(const RealMeshExpectation& e, std::ostream* os) {
+  *os << e.file;
+}
+
 INSTANTIATE_TEST_SUITE_P(Manifest, RealMeshInfo,
                          ::testing::Values(RealMeshExpectation{"bunny-3k.off", 3485, 0, 0, 0, 0, 2, 1},
                                            RealMeshExpectation{"bunny-36k.obj", 35947, 5, 0, 0, 1113, -3, 1},
@@ -172,7 +178,14 @@ INSTANTIATE_TEST_SUITE_P(Manifest, RealMeshInfo,
                                            RealMeshExpectation{"aorta-open-6k.stl", 6068, 3, 0, 0, 0, -1, 1},
                                            RealMeshExpectation{"coronary-phantom-7k.stl", 6531, 7, 0, 0, 0, -5, 1},
                                            RealMeshExpectation{"nonmanifold-vierbein.obj", 75, 1, 20, 0, 0, kNotStated,
-                                                               kNotStated}));
+                                                               kNotStated}),
+                         // ctest lists each case by its file: Manifest/RealMeshInfo.MatchesManifest/bunny_3k_off
+                         [](const ::testing::TestParamInfo<RealMeshExpectation>& param_info) {
+                           std::string name = param_info.param.file;
+                           for (char& c : name)
+                             if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
+                           return name;
+                         });
 
 TEST(Topology, NonManifoldRealMeshes) {
   Mesh m;

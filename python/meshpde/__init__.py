@@ -32,11 +32,13 @@ from ._meshpde import (  # noqa: F401  (re-exported)
     SolverError,
     curvature,
     generate,
+    geodesic_ball,
     info,
     intrinsic_delaunay,
     mass,
     read_mesh,
     render,
+    ring_ball,
     self_intersections,
     stiffness,
     vertex_normals,
@@ -53,8 +55,8 @@ if has_medical:
 
 __all__ = [
     "CorrectionResult", "CorrectionSession", "DragSession", "Error", "GlobalBilaplacianSolver", "HapticSession",
-    "InputError", "PdeSession", "SolverError", "correct", "curvature", "fair", "from_vtk", "generate", "heat", "info",
-    "interpolate", "intrinsic_delaunay", "mass", "read_mesh", "read_volume", "render", "self_intersections",
+    "InputError", "PdeSession", "SolverError", "correct", "curvature", "fair", "from_vtk", "generate", "geodesic_ball", "heat", "info",
+    "interpolate", "intrinsic_delaunay", "mass", "read_mesh", "read_volume", "render", "ring_ball", "self_intersections",
     "stiffness", "to_vtk", "vertex_normals", "wave", "wave_energy", "write_mesh",
 ]
 

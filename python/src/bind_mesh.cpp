@@ -14,6 +14,7 @@
 #include "meshpde/image/volume.h"
 #include "meshpde/io/mesh_io.h"
 #include "meshpde/mesh/generators.h"
+#include "meshpde/mesh/regions.h"
 #include "meshpde/mesh/self_intersections.h"
 #include "meshpde/mesh/topology.h"
 #include "meshpde/viz/render.h"
@@ -175,6 +176,11 @@ void bind_mesh(py::module_& m) {
           PyErr_WarnEx(PyExc_UserWarning, fmt::format("{}: {}", path.string(), w).c_str(), 1);
         return py::make_tuple(to_numpy(Eigen::MatrixXd(d.V)), to_numpy(d.F), fields_to_python(d));
       },
+      R"doc(read_mesh(path) -> (V, F, fields)
+
+V (n, 3) float64, F (m, 3) int32, fields: vertex fields by name ((n,) or (n, k);
+NAME_x/_y/_z joined into (n, 3)). OBJ, OFF, PLY, STL and, with the medical component,
+.vtp/.vtk. Raises FileNotFoundError, or InputError naming the file and line/element.)doc",
       py::arg("path"));
 
   m.def(
@@ -194,6 +200,10 @@ void bind_mesh(py::module_& m) {
           PyErr_WarnEx(PyExc_UserWarning, fmt::format("{}: {}", path.string(), w).c_str(), 1);
         return warnings;
       },
+      R"doc(write_mesh(path, V, F, fields=None, binary=True) -> warnings
+
+Writes by extension, atomically (a temporary file renamed over the target). Fields a
+format cannot hold are dropped with a UserWarning (also returned).)doc",
       py::arg("path"), py::arg("V"), py::arg("F"), py::arg("fields") = py::none(), py::arg("binary") = true);
 
   m.def(
@@ -231,6 +241,11 @@ void bind_mesh(py::module_& m) {
         }
         return report_to_python(r);
       },
+      R"doc(info(V, F) or info(path) -> dict
+
+The report of `meshpde info --json`: counts, boundary loops, non-manifold edges and
+vertices, components, orientation, signed volume, angles, warnings. For a volume file:
+dims, spacing, origin, direction (LPS), orientation code, extent, value range.)doc",
       py::arg("V"), py::arg("F") = py::none());
 
   m.def(
@@ -239,7 +254,35 @@ void bind_mesh(py::module_& m) {
         const Mesh mesh = mesh_arg(V, F);
         return to_numpy(Eigen::MatrixXd(outward ? outward_vertex_normals(mesh) : vertex_normals(mesh)));
       },
+      R"doc(vertex_normals(V, F, outward=True) -> (n, 3)
+
+Area-weighted unit normals; outward=True turns them away from the enclosed volume of a
+closed mesh whatever its triangles' orientation. Zero rows for vertices without area.)doc",
       py::arg("V"), py::arg("F"), py::arg("outward") = true);
+
+  m.def(
+      "geodesic_ball",
+      [](const py::handle& V, const py::handle& F, long long vertex, double radius) {
+        const Mesh mesh = mesh_arg(V, F);
+        if (!(radius > 0) || !std::isfinite(radius))
+          throw py::value_error(fmt::format("radius: expected a length > 0, got {}", radius));
+        return to_numpy(geodesic_ball(mesh, vertex_arg(vertex, "vertex", mesh.num_vertices()), radius));
+      },
+      R"doc(geodesic_ball(V, F, vertex, radius) -> indices
+
+Vertices whose edge-path distance from `vertex` is below `radius` (mesh units), nearest first.)doc",
+      py::arg("V"), py::arg("F"), py::arg("vertex"), py::arg("radius"));
+  m.def(
+      "ring_ball",
+      [](const py::handle& V, const py::handle& F, long long vertex, int rings) {
+        const Mesh mesh = mesh_arg(V, F);
+        if (rings < 0) throw py::value_error(fmt::format("rings: expected >= 0, got {}", rings));
+        return to_numpy(ring_ball(mesh, vertex_arg(vertex, "vertex", mesh.num_vertices()), rings));
+      },
+      R"doc(ring_ball(V, F, vertex, rings) -> indices
+
+Vertices within `rings` edges of `vertex`.)doc",
+      py::arg("V"), py::arg("F"), py::arg("vertex"), py::arg("rings"));
 
   m.def(
       "self_intersections",
@@ -258,6 +301,9 @@ void bind_mesh(py::module_& m) {
         }
         return a;
       },
+      R"doc(self_intersections(V, F) -> (p, 2) int
+
+Pairs of triangles that intersect (not counting shared corners or edges).)doc",
       py::arg("V"), py::arg("F"));
 
   m.def(
@@ -300,6 +346,10 @@ void bind_mesh(py::module_& m) {
         std::copy(img.rgb.begin(), img.rgb.end(), a.mutable_data());
         return a;
       },
+      R"doc(render(V, F, field=None, vectors=None, path=None, ...) -> (height, width, 3) uint8 or None
+
+A headless picture: shading, a colour map of `field` (n,) with its legend, arrows of
+`vectors` (n, 3). With `path` writes a PNG and returns None.)doc",
       py::arg("V"), py::arg("F"), py::arg("field") = py::none(), py::arg("vectors") = py::none(),
       py::arg("path") = py::none(), py::arg("width") = 960, py::arg("height") = 720, py::arg("azimuth") = 30.0,
       py::arg("elevation") = 20.0, py::arg("up") = "y", py::arg("zoom") = 1.0, py::arg("center") = py::none(),
@@ -324,6 +374,10 @@ void bind_mesh(py::module_& m) {
         affine.topRightCorner<3, 1>() = v.origin;
         return py::make_tuple(std::move(a), to_numpy(Eigen::MatrixXd(affine)));
       },
+      R"doc(read_volume(path) -> (values, affine)
+
+values[i, j, k] float32 and the 4 x 4 affine from voxel indices to LPS millimetres.
+.mha/.mhd, .nii/.nii.gz (sform, else qform), .nrrd/.nhdr.)doc",
       py::arg("path"));
 #endif
 

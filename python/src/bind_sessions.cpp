@@ -85,7 +85,15 @@ GlobalBilaplacianParams::Preconditioner preconditioner_arg(const std::string& na
 void bind_sessions(py::module_& m) {
   const PdeCoefficients c0;
   const DomainOptions d0;
-  py::class_<PyPdeSession>(m, "PdeSession")
+  py::class_<PyPdeSession>(
+      m, "PdeSession",
+      R"doc(PdeSession(V, F, components=1, alpha=0, b1=1, b2=0, g0=0, g1=1, g2=0, self_adjusting=False, ...)
+
+alpha M u'' + (b1 M + b2 Kt) u' + Kt u = f, Kt = g0 M + g1 K + g2 K M^-1 K, stepped by
+backward Euler with CG on the free vertices of an active domain (every vertex frozen
+at first: activate_all(), activate_rings(), or constrain() which frees rings around a
+vertex). values and velocities are (n, components); reaction_forces one row per
+constrained vertex (the force the constraint applies to hold it).)doc")
       .def(py::init([](const py::handle& V, const py::handle& F, int components, double alpha, double b1, double b2,
                        double g0, double g1, double g2, bool self_adjusting, double grow_fraction, double rest_value,
                        double rest_rate, int rest_steps, int seed_rings, int max_free, double tolerance,
@@ -189,7 +197,13 @@ void bind_sessions(py::module_& m) {
           py::arg("f") = py::none());
 
   const HapticParams h0;
-  py::class_<PyHapticSession>(m, "HapticSession")
+  py::class_<PyHapticSession>(m, "HapticSession",
+                              R"doc(HapticSession(V, F, influence=0, stiffness=1, mass=1e-2, damping=0.2, ...)
+
+A probe holds a vertex (touch) and moves (move_probe, an offset in mesh units); each
+step(dt) returns the force felt by the probe (3,), pushing back out of a dent. start()
+runs the steps on a servo thread at rate_hz; log() returns every step. influence: the
+decay length of a poke (0: 3 mean edge lengths).)doc")
       .def(py::init([](const py::handle& V, const py::handle& F, double influence, double stiffness, double mass,
                        double damping, double stiffness_damping, double domain_tolerance, double rate_hz) {
              HapticParams p;
@@ -269,7 +283,13 @@ void bind_sessions(py::module_& m) {
       });
 
   const DragSessionParams g0;
-  py::class_<PyDragSession>(m, "DragSession")
+  py::class_<PyDragSession>(
+      m, "DragSession",
+      R"doc(DragSession(V, F, handles, radius=0, rings=0, g1=0, g2=1, margin=False, inner_margin=False)
+
+Interactive drags of handle vertices over one region with one factorization:
+positions(d) for handle displacements d (k, 3) costs a product, not a solve;
+add_handle, grow and shrink reuse the factor where they can.)doc")
       .def(py::init([](const py::handle& V, const py::handle& F, const py::handle& handles, double radius, int rings,
                        double g1, double g2, bool margin, bool inner_margin) {
              auto p = std::make_unique<PyDragSession>();
@@ -329,7 +349,14 @@ void bind_sessions(py::module_& m) {
       .def_property_readonly("factorizations", [](const PyDragSession& p) { return p.s->factorizations(); });
 
   const GlobalBilaplacianParams q0;
-  py::class_<PyGlobalSolver>(m, "GlobalBilaplacianSolver")
+  py::class_<PyGlobalSolver>(
+      m, "GlobalBilaplacianSolver",
+      R"doc(GlobalBilaplacianSolver(V, F, free, g1=0, g2=1, tolerance=1e-8, max_iterations=1000, preconditioner="auto")
+
+Whole-mesh steady solves (g1 K + g2 K M^-1 K) u = 0 on the `free` vertices, the others
+held at the values given to solve(u) (n,) or (n, c). The preconditioner (surface
+multigrid or Laplacian factor, "auto" chooses by measured convergence) is built by the
+first solve and kept. Returns (u, info).)doc")
       .def(py::init([](const py::handle& V, const py::handle& F, const py::handle& free, double g1, double g2,
                        double tolerance, int max_iterations, const std::string& preconditioner) {
              auto p = std::make_unique<PyGlobalSolver>();
@@ -395,8 +422,7 @@ void bind_sessions(py::module_& m) {
         }
         return us;
       },
-      py::arg("session"), py::arg("vertex"), py::arg("direction"), py::arg("depth"), py::arg("steps"),
-      py::arg("dt"));
+      py::arg("session"), py::arg("vertex"), py::arg("direction"), py::arg("depth"), py::arg("steps"), py::arg("dt"));
   b.def(
       "stiffness_seconds",
       [](const py::handle& V, const py::handle& F) {

@@ -143,3 +143,18 @@ def test_info_of_a_mesh_file_equals_info_of_its_arrays(data):
     path = data("bunny-3k.off")
     V, F, _ = meshpde.read_mesh(path)
     assert meshpde.info(path) == meshpde.info(V, F)
+
+
+def test_geodesic_and_ring_balls(sphere):
+    V, F = sphere
+    ball = meshpde.geodesic_ball(V, F, 0, 0.5)
+    assert ball[0] == 0
+    # every vertex of the ball is within 0.5 straight-line distance too (edge paths are longer)
+    assert np.all(np.linalg.norm(V[ball] - V[0], axis=1) < 0.5)
+    ring1 = meshpde.ring_ball(V, F, 0, 1)
+    neighbours = set(F[(F == 0).any(axis=1)].ravel())
+    assert set(ring1) == neighbours
+    with pytest.raises(IndexError):
+        meshpde.ring_ball(V, F, len(V), 1)
+    with pytest.raises(ValueError, match="radius"):
+        meshpde.geodesic_ball(V, F, 0, -1.0)

@@ -1,8 +1,8 @@
 // A downstream project: builds operators on a generated sphere through the
-// installed package and checks one identity; with meshpde::medical, also writes
-// the sphere as .vtp bytes and reads it back.
-#include <meshpde/mesh/generators.h>
-#include <meshpde/operators/fem_operators.h>
+// installed package (the one-include header) and checks one identity and a plain
+// (V, F) call; with meshpde::medical, also writes the sphere as .vtp bytes and reads
+// it back.
+#include <meshpde/meshpde.h>
 #ifdef CONSUMER_HAS_MEDICAL
 #include <meshpde/io/medical_io.h>
 #endif
@@ -16,6 +16,9 @@ int main() {
   const meshpde::Field ones = meshpde::Field::Ones(mesh.num_vertices(), 1);
   const double r = meshpde::apply_stiffness(mesh, ops, ones).cwiseAbs().maxCoeff();
   std::printf("%d vertices, K 1 = 0 up to %.1e\n", mesh.num_vertices(), r);
+  const Eigen::VectorXd H = meshpde::mean_curvature(g.V, g.F, meshpde::CurvatureScale::Valence);
+  std::printf("mean curvature of the unit sphere from (V, F): %.3f .. %.3f\n", H.minCoeff(), H.maxCoeff());
+  if (!(H.minCoeff() > 0.9 && H.maxCoeff() < 1.1)) return 1;
 #ifdef CONSUMER_HAS_MEDICAL
   meshpde::MeshData d;
   d.V = g.V;

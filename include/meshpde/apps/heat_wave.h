@@ -55,4 +55,17 @@ PropagationResult propagate(
 double wave_energy(const Mesh& mesh, const FemOperators& ops, const Eigen::VectorXd& u, const Eigen::VectorXd& ut,
                    double wave_speed);
 
+/// The same on plain (V, F) with the cotangent operators.
+inline PropagationResult propagate(
+    const Positions& V, const Triangles& F, const PropagationParams& params,
+    const std::function<void(int, const Eigen::VectorXd&, const Eigen::VectorXd&)>& on_step = {}) {
+  const Mesh mesh(V, F);
+  return propagate(mesh, build_operators(mesh), params, on_step);
+}
+inline double wave_energy(const Positions& V, const Triangles& F, const Eigen::VectorXd& u, const Eigen::VectorXd& ut,
+                          double wave_speed) {
+  const Mesh mesh(V, F);
+  return wave_energy(mesh, build_operators(mesh), u, ut, wave_speed);
+}
+
 }  // namespace meshpde

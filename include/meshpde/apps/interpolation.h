@@ -55,4 +55,12 @@ InterpolationResult interpolate(const Mesh& mesh, const FemOperators& ops, Field
                                 const std::vector<InterpolationConstraint>& constraints,
                                 const InterpolationParams& params = {});
 
+/// The same on plain (V, F) with the cotangent operators.
+inline InterpolationResult interpolate(const Positions& V, const Triangles& F, FieldKind kind,
+                                       const std::vector<InterpolationConstraint>& constraints,
+                                       const InterpolationParams& params = {}) {
+  const Mesh mesh(V, F);
+  return interpolate(mesh, build_operators(mesh), kind, constraints, params);
+}
+
 }  // namespace meshpde

@@ -21,4 +21,10 @@ enum class CurvatureScale { Area, Valence };
 /// Unsigned mean curvature per vertex (length #V).
 Eigen::VectorXd mean_curvature(const Mesh& mesh, const FemOperators& ops, CurvatureScale scale);
 
+/// The same on plain (V, F): builds the mesh and its cotangent operators first.
+inline Eigen::VectorXd mean_curvature(const Positions& V, const Triangles& F, CurvatureScale scale) {
+  const Mesh mesh(V, F);
+  return mean_curvature(mesh, build_operators(mesh), scale);
+}
+
 }  // namespace meshpde

@@ -123,4 +123,12 @@ GlobalBilaplacianResult solve_global_bilaplacian(const Mesh& mesh, const FemOper
                                                  const std::vector<int>& free, const Field& u,
                                                  const GlobalBilaplacianParams& params = {});
 
+/// The same on plain (V, F) with the cotangent operators.
+inline GlobalBilaplacianResult solve_global_bilaplacian(const Positions& V, const Triangles& F,
+                                                        const std::vector<int>& free, const Field& u,
+                                                        const GlobalBilaplacianParams& params = {}) {
+  const Mesh mesh(V, F);
+  return solve_global_bilaplacian(mesh, build_operators(mesh), free, u, params);
+}
+
 }  // namespace meshpde

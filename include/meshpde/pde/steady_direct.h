@@ -138,4 +138,11 @@ class SteadyDirectSolver {
   mutable double inverse_norm_1_ = -1;  // estimate of ||A^-1||_1, computed on demand
 };
 
+/// The same on plain (V, F) with the cotangent operators.
+inline SteadySolveResult solve_steady(const Positions& V, const Triangles& F, const PdeCoefficients& coefficients,
+                                      const std::vector<int>& free, const Field& u, SteadySolver solver) {
+  const Mesh mesh(V, F);
+  return solve_steady(mesh, build_operators(mesh), coefficients, free, u, solver);
+}
+
 }  // namespace meshpde
