@@ -349,7 +349,7 @@ class EditorServer {
         reply["brushed"] = true;
       } else if (type == "drag_begin") {
         const double radius = number(j, "radius", 8);
-        reply["setup_ms"] = s.drag_begin(vertex_of(j), radius);
+        reply["setup_ms"] = s.drag_begin(vertex_of(j), radius, c.stiffness);
         reply["region_vertices"] = s.drag_region_vertices();
       } else if (type == "drag_move") {
         // Moves after a refused drag_begin (a region too large to preview) are dropped

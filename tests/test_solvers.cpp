@@ -947,6 +947,8 @@ TEST(Direct, ConditioningEstimateMatchesTheTrueConditionNumber) {
 }
 
 #include "meshpde/apps/editor_session.h"
+#include "meshpde/apps/vessel_correction.h"
+#include "meshpde/mesh/regions.h"
 
 TEST(DragSession, EditorPreviewFollowsTheHandleAndCorrectReplacesIt) {
   const GeneratedMesh g = icosphere(4);
@@ -965,12 +967,15 @@ TEST(DragSession, EditorPreviewFollowsTheHandleAndCorrectReplacesIt) {
   const Eigen::Vector3d offset(0.02, 0, 0.15);
   s.drag_move(offset);
   const Positions P = s.display_positions();
-  // The handle is where it was dragged, the preview is the bi-Laplacian drag itself,
-  // and nothing outside the region moved.
+  // The handle is where it was dragged, and the preview when the mouse stops is the
+  // correction that releasing applies (same region rule, copy and operators), to
+  // 1e-9 of the drag.
   EXPECT_LE((P.row(handle) - rest.row(handle) - offset.transpose()).norm(), 1e-12);
-  const DragResult ref =
-      drag_vertex(mesh, build_operators(mesh), DragParams{.vertex = handle, .displacement = offset, .radius = 0.6});
-  EXPECT_LE((P - rest - ref.displacement).cwiseAbs().maxCoeff(), 1e-9);
+  CorrectionParams release;
+  release.handles = {{handle, offset}};
+  release.radius = 0.6;
+  const CorrectionResult expected = correct_vessel(mesh, release);
+  EXPECT_LE((P - expected.V).cwiseAbs().maxCoeff(), 1e-9 * offset.norm());
   EXPECT_THROW(s.drag_move(Eigen::Vector3d(NAN, 0, 0)), InputError);
   EXPECT_THROW(s.drag_begin(handle, -1), InputError);
   EXPECT_TRUE(s.dragging());  // a refused request leaves the drag as it was
@@ -981,6 +986,7 @@ TEST(DragSession, EditorPreviewFollowsTheHandleAndCorrectReplacesIt) {
   const CorrectionResult r = s.correct(p);
   EXPECT_FALSE(s.dragging());
   EXPECT_LE((s.display_positions() - r.V).cwiseAbs().maxCoeff(), 0.0);
+  EXPECT_LE((r.V - P).cwiseAbs().maxCoeff(), 1e-9 * offset.norm());
   // A drag let go without moving leaves the surface as it was.
   s.drag_begin(handle, 0.6);
   s.drag_end();
@@ -999,6 +1005,41 @@ TEST(DragSession, EditorPreviewFollowsTheHandleAndCorrectReplacesIt) {
     EXPECT_NE(std::string(e.what()).find("too large for a live preview"), std::string::npos) << e.what();
   }
   EXPECT_FALSE(b.dragging());
+}
+
+TEST(DragSession, EditorPreviewEqualsTheReleasedCorrectionWithStiffnessOnADentedVessel) {
+  // A generated vessel with a dent, a stiffer band painted on it, a drag over a region
+  // much smaller than the mesh (so both solve on the region's copy): the preview at the
+  // last mouse position equals the correction applied on release.
+  const GeneratedMesh g = y_bifurcation(BifurcationParams{.cell = 0.7, .dent = true});
+  MeshData data;
+  data.V = g.V;
+  data.F = g.F;
+  EditorSession s(data);
+  const Mesh& mesh = s.mesh();
+  const Eigen::Vector3d target(2.5, 0, -10);
+  int handle = 0;
+  (mesh.positions().rowwise() - target.transpose()).rowwise().squaredNorm().minCoeff(&handle);
+  Eigen::VectorXd stiffness;
+  apply_brush(mesh, stiffness, Brush{.vertex = handle, .radius = 2.0, .value = 4.0});
+  const double radius = 6.0;
+  s.drag_begin(handle, radius, stiffness);
+  ASSERT_LT(s.drag_region_vertices(), mesh.num_vertices() / 3);
+  const Eigen::Vector3d offset(1.2, 0.1, -0.3);
+  for (double t : {0.25, 0.5, 1.0}) s.drag_move(t * offset);  // the mouse moves, then stops
+  const Positions preview = s.display_positions();
+  CorrectionParams p;
+  p.handles = {{handle, offset}};
+  p.radius = radius;
+  p.stiffness = stiffness;
+  const CorrectionResult r = s.correct(p);
+  EXPECT_EQ(r.new_self_intersections, 0);
+  EXPECT_EQ(r.intersection_action, "none");
+  EXPECT_LE((preview - r.V).cwiseAbs().maxCoeff(), 1e-9 * offset.norm());
+  // and the stiffness mattered: without it the release differs
+  CorrectionParams soft = p;
+  soft.stiffness.resize(0);
+  EXPECT_GT((correct_vessel(Mesh(data.V, data.F), soft).V - r.V).cwiseAbs().maxCoeff(), 1e-3 * offset.norm());
 }
 
 #include "meshpde/core/parallel.h"

@@ -42,21 +42,30 @@ Positions EditorSession::display_positions() const {
   if (haptic_) V += haptic_->displacement();
   if (drag_) {
     const Eigen::MatrixXd d = drag_->displacements(drag_offset_.transpose());
+    // The session runs on the region's copy: its rows map back through to_mesh.
+    const auto& to_mesh = drag_region_->copy.to_mesh;
     const auto& region = drag_->region();
-    for (std::size_t k = 0; k < region.size(); ++k) V.row(region[k]) += d.row(static_cast<Eigen::Index>(k));
-    V.row(drag_->handles()[0]) += drag_offset_.transpose();
+    for (std::size_t k = 0; k < region.size(); ++k)
+      V.row(to_mesh[static_cast<std::size_t>(region[k])]) += d.row(static_cast<Eigen::Index>(k));
+    V.row(to_mesh[static_cast<std::size_t>(drag_->handles()[0])]) += drag_offset_.transpose();
   }
   return V;
 }
 
-double EditorSession::drag_begin(int vertex, double radius) {
+double EditorSession::drag_begin(int vertex, double radius, const Eigen::VectorXd& stiffness) {
   check_vertex(vertex);
   if (!(radius > 0) || !std::isfinite(radius)) throw InputError("drag radius must be a length > 0");
+  // The release's correction (fem, static, the automatic Laplacian, this radius).
+  CorrectionParams p;
+  p.handles = {{vertex, Eigen::Vector3d::Zero()}};
+  p.radius = radius;
+  p.stiffness = stiffness;
   // A live preview factors the region on the server's one thread: keep it to regions
   // whose set-up takes a fraction of a second (about 0.3 s at 20k vertices here).
   constexpr std::size_t kPreviewLimit = 20000;
-  const std::vector<int> region = geodesic_ball(mesh(), vertex, radius);
-  if (const std::size_t n = region.size(); n > kPreviewLimit)
+  std::vector<int> handle{vertex};
+  if (const std::size_t n = influence_region(mesh(), handle, RegionSpec{.radius = radius, .rings = 0}, true).size();
+      n > kPreviewLimit)
     throw InputError(
         fmt::format("a region of {} vertices is too large for a live preview (at most {}); the "
                     "correction still runs when you let go",
@@ -64,15 +73,14 @@ double EditorSession::drag_begin(int vertex, double radius) {
   pause();
   const auto t0 = std::chrono::steady_clock::now();
   drag_.reset();
-  if (!drag_mesh_ || drag_version_ != version_) {
-    // The operators of the surface as it is now (intrinsic ones on badly shaped meshes,
-    // as correct() uses), kept until the surface changes.
-    MeshOperators mo = build_mesh_operators(mesh(), LaplacianKind::Auto);
-    drag_mesh_ = std::make_unique<Mesh>(std::move(mo.mesh));
-    drag_ops_ = std::make_unique<FemOperators>(std::move(mo.ops));
-    drag_version_ = version_;
-  }
-  drag_ = std::make_unique<DragSession>(*drag_mesh_, *drag_ops_, std::vector<int>{vertex}, region, DragSessionParams{});
+  drag_region_ = std::make_unique<CorrectionRegion>(correction_region(mesh(), p));
+  const RegionCopy& c = drag_region_->copy;
+  std::vector<int> local_region;
+  local_region.reserve(drag_region_->region.size());
+  for (const int v : drag_region_->region) local_region.push_back(c.local(v));
+  drag_ = std::make_unique<DragSession>(drag_region_->operators.mesh, drag_region_->operators.ops,
+                                        std::vector<int>{c.local(vertex)}, local_region,
+                                        DragSessionParams{.g1 = p.g1, .g2 = p.g2});
   drag_offset_.setZero();
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 }
@@ -85,6 +93,7 @@ void EditorSession::drag_move(const Eigen::Vector3d& offset) {
 
 void EditorSession::drag_end() {
   drag_.reset();
+  drag_region_.reset();
   drag_offset_.setZero();
 }
 

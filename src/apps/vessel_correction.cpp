@@ -113,46 +113,12 @@ void validate(const Mesh& mesh, const CorrectionParams& p) {
     throw InputError(fmt::format("direction cube size {} must be odd and at least 3", p.image.cube_size));
 }
 
-// Mean length of the mesh edges among `vertices`.
-double local_edge_length(const Mesh& mesh, const std::vector<int>& vertices) {
-  std::unordered_map<int, char> in;
-  for (int v : vertices) in.emplace(v, 1);
-  double sum = 0;
-  int n = 0;
-  for (int v : vertices)
-    for (int w : mesh.neighbors(v))
-      if (w > v && in.count(w)) {
-        sum += (mesh.positions().row(v) - mesh.positions().row(w)).norm();
-        ++n;
-      }
-  return n ? sum / n : 0.0;
-}
-
-// Union of the handles' regions, handles first, in breadth-first (ring) order.
-// A radius in mm is made resolution independent for the Fem method: the frozen
-// rings clamp the solution about one edge length h outside the last free vertex,
-// so the free set is taken within radius - h, which puts the clamp at the radius
-// whatever the mesh resolution (measured on tubes of 32, 64 and 128 segments: the
-// Hausdorff distance between the results halves).
+// The region of influence: mesh/regions.h's rule, clamped at the radius for Fem.
 std::vector<int> region_of(const Mesh& mesh, const CorrectionParams& p) {
-  std::vector<int> out;
-  std::vector<char> seen(static_cast<std::size_t>(mesh.num_vertices()), 0);
-  for (const auto& h : p.handles)
-    if (!seen[static_cast<std::size_t>(h.vertex)]++) out.push_back(h.vertex);
-  for (const auto& h : p.handles) {
-    std::vector<int> ball;
-    if (p.radius > 0) {
-      ball = geodesic_ball(mesh, h.vertex, p.radius);
-      const double edge = local_edge_length(mesh, ball);
-      if (p.method == CorrectionMethod::Fem && edge > 0 && p.radius > 2 * edge)
-        ball = geodesic_ball(mesh, h.vertex, p.radius - edge);
-    } else {
-      ball = ring_ball(mesh, h.vertex, p.rings);
-    }
-    for (int v : ball)
-      if (!seen[static_cast<std::size_t>(v)]++) out.push_back(v);
-  }
-  return out;
+  std::vector<int> handles;
+  for (const auto& h : p.handles) handles.push_back(h.vertex);
+  return influence_region(mesh, handles, RegionSpec{.radius = p.radius, .rings = p.rings},
+                          p.method == CorrectionMethod::Fem);
 }
 
 // Image guidance: where along its normal (or, with a cube, at which voxel nearby)
@@ -387,58 +353,44 @@ Field fem_solve_local(const Mesh& mesh, const CorrectionParams& p, const std::ve
   return d;
 }
 
-// The solve reads the region, its frozen two rings and, for the intrinsic operators,
-// the flips around them; it runs on a copy of the region and this many rings around
-// it, so its cost follows the region, not the mesh. With six rings the field equals
-// the whole-mesh solve to rounding for the cotangent operator; the intrinsic one
-// differs by about 1e-5 of the drag, because its mollification constant is set by
-// the worst triangle of the mesh it is built on (test
-// AortaCorrection.TheRegionsCopyGivesTheWholeMeshAnswer).
-constexpr int kMarginRings = 6;
-
 Field fem_solve(const Mesh& mesh, const CorrectionParams& p, const std::vector<int>& region, double fraction,
                 CorrectionResult& r) {
-  const int nv = mesh.num_vertices();
-  std::unordered_map<int, int> local;
-  std::vector<int> global;
-  auto add = [&](int v) {
-    if (local.emplace(v, static_cast<int>(global.size())).second) global.push_back(v);
-  };
-  for (int v : region) add(v);
-  std::size_t begin = 0;
-  for (int ring = 0; ring < kMarginRings; ++ring) {
-    const std::size_t end = global.size();
-    for (std::size_t k = begin; k < end; ++k)
-      for (int w : mesh.neighbors(global[k])) add(w);
-    begin = end;
-  }
-  if (static_cast<int>(global.size()) == nv) return fem_solve_local(mesh, p, region, fraction, r);
-  std::vector<Eigen::Vector3i> tris;
-  const auto& F = mesh.triangles();
-  for (int f = 0; f < mesh.num_faces(); ++f) {
-    const auto a = local.find(F(f, 0)), b = local.find(F(f, 1)), c = local.find(F(f, 2));
-    if (a != local.end() && b != local.end() && c != local.end()) tris.emplace_back(a->second, b->second, c->second);
-  }
-  Positions Vl(static_cast<Eigen::Index>(global.size()), 3);
-  for (std::size_t k = 0; k < global.size(); ++k)
-    Vl.row(static_cast<Eigen::Index>(k)) = mesh.positions().row(global[k]);
-  Triangles Fl(static_cast<Eigen::Index>(tris.size()), 3);
-  for (std::size_t t = 0; t < tris.size(); ++t) Fl.row(static_cast<Eigen::Index>(t)) = tris[t].transpose();
-  const Mesh sub(Vl, Fl);
+  const RegionCopy c = copy_region(mesh, region, kCorrectionMarginRings);
+  if (c.whole) return fem_solve_local(mesh, p, region, fraction, r);
   CorrectionParams lp = p;
-  for (auto& h : lp.handles) h.vertex = local.at(h.vertex);
+  for (auto& h : lp.handles) h.vertex = c.local(h.vertex);
   if (p.stiffness.size()) {
-    lp.stiffness.resize(static_cast<Eigen::Index>(global.size()));
-    for (std::size_t k = 0; k < global.size(); ++k) lp.stiffness[static_cast<Eigen::Index>(k)] = p.stiffness[global[k]];
+    lp.stiffness.resize(static_cast<Eigen::Index>(c.to_mesh.size()));
+    for (std::size_t k = 0; k < c.to_mesh.size(); ++k)
+      lp.stiffness[static_cast<Eigen::Index>(k)] = p.stiffness[c.to_mesh[k]];
   }
   std::vector<int> local_region;
   local_region.reserve(region.size());
-  for (int v : region) local_region.push_back(local.at(v));
-  const Field dl = fem_solve_local(sub, lp, local_region, fraction, r);
-  Field d = Field::Zero(nv, 3);
-  for (std::size_t k = 0; k < global.size(); ++k) d.row(global[k]) = dl.row(static_cast<Eigen::Index>(k));
+  for (int v : region) local_region.push_back(c.local(v));
+  const Field dl = fem_solve_local(c.mesh, lp, local_region, fraction, r);
+  Field d = Field::Zero(mesh.num_vertices(), 3);
+  for (std::size_t k = 0; k < c.to_mesh.size(); ++k) d.row(c.to_mesh[k]) = dl.row(static_cast<Eigen::Index>(k));
   return d;
 }
+
+}  // namespace
+
+CorrectionRegion correction_region(const Mesh& mesh, const CorrectionParams& p) {
+  validate(mesh, p);
+  CorrectionRegion out;
+  out.region = region_of(mesh, p);
+  out.copy = copy_region(mesh, out.region, kCorrectionMarginRings);
+  Eigen::VectorXd weights;
+  if (p.stiffness.size()) {
+    weights.resize(static_cast<Eigen::Index>(out.copy.to_mesh.size()));
+    for (std::size_t k = 0; k < out.copy.to_mesh.size(); ++k)
+      weights[static_cast<Eigen::Index>(k)] = p.stiffness[out.copy.to_mesh[k]];
+  }
+  out.operators = build_mesh_operators(out.copy.mesh, p.laplacian, weights);
+  return out;
+}
+
+namespace {
 
 CorrectionResult correct_vessel_impl(const Mesh& mesh, const CorrectionParams& p,
                                      const SelfIntersectionChecker* checker, std::span<const int> already_moved) {

@@ -135,6 +135,78 @@ std::vector<int> region_around(const Mesh& mesh, int source, const RegionSpec& s
   return by_radius ? geodesic_ball(mesh, source, spec.radius) : ring_ball(mesh, source, spec.rings);
 }
 
+double mean_edge_length_among(const Mesh& mesh, const std::vector<int>& vertices) {
+  std::unordered_map<int, char> in;
+  for (int v : vertices) in.emplace(v, 1);
+  double sum = 0;
+  int n = 0;
+  for (int v : vertices)
+    for (int w : mesh.neighbors(v))
+      if (w > v && in.count(w)) {
+        sum += (mesh.positions().row(v) - mesh.positions().row(w)).norm();
+        ++n;
+      }
+  return n ? sum / n : 0.0;
+}
+
+std::vector<int> influence_region(const Mesh& mesh, std::span<const int> handles, const RegionSpec& spec,
+                                  bool clamp_at_radius) {
+  std::vector<int> out;
+  std::vector<char> seen(static_cast<std::size_t>(mesh.num_vertices()), 0);
+  for (const int h : handles) {
+    if (h < 0 || h >= mesh.num_vertices())
+      throw InputError(fmt::format("vertex {} does not exist (the mesh has {} vertices)", h, mesh.num_vertices()));
+    if (!seen[static_cast<std::size_t>(h)]++) out.push_back(h);
+  }
+  for (const int h : handles) {
+    std::vector<int> ball = region_around(mesh, h, spec);
+    if (spec.radius > 0 && clamp_at_radius) {
+      const double edge = mean_edge_length_among(mesh, ball);
+      if (edge > 0 && spec.radius > 2 * edge) ball = geodesic_ball(mesh, h, spec.radius - edge);
+    }
+    for (const int v : ball)
+      if (!seen[static_cast<std::size_t>(v)]++) out.push_back(v);
+  }
+  return out;
+}
+
+RegionCopy copy_region(const Mesh& mesh, const std::vector<int>& region, int margin_rings) {
+  RegionCopy c;
+  auto add = [&](int v) {
+    if (c.from_mesh.emplace(v, static_cast<int>(c.to_mesh.size())).second) c.to_mesh.push_back(v);
+  };
+  for (const int v : region) add(v);
+  std::size_t begin = 0;
+  for (int ring = 0; ring < margin_rings; ++ring) {
+    const std::size_t end = c.to_mesh.size();
+    for (std::size_t k = begin; k < end; ++k)
+      for (const int w : mesh.neighbors(c.to_mesh[k])) add(w);
+    begin = end;
+  }
+  if (static_cast<int>(c.to_mesh.size()) == mesh.num_vertices()) {
+    c.mesh = mesh;
+    c.whole = true;
+    c.to_mesh.resize(static_cast<std::size_t>(mesh.num_vertices()));
+    for (int v = 0; v < mesh.num_vertices(); ++v) c.to_mesh[static_cast<std::size_t>(v)] = v;
+    c.from_mesh.clear();
+    return c;
+  }
+  std::vector<Eigen::Vector3i> tris;
+  const auto& F = mesh.triangles();
+  for (int f = 0; f < mesh.num_faces(); ++f) {
+    const auto a = c.from_mesh.find(F(f, 0)), b = c.from_mesh.find(F(f, 1)), d = c.from_mesh.find(F(f, 2));
+    if (a != c.from_mesh.end() && b != c.from_mesh.end() && d != c.from_mesh.end())
+      tris.emplace_back(a->second, b->second, d->second);
+  }
+  Positions V(static_cast<Eigen::Index>(c.to_mesh.size()), 3);
+  for (std::size_t k = 0; k < c.to_mesh.size(); ++k)
+    V.row(static_cast<Eigen::Index>(k)) = mesh.positions().row(c.to_mesh[k]);
+  Triangles T(static_cast<Eigen::Index>(tris.size()), 3);
+  for (std::size_t t = 0; t < tris.size(); ++t) T.row(static_cast<Eigen::Index>(t)) = tris[t].transpose();
+  c.mesh = Mesh(std::move(V), std::move(T));
+  return c;
+}
+
 int rings_for_radius(const Mesh& mesh, double radius) {
   const double h = mean_edge_length(mesh);
   if (!(h > 0) || !(radius > 0)) return 1;

@@ -59,10 +59,13 @@ class EditorSession {
   // Drag preview: while the user drags a handle with the correct tool, the surface
   // follows live (a DragSession: the region's factor and basis are built at
   // drag_begin, every drag_move is a product with the basis, microseconds). The
-  // preview is the plain bi-Laplacian drag on the region; releasing runs correct(),
-  // whose answer (intersection-free, image-guided, tissue parameters) replaces it.
-  /// radius: the region of influence in mesh units. Returns the set-up time in ms.
-  double drag_begin(int vertex, double radius);
+  // preview solves the static bi-Laplacian correction on the very region, copy and
+  // operators that correct() uses (correction_region()), so when the mouse stops it
+  // equals the correction applied on release to rounding, unless that one is
+  // image-guided, dynamic or has to avoid a self-intersection.
+  /// radius: the region of influence in mesh units; stiffness: the per-vertex tissue
+  /// stiffness the release will use (empty: 1). Returns the set-up time in ms.
+  double drag_begin(int vertex, double radius, const Eigen::VectorXd& stiffness = Eigen::VectorXd());
   void drag_move(const Eigen::Vector3d& offset);
   void drag_end();  ///< drops the preview (correct() drops it too)
   bool dragging() const { return drag_ != nullptr; }
@@ -122,10 +125,9 @@ class EditorSession {
   std::size_t poke_version_ = static_cast<std::size_t>(-1);
   double poke_influence_ = -1;
   std::size_t version_ = 0;  // bumped by every change of the corrected surface
-  // Drag preview state: operators of the surface as it is now (rebuilt when it changed).
-  std::unique_ptr<Mesh> drag_mesh_;
-  std::unique_ptr<FemOperators> drag_ops_;
-  std::size_t drag_version_ = static_cast<std::size_t>(-1);
+  // Drag preview state: the correction's region, copy and operators (the DragSession
+  // keeps references to them), built at drag_begin.
+  std::unique_ptr<CorrectionRegion> drag_region_;
   std::unique_ptr<DragSession> drag_;
   Eigen::Vector3d drag_offset_ = Eigen::Vector3d::Zero();
   // Fields.

@@ -66,6 +66,7 @@
 
 #include "meshpde/image/volume.h"
 #include "meshpde/mesh/mesh.h"
+#include "meshpde/mesh/regions.h"
 #include "meshpde/mesh/self_intersections.h"
 #include "meshpde/operators/fem_operators.h"
 #include "meshpde/operators/intrinsic_delaunay.h"
@@ -141,6 +142,28 @@ struct CorrectionParams {
   int max_substeps = 8;  ///< most steps a correction is split into before it is limited; default 8
   ImageGuidance image;   ///< off unless image.edges is set
 };
+
+/// A Fem correction solves on a copy of its region and this many rings around it
+/// (mesh/regions.h's copy_region), so its cost follows the region, not the mesh. The
+/// solve reads the region, its two frozen rings and, for the intrinsic operators, the
+/// flips around them: with six rings the field equals the whole-mesh solve to rounding
+/// for the cotangent operator; the intrinsic one differs by about 1e-5 of the drag,
+/// because its mollification constant is set by the worst triangle of the mesh it is
+/// built on (test AortaCorrection.TheRegionsCopyGivesTheWholeMeshAnswer).
+inline constexpr int kCorrectionMarginRings = 6;
+
+/// What a Fem correction of `params` solves on: its region of influence (mesh
+/// numbering; mesh/regions.h's influence_region, clamped at the radius), the region's
+/// copy and the operators built on the copy (params.laplacian, params.stiffness). The
+/// editor's drag preview solves on exactly these, so that the preview when the mouse
+/// stops equals the correction applied on release.
+/// \throw InputError as correct_vessel for bad handles, region or stiffness.
+struct CorrectionRegion {
+  std::vector<int> region;  ///< handles first
+  RegionCopy copy;
+  MeshOperators operators;  ///< on copy.mesh (operators.mesh: the copy, or its intrinsic operator mesh)
+};
+CorrectionRegion correction_region(const Mesh& mesh, const CorrectionParams& params);
 
 struct CorrectionResult {
   Positions V;                               ///< corrected positions
