@@ -1007,6 +1007,36 @@ TEST(DragSession, EditorPreviewFollowsTheHandleAndCorrectReplacesIt) {
   EXPECT_FALSE(b.dragging());
 }
 
+TEST(DragSession, EditorSessionsShareOneOperatorBundlePerStateOfTheSurface) {
+  const GeneratedMesh g = icosphere(3);
+  MeshData data;
+  data.V = g.V;
+  data.F = g.F;
+  EditorSession s(data);
+  EXPECT_EQ(s.operator_builds(), 0);
+  s.paint(0, 1.0, 0, 1);
+  s.paint(10, -1.0, 0, 1);
+  s.add_source(5);
+  s.play("heat");
+  s.advance(5);
+  const double warmed = s.snapshot().vertex_scalars.at("heat").sum();
+  s.poke_begin(20, 0);
+  s.poke_end();
+  EXPECT_EQ(s.operator_builds(), 1);  // one bundle served painting, heat and the probe
+  CorrectionParams p;
+  p.handles = {{0, Eigen::Vector3d(0, 0, 0.1)}};
+  p.rings = 2;
+  s.correct(p);
+  // The surface changed: heat starts again on the new operators (before, it went on
+  // from its old state on the old surface's operators).
+  s.play("heat");
+  s.advance(1);
+  EXPECT_EQ(s.operator_builds(), 2);
+  EXPECT_LT(s.snapshot().vertex_scalars.at("heat").sum(), warmed);
+  s.paint(3, 0.5, 0, 1);
+  EXPECT_EQ(s.operator_builds(), 2);
+}
+
 TEST(DragSession, EditorPreviewEqualsTheReleasedCorrectionWithStiffnessOnADentedVessel) {
   // A generated vessel with a dent, a stiffer band painted on it, a drag over a region
   // much smaller than the mesh (so both solve on the region's copy): the preview at the

@@ -104,23 +104,22 @@ int EditorSession::drag_region_vertices() const {
 void EditorSession::stop_poke() {
   if (haptic_) haptic_->stop();
   haptic_.reset();
+  poke_geometry_.reset();
 }
 
 void EditorSession::poke_begin(int vertex, double influence) {
   check_vertex(vertex);
   if (!(influence >= 0) || !std::isfinite(influence)) throw InputError("poke influence must be a length >= 0");
   pause();
-  if (!haptic_ || poke_version_ != version_ || influence != poke_influence_) {
+  // The probe runs on the operators of the surface as it is now (intrinsic ones on
+  // badly shaped meshes, so the servo's CG stays well conditioned).
+  const std::shared_ptr<const MeshOperators> geometry = geometry_.operators(mesh());
+  if (!haptic_ || poke_geometry_ != geometry || influence != poke_influence_) {
     stop_poke();
-    // The probe runs on the operators of the surface as it is now (intrinsic ones on
-    // badly shaped meshes, so the servo's CG stays well conditioned).
-    MeshOperators mo = build_mesh_operators(mesh(), LaplacianKind::Auto);
-    poke_mesh_ = std::make_unique<Mesh>(std::move(mo.mesh));
-    poke_ops_ = std::make_unique<FemOperators>(std::move(mo.ops));
+    poke_geometry_ = geometry;
     HapticParams hp;
     hp.influence = influence;
-    haptic_ = std::make_unique<HapticSession>(*poke_mesh_, *poke_ops_, hp);
-    poke_version_ = version_;
+    haptic_ = std::make_unique<HapticSession>(poke_geometry_->mesh, poke_geometry_->ops, hp);
     poke_influence_ = influence;
     haptic_->start();
   }
@@ -167,7 +166,7 @@ CorrectionResult EditorSession::correct(CorrectionParams params) {
   const auto t0 = std::chrono::steady_clock::now();
   CorrectionResult r = correction_.apply(params);
   last_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-  ++version_;
+  geometry_.refresh();
   info_ = fmt::format("correct: {} vertices moved, {} new self-intersections, {}", r.moved_vertices,
                       r.new_self_intersections, r.intersection_action);
   return r;
@@ -177,14 +176,14 @@ void EditorSession::undo() {
   drag_end();
   stop_poke();
   correction_.undo();
-  ++version_;
+  geometry_.refresh();
 }
 
 void EditorSession::redo() {
   drag_end();
   stop_poke();
   correction_.redo();
-  ++version_;
+  geometry_.refresh();
 }
 
 void EditorSession::paint(int vertex, double value, double g1, double g2) {
@@ -197,11 +196,11 @@ void EditorSession::paint(int vertex, double value, double g1, double g2) {
   std::vector<InterpolationConstraint> c;
   for (const auto& [v, x] : painted_) c.push_back({v, Eigen::VectorXd::Constant(1, x)});
   const auto t0 = std::chrono::steady_clock::now();
-  const MeshOperators mo = build_mesh_operators(mesh(), LaplacianKind::Auto);
+  const std::shared_ptr<const MeshOperators> mo = geometry_.operators(mesh());
   InterpolationParams ip;
   ip.g1 = g1;
   ip.g2 = g2;
-  const InterpolationResult r = interpolate(mo.mesh, mo.ops, FieldKind::Scalar, c, ip);
+  const InterpolationResult r = interpolate(mo->mesh, mo->ops, FieldKind::Scalar, c, ip);
   last_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   field_ = r.values.col(0);
   field_name_ = "paint";
@@ -221,12 +220,12 @@ void EditorSession::paint_vector(int vertex, const Eigen::Vector3d& vector, doub
   const auto t0 = std::chrono::steady_clock::now();
   // The connection-aware method needs the mesh's own triangles (it transports
   // vectors across them), so it runs on the cotangent operators.
-  const FemOperators ops = build_operators(mesh());
+  const std::shared_ptr<const MeshOperators> cotan = geometry_.cotan(mesh());
   InterpolationParams ip;
   ip.g1 = g1;
   ip.g2 = g2;
   ip.method = TangentMethod::Connection;
-  const InterpolationResult r = interpolate(mesh(), ops, FieldKind::Tangent, c, ip);
+  const InterpolationResult r = interpolate(mesh(), cotan->ops, FieldKind::Tangent, c, ip);
   last_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   vectors_ = r.values;
   field_ = vectors_.rowwise().norm();
@@ -263,10 +262,10 @@ void EditorSession::play(const std::string& kind) {
   if (kind != "heat" && kind != "wave") throw InputError(fmt::format("unknown simulation '{}' (heat or wave)", kind));
   if (sources_.empty()) throw InputError("click a source vertex first");
   stop_poke();
-  if (!pde_ || pde_kind_ != kind) {
-    MeshOperators mo = build_mesh_operators(mesh(), LaplacianKind::Auto);
-    pde_mesh_ = std::make_unique<Mesh>(std::move(mo.mesh));
-    pde_ops_ = std::make_unique<FemOperators>(std::move(mo.ops));
+  const std::shared_ptr<const MeshOperators> geometry = geometry_.operators(mesh());
+  if (!pde_ || pde_kind_ != kind || pde_geometry_ != geometry) {  // a new kind, or the surface changed
+    pde_.reset();
+    pde_geometry_ = geometry;
     // Heat: u_t = lap u, sources held at 1. Wave: u_tt = lap u, sources plucked to 1
     // and released, lightly damped.
     const PdeCoefficients c = kind == "heat" ? PdeCoefficients{.alpha = 0, .b1 = 1, .g1 = 1}
@@ -276,10 +275,11 @@ void EditorSession::play(const std::string& kind) {
     // reaches everything within a few frames, so it runs on the whole mesh (its
     // self-adjusting bookkeeping would only add cost).
     const bool local = kind == "heat";
-    pde_ = std::make_unique<PdeSession>(*pde_mesh_, *pde_ops_, 1, c, DomainOptions{.self_adjusting = local});
+    pde_ = std::make_unique<PdeSession>(pde_geometry_->mesh, pde_geometry_->ops, 1, c,
+                                        DomainOptions{.self_adjusting = local});
     if (!local) pde_->activate_all();
     pde_->cg_options.tolerance = 1e-6;
-    Field u = Field::Zero(pde_mesh_->num_vertices(), 1);
+    Field u = Field::Zero(pde_geometry_->mesh.num_vertices(), 1);
     for (int v : sources_) u(v, 0) = 1;
     if (kind == "heat") {
       for (int v : sources_) {

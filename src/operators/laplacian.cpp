@@ -60,4 +60,26 @@ MeshOperators build_mesh_operators(const Mesh& mesh, LaplacianKind kind, const E
   return out;
 }
 
+std::shared_ptr<const MeshOperators> OperatorCache::operators(const Mesh& mesh) {
+  if (!operators_) {
+    operators_ = std::make_shared<const MeshOperators>(build_mesh_operators(mesh, kind_));
+    ++builds_;
+    if (operators_->kind == LaplacianKind::Cotan) cotan_ = operators_;  // the same bundle serves both
+  }
+  return operators_;
+}
+
+std::shared_ptr<const MeshOperators> OperatorCache::cotan(const Mesh& mesh) {
+  if (!cotan_) {
+    cotan_ = std::make_shared<const MeshOperators>(build_mesh_operators(mesh, LaplacianKind::Cotan));
+    ++builds_;
+  }
+  return cotan_;
+}
+
+void OperatorCache::refresh() {
+  operators_.reset();
+  cotan_.reset();
+}
+
 }  // namespace meshpde

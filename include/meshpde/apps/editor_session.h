@@ -22,6 +22,7 @@
 #include "meshpde/apps/local_drag.h"
 #include "meshpde/apps/vessel_correction.h"
 #include "meshpde/io/mesh_io.h"
+#include "meshpde/operators/laplacian.h"
 #include "meshpde/pde/pde_session.h"
 
 namespace meshpde {
@@ -107,6 +108,9 @@ class EditorSession {
   /// field, for saving.
   MeshData snapshot() const;
   const std::string& last_solve_info() const { return info_; }
+  /// Operator bundles built for this surface so far: one per state of the surface,
+  /// shared by the probe, heat and wave and painting.
+  int operator_builds() const { return geometry_.builds(); }
   double last_solve_ms() const { return last_ms_; }
 
  private:
@@ -118,13 +122,13 @@ class EditorSession {
   std::shared_ptr<const Volume> edges_;
   Space space_;
   double mean_edge_ = 1;
-  // Poke state: its own copy of the mesh and operators, rebuilt when the surface changed.
-  std::unique_ptr<Mesh> poke_mesh_;
-  std::unique_ptr<FemOperators> poke_ops_;
+  // The surface's operators (intrinsic Delaunay on badly shaped meshes), one cache for
+  // the probe, heat and wave and painting; refreshed by every change of the surface.
+  OperatorCache geometry_{LaplacianKind::Auto};
+  // Poke state: the operators it was built on (kept alive while it runs).
+  std::shared_ptr<const MeshOperators> poke_geometry_;
   std::unique_ptr<HapticSession> haptic_;
-  std::size_t poke_version_ = static_cast<std::size_t>(-1);
   double poke_influence_ = -1;
-  std::size_t version_ = 0;  // bumped by every change of the corrected surface
   // Drag preview state: the correction's region, copy and operators (the DragSession
   // keeps references to them), built at drag_begin.
   std::unique_ptr<CorrectionRegion> drag_region_;
@@ -137,8 +141,7 @@ class EditorSession {
   std::map<int, Eigen::Vector3d> painted_vectors_;
   Eigen::MatrixX3d vectors_;
   std::vector<int> sources_;
-  std::unique_ptr<Mesh> pde_mesh_;
-  std::unique_ptr<FemOperators> pde_ops_;
+  std::shared_ptr<const MeshOperators> pde_geometry_;
   std::unique_ptr<PdeSession> pde_;
   std::string pde_kind_;
   bool playing_ = false;

@@ -5,6 +5,7 @@
 // K 1 = 0, the opposite sign of libigl's cotmatrix; M lumped, length^2).
 #pragma once
 
+#include <memory>
 #include <string>
 
 #include "meshpde/mesh/mesh.h"
@@ -36,5 +37,29 @@ struct MeshOperators {
 /// (for the cotangent kind it is averaged per input triangle).
 MeshOperators build_mesh_operators(const Mesh& mesh, LaplacianKind kind,
                                    const Eigen::VectorXd& vertex_weights = Eigen::VectorXd());
+
+/// One surface's operators, built on first use and kept until the surface changes
+/// (geometry-central's require/refresh): the one cache of a surface that every session
+/// on it shares (the editor's probe, heat and wave, painting). Handed out as shared
+/// pointers, so a session keeps the bundle it was built on alive after a refresh, and
+/// can tell that it is stale by comparing pointers.
+class OperatorCache {
+ public:
+  explicit OperatorCache(LaplacianKind kind = LaplacianKind::Auto) : kind_(kind) {}
+  /// The operators of the chosen kind for `mesh` at its current positions (built now
+  /// if there are none since the last refresh()).
+  std::shared_ptr<const MeshOperators> operators(const Mesh& mesh);
+  /// The cotangent operators on the mesh's own triangles, for methods that need them
+  /// (the connection Laplacian transports vectors across the input triangles).
+  std::shared_ptr<const MeshOperators> cotan(const Mesh& mesh);
+  /// The surface changed (positions or triangles): the next requests rebuild.
+  void refresh();
+  int builds() const { return builds_; }  ///< operator bundles built so far
+
+ private:
+  LaplacianKind kind_;
+  std::shared_ptr<const MeshOperators> operators_, cotan_;
+  int builds_ = 0;
+};
 
 }  // namespace meshpde
