@@ -3,6 +3,9 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <functional>
+#include <limits>
+#include <queue>
 #include <set>
 
 #include "meshpde/apps/selection.h"
@@ -10,9 +13,11 @@
 #include "meshpde/mesh/generators.h"
 #include "meshpde/mesh/regions.h"
 #include "meshpde/mesh/topology.h"
+#include "solver_problems.h"
 #include "test_support.h"
 
 using namespace meshpde;
+using test::bumpy_sphere;
 using test::make;
 
 TEST(Regions, RingBallHoldsExactlyTheVerticesWithinKEdges) {
@@ -82,4 +87,43 @@ TEST(Regions, BrushesAreParsedAsTheCliWritesThem) {
   EXPECT_EQ(at.vertex, 20);
   for (const char* bad : {"12:2.5", "12:x:3", "12:2:0", "12:2:3x", "99999:1:1"})
     EXPECT_THROW(parse_brush(m, bad), InputError) << bad;
+}
+
+TEST(Regions, GeodesicBallIsDijkstraOverTheWholeMesh) {
+  // Independent: Dijkstra over every vertex with std::priority_queue and whole-mesh
+  // arrays. The ball must hold exactly the vertices closer than the radius, the source
+  // first and the others in order of their distance.
+  const Mesh m = bumpy_sphere(5);
+  const int n = m.num_vertices();
+  for (const int source : {0, 777, 5000})
+    for (const double radius : {0.05, 0.3, 1.0, 10.0}) {
+      std::vector<double> dist(static_cast<std::size_t>(n), std::numeric_limits<double>::infinity());
+      using Item = std::pair<double, int>;
+      std::priority_queue<Item, std::vector<Item>, std::greater<>> heap;
+      dist[static_cast<std::size_t>(source)] = 0;
+      heap.emplace(0.0, source);
+      while (!heap.empty()) {
+        const auto [d, v] = heap.top();
+        heap.pop();
+        if (d > dist[static_cast<std::size_t>(v)]) continue;
+        for (int w : m.neighbors(v)) {
+          const double dw = d + (m.positions().row(v) - m.positions().row(w)).norm();
+          if (dw < dist[static_cast<std::size_t>(w)]) {
+            dist[static_cast<std::size_t>(w)] = dw;
+            heap.emplace(dw, w);
+          }
+        }
+      }
+      const std::vector<int> ball = geodesic_ball(m, source, radius);
+      std::vector<int> expected;
+      for (int v = 0; v < n; ++v)
+        if (dist[static_cast<std::size_t>(v)] < radius) expected.push_back(v);
+      ASSERT_FALSE(ball.empty());
+      EXPECT_EQ(ball.front(), source);
+      for (std::size_t k = 1; k < ball.size(); ++k)
+        EXPECT_LE(dist[static_cast<std::size_t>(ball[k - 1])], dist[static_cast<std::size_t>(ball[k])]);
+      std::vector<int> sorted = ball;
+      std::sort(sorted.begin(), sorted.end());
+      EXPECT_EQ(sorted, expected) << "source " << source << ", radius " << radius;
+    }
 }

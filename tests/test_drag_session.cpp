@@ -1,0 +1,368 @@
+// apps/local_drag.h (DragSession) and the editor's drag preview (apps/editor_session.h).
+#include <gtest/gtest.h>
+
+#include <Eigen/OrderingMethods>
+#include <Eigen/SparseCholesky>
+#include <Eigen/SparseCore>
+#include <algorithm>
+#include <limits>
+#include <queue>
+#include <random>
+#include <unordered_set>
+
+#include "../src/core/index_map.h"
+#include "meshpde/apps/editor_session.h"
+#include "meshpde/apps/fairing.h"
+#include "meshpde/apps/interpolation.h"
+#include "meshpde/apps/local_drag.h"
+#include "meshpde/apps/vessel_correction.h"
+#include "meshpde/core/errors.h"
+#include "meshpde/core/parallel.h"
+#include "meshpde/mesh/generators.h"
+#include "meshpde/mesh/regions.h"
+#include "meshpde/mesh/topology.h"
+#include "meshpde/operators/fem_operators.h"
+#include "meshpde/pde/global_bilaplacian.h"
+#include "meshpde/pde/pde_session.h"
+#include "meshpde/pde/steady_direct.h"
+#include "meshpde/solvers/cg.h"
+#include "meshpde/solvers/direct.h"
+#include "meshpde/solvers/ordering.h"
+#include "meshpde/solvers/refinement.h"
+#include "meshpde/solvers/surface_multigrid.h"
+#include "solver_problems.h"
+#include "test_data.h"
+#include "test_support.h"
+
+using namespace meshpde;
+using namespace meshpde::test;
+
+namespace {
+
+// Held values of the session's handles and the region solved from scratch by a fresh
+// factorization: the reference for every DragSession figure.
+Field fresh_solve(const Mesh& mesh, const FemOperators& ops, const std::vector<int>& handles,
+                  const Eigen::MatrixXd& moves, const std::vector<int>& region_with_handles) {
+  std::vector<int> free;
+  for (int v : region_with_handles)
+    if (std::find(handles.begin(), handles.end(), v) == handles.end()) free.push_back(v);
+  const SteadyDirectSolver s(mesh, ops, PdeCoefficients{.g0 = 0, .g1 = 0, .g2 = 1}, free);
+  Field held = Field::Zero(mesh.num_vertices(), 3);
+  for (std::size_t k = 0; k < handles.size(); ++k) held.row(handles[k]) = moves.row(static_cast<Eigen::Index>(k));
+  return s.solve(held);
+}
+
+Field session_field(const Mesh& mesh, const DragSession& s, const Eigen::MatrixXd& moves) {
+  return s.positions(moves) - mesh.positions();
+}
+
+}  // namespace
+
+TEST(DragSession, UpdatesAreTheDirectSolveAndLinearInTheHandle) {
+  const GeneratedMesh g = icosphere(4);
+  const Mesh mesh(g.V, g.F);
+  const FemOperators ops = build_operators(mesh);
+  int handle = 0;
+  mesh.positions().col(2).maxCoeff(&handle);
+  DragSession s(mesh, ops, {handle}, DragSessionParams{.radius = 0.6});
+  EXPECT_EQ(s.factorizations(), 1);
+  EXPECT_GT(s.region().size(), 150u);
+  for (const Eigen::RowVector3d& move : {Eigen::RowVector3d(0, 0, 0.1), Eigen::RowVector3d(0.05, -0.02, 0.3)}) {
+    const Eigen::MatrixXd d = move;
+    const DragResult r =
+        drag_vertex(mesh, ops, DragParams{.vertex = handle, .displacement = move.transpose(), .radius = 0.6});
+    EXPECT_LE((session_field(mesh, s, d) - r.displacement).cwiseAbs().maxCoeff(), 1e-12 + 1e-10 * move.norm());
+  }
+  // Still one factorization: updates are products with the basis.
+  EXPECT_EQ(s.factorizations(), 1);
+  EXPECT_EQ(s.solves(), 1);
+}
+
+TEST(DragSession, AddedHandlesAndGrownRegionsMatchFreshFactorizations) {
+  const GeneratedMesh g = icosphere(4);
+  const Mesh mesh(g.V, g.F);
+  const FemOperators ops = build_operators(mesh);
+  int h0 = 0;
+  mesh.positions().col(2).maxCoeff(&h0);
+  DragSession s(mesh, ops, {h0}, DragSessionParams{.radius = 0.7, .margin = true});
+  // Two more handles inside the region, far enough from each other and the first.
+  const std::vector<int> region0 = s.region();
+  std::vector<int> extra;
+  for (int v : region0) {
+    const Eigen::RowVector3d p = mesh.positions().row(v);
+    bool far = (p - mesh.positions().row(h0)).norm() > 0.25;
+    for (int e : extra) far = far && (p - mesh.positions().row(e)).norm() > 0.25;
+    if (far && (p - mesh.positions().row(h0)).norm() < 0.4) extra.push_back(v);
+    if (extra.size() == 2) break;
+  }
+  ASSERT_EQ(extra.size(), 2u);
+  s.add_handle(extra[0]);
+  s.add_handle(extra[1]);
+  EXPECT_EQ(s.factorizations(), 1);  // handles added with the same factor
+  Eigen::MatrixXd moves(3, 3);
+  moves << 0, 0, 0.2, 0.05, 0, -0.1, 0, 0.08, 0.02;
+  std::vector<int> with_handles = region0;
+  with_handles.push_back(h0);
+  const Field ref = fresh_solve(mesh, ops, s.handles(), moves, with_handles);
+  const double tol = 1e-9 * moves.norm();
+  EXPECT_LE((session_field(mesh, s, moves) - ref).cwiseAbs().maxCoeff(), tol);
+  // Each handle lands exactly where it was moved; the basis is 1 at its own handle.
+  const Positions P = s.positions(moves);
+  for (int k = 0; k < 3; ++k)
+    EXPECT_LE((P.row(s.handles()[k]) - mesh.positions().row(s.handles()[k]) - moves.row(k)).norm(), 1e-12);
+  // Grown by a ring: the larger region's answer, handles kept. The first ring was
+  // factored at set-up as a margin (ordered last), so it needs no new factor.
+  std::vector<int> previous = region0;
+  Field previous_ref = ref;
+  for (int grown_by : {1, 1, 2}) {
+    SCOPED_TRACE(grown_by);
+    s.grow(grown_by);
+    EXPECT_GT(s.region().size(), previous.size());
+    std::vector<int> grown = s.region();
+    grown.push_back(h0);
+    const Field ref2 = fresh_solve(mesh, ops, s.handles(), moves, grown);
+    EXPECT_LE((session_field(mesh, s, moves) - ref2).cwiseAbs().maxCoeff(), tol);
+    EXPECT_LE(s.last_relative_residual(), 1e-10);
+    EXPECT_GT((ref2 - previous_ref).cwiseAbs().maxCoeff(), 1e-6);  // the rings did change the answer
+    previous = s.region();
+    previous_ref = ref2;
+  }
+  // One factor for the set-up and the first ring; the second and third growths refactor.
+  EXPECT_EQ(s.factorizations(), 3);
+  // Without a margin the first growth refactors too.
+  DragSession plain(mesh, ops, {h0}, DragSessionParams{.radius = 0.7});
+  plain.grow(1);
+  EXPECT_EQ(plain.factorizations(), 2);
+}
+
+TEST(DragSession, LargeRegionsFactoredOnTwoThreadsMatchFreshFactorizations) {
+  // A region of about 3k vertices without margins: the split factor (both halves of
+  // the nested dissection at once) for the set-up, an added handle and a growth.
+  const GeneratedMesh g = icosphere(6);
+  const Mesh mesh(g.V, g.F);
+  const FemOperators ops = build_operators(mesh);
+  int h0 = 0;
+  mesh.positions().col(2).maxCoeff(&h0);
+  DragSession s(mesh, ops, {h0}, DragSessionParams{.radius = 0.6});
+  ASSERT_GT(s.region().size(), 2500u);
+  EXPECT_EQ(s.split_factor(), SplitCholesky::available());
+  int second = s.region()[0];
+  for (int v : s.region())  // a free vertex about 0.3 from the first handle
+    if (std::abs((mesh.positions().row(v) - mesh.positions().row(h0)).norm() - 0.3) <
+        std::abs((mesh.positions().row(second) - mesh.positions().row(h0)).norm() - 0.3))
+      second = v;
+  s.add_handle(second);
+  Eigen::MatrixXd moves(2, 3);
+  moves << 0.01, 0.02, 0.1, -0.03, 0, 0.05;
+  const double tol = 1e-9 * moves.norm();
+  std::vector<int> with_handles = s.region();
+  with_handles.push_back(h0);
+  EXPECT_LE(
+      (session_field(mesh, s, moves) - fresh_solve(mesh, ops, s.handles(), moves, with_handles)).cwiseAbs().maxCoeff(),
+      tol);
+  s.grow(1);
+  EXPECT_EQ(s.factorizations(), 2);
+  EXPECT_EQ(s.split_factor(), SplitCholesky::available());
+  with_handles = s.region();
+  with_handles.push_back(h0);
+  EXPECT_LE(
+      (session_field(mesh, s, moves) - fresh_solve(mesh, ops, s.handles(), moves, with_handles)).cwiseAbs().maxCoeff(),
+      tol);
+  EXPECT_LE(s.last_relative_residual(), 1e-10);
+  // With a margin the factor keeps its leading-block form (the ring ordered last).
+  EXPECT_FALSE(DragSession(mesh, ops, {h0}, DragSessionParams{.radius = 0.6, .margin = true}).split_factor());
+}
+
+TEST(DragSession, ShrunkRegionsReuseTheFactorAndMatchFreshFactorizations) {
+  const GeneratedMesh g = icosphere(4);
+  const Mesh mesh(g.V, g.F);
+  const FemOperators ops = build_operators(mesh);
+  int h0 = 0;
+  mesh.positions().col(2).maxCoeff(&h0);
+  DragSession s(mesh, ops, {h0}, DragSessionParams{.radius = 0.7, .margin = true, .inner_margin = true});
+  const std::vector<int> region0 = s.region();
+  // A second handle on the region's outermost ring: shrinking holds it, as a handle.
+  const std::unordered_set<int> inside(region0.begin(), region0.end());
+  int edge = -1;
+  for (int v : region0)
+    for (int w : mesh.neighbors(v))
+      if (edge < 0 && w != h0 && !inside.count(w)) edge = v;
+  ASSERT_GE(edge, 0);
+  s.add_handle(edge);
+  Eigen::MatrixXd moves(2, 3);
+  moves << 0, 0, 0.2, 0.03, -0.02, 0.05;
+  const double tol = 1e-9 * moves.norm();
+  auto matches_fresh = [&] {
+    const Field ref = fresh_solve(mesh, ops, s.handles(), moves, s.region());
+    EXPECT_LE((session_field(mesh, s, moves) - ref).cwiseAbs().maxCoeff(), tol);
+    const Positions P = s.positions(moves);
+    EXPECT_LE((P.row(edge) - mesh.positions().row(edge) - moves.row(1)).norm(), 1e-12);
+  };
+  s.shrink(1);  // the inner margin: a leading block of the same factor
+  const std::size_t shrunk = s.region().size();
+  EXPECT_LT(shrunk, region0.size());
+  EXPECT_EQ(s.region_index(edge), -1);
+  EXPECT_EQ(s.factorizations(), 1);
+  matches_fresh();
+  s.grow(1);  // the ring given up comes back, the handle inside it again
+  EXPECT_EQ(s.region().size(), region0.size());
+  EXPECT_GE(s.region_index(edge), 0);
+  matches_fresh();
+  s.grow(1);  // the outer margin
+  EXPECT_GT(s.region().size(), region0.size());
+  matches_fresh();
+  s.shrink(1);
+  EXPECT_EQ(s.region().size(), region0.size());
+  EXPECT_EQ(s.factorizations(), 1);
+  matches_fresh();
+  s.shrink(2);  // beyond the factored rings: a new factor
+  EXPECT_EQ(s.factorizations(), 2);
+  EXPECT_LT(s.region().size(), shrunk);
+  matches_fresh();
+  // Without margins the same shrink refactors and peels the same ring.
+  DragSession plain(mesh, ops, {h0}, DragSessionParams{.radius = 0.7});
+  plain.shrink(1);
+  EXPECT_EQ(plain.factorizations(), 2);
+  EXPECT_EQ(plain.region().size(), shrunk);
+  EXPECT_THROW(plain.shrink(0), InputError);
+  EXPECT_THROW(plain.shrink(1000), InputError);
+}
+
+TEST(DragSession, BadRequestsAreRefused) {
+  const GeneratedMesh g = icosphere(3);
+  const Mesh mesh(g.V, g.F);
+  const FemOperators ops = build_operators(mesh);
+  EXPECT_THROW(DragSession(mesh, ops, {}, DragSessionParams{.rings = 3}), InputError);
+  EXPECT_THROW(DragSession(mesh, ops, {0, 0}, DragSessionParams{.rings = 3}), InputError);
+  EXPECT_THROW(DragSession(mesh, ops, {mesh.num_vertices()}, DragSessionParams{.rings = 3}), InputError);
+  EXPECT_THROW(DragSession(mesh, ops, {0}, DragSessionParams{}), InputError);
+  DragSession s(mesh, ops, {0}, DragSessionParams{.rings = 3});
+  int outside = 0;
+  for (int v = 0; v < mesh.num_vertices(); ++v)
+    if (s.region_index(v) < 0 && v != 0) outside = v;
+  EXPECT_THROW(s.add_handle(outside), InputError);
+  EXPECT_THROW(s.add_handle(0), InputError);
+  EXPECT_THROW((void)s.displacements(Eigen::MatrixXd::Zero(2, 3)), InputError);
+}
+
+TEST(DragSession, EditorPreviewFollowsTheHandleAndCorrectReplacesIt) {
+  const GeneratedMesh g = icosphere(4);
+  MeshData data;
+  data.V = g.V;
+  data.F = g.F;
+  EditorSession s(data);
+  const Mesh& mesh = s.mesh();
+  int handle = 0;
+  mesh.positions().col(2).maxCoeff(&handle);
+  const Positions rest = mesh.positions();
+  const double setup_ms = s.drag_begin(handle, 0.6);
+  EXPECT_GE(setup_ms, 0.0);
+  EXPECT_TRUE(s.dragging());
+  EXPECT_GT(s.drag_region_vertices(), 100);
+  const Eigen::Vector3d offset(0.02, 0, 0.15);
+  s.drag_move(offset);
+  const Positions P = s.display_positions();
+  // The handle is where it was dragged, and the preview when the mouse stops is the
+  // correction that releasing applies (same region rule, copy and operators), to
+  // 1e-9 of the drag.
+  EXPECT_LE((P.row(handle) - rest.row(handle) - offset.transpose()).norm(), 1e-12);
+  CorrectionParams release;
+  release.handles = {{handle, offset}};
+  release.radius = 0.6;
+  const CorrectionResult expected = correct_vessel(mesh, release);
+  EXPECT_LE((P - expected.V).cwiseAbs().maxCoeff(), 1e-9 * offset.norm());
+  EXPECT_THROW(s.drag_move(Eigen::Vector3d(NAN, 0, 0)), InputError);
+  EXPECT_THROW(s.drag_begin(handle, -1), InputError);
+  EXPECT_TRUE(s.dragging());  // a refused request leaves the drag as it was
+  // Releasing with a correction: the corrected surface replaces the preview.
+  CorrectionParams p;
+  p.handles = {{handle, offset}};
+  p.radius = 0.6;
+  const CorrectionResult r = s.correct(p);
+  EXPECT_FALSE(s.dragging());
+  EXPECT_LE((s.display_positions() - r.V).cwiseAbs().maxCoeff(), 0.0);
+  EXPECT_LE((r.V - P).cwiseAbs().maxCoeff(), 1e-9 * offset.norm());
+  // A drag let go without moving leaves the surface as it was.
+  s.drag_begin(handle, 0.6);
+  s.drag_end();
+  EXPECT_LE((s.display_positions() - r.V).cwiseAbs().maxCoeff(), 0.0);
+  EXPECT_THROW(s.drag_move(offset), InputError);
+  // A region too large to factor while the user waits is refused in words.
+  const GeneratedMesh big = icosphere(6);  // 40,962 vertices
+  MeshData big_data;
+  big_data.V = big.V;
+  big_data.F = big.F;
+  EditorSession b(big_data);
+  try {
+    b.drag_begin(0, 10.0);
+    ADD_FAILURE() << "a whole-mesh preview region was accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("too large for a live preview"), std::string::npos) << e.what();
+  }
+  EXPECT_FALSE(b.dragging());
+}
+
+TEST(DragSession, EditorSessionsShareOneOperatorBundlePerStateOfTheSurface) {
+  const GeneratedMesh g = icosphere(3);
+  MeshData data;
+  data.V = g.V;
+  data.F = g.F;
+  EditorSession s(data);
+  EXPECT_EQ(s.operator_builds(), 0);
+  s.paint(0, 1.0, 0, 1);
+  s.paint(10, -1.0, 0, 1);
+  s.add_source(5);
+  s.play("heat");
+  s.advance(5);
+  const double warmed = s.snapshot().vertex_scalars.at("heat").sum();
+  s.poke_begin(20, 0);
+  s.poke_end();
+  EXPECT_EQ(s.operator_builds(), 1);  // one bundle served painting, heat and the probe
+  CorrectionParams p;
+  p.handles = {{0, Eigen::Vector3d(0, 0, 0.1)}};
+  p.rings = 2;
+  s.correct(p);
+  // The surface changed: heat starts again on the new operators (before, it went on
+  // from its old state on the old surface's operators).
+  s.play("heat");
+  s.advance(1);
+  EXPECT_EQ(s.operator_builds(), 2);
+  EXPECT_LT(s.snapshot().vertex_scalars.at("heat").sum(), warmed);
+  s.paint(3, 0.5, 0, 1);
+  EXPECT_EQ(s.operator_builds(), 2);
+}
+
+TEST(DragSession, EditorPreviewEqualsTheReleasedCorrectionWithStiffnessOnADentedVessel) {
+  // A generated vessel with a dent, a stiffer band painted on it, a drag over a region
+  // much smaller than the mesh (so both solve on the region's copy): the preview at the
+  // last mouse position equals the correction applied on release.
+  const GeneratedMesh g = y_bifurcation(BifurcationParams{.cell = 0.7, .dent = true});
+  MeshData data;
+  data.V = g.V;
+  data.F = g.F;
+  EditorSession s(data);
+  const Mesh& mesh = s.mesh();
+  const Eigen::Vector3d target(2.5, 0, -10);
+  int handle = 0;
+  (mesh.positions().rowwise() - target.transpose()).rowwise().squaredNorm().minCoeff(&handle);
+  Eigen::VectorXd stiffness;
+  apply_brush(mesh, stiffness, Brush{.vertex = handle, .radius = 2.0, .value = 4.0});
+  const double radius = 6.0;
+  s.drag_begin(handle, radius, stiffness);
+  ASSERT_LT(s.drag_region_vertices(), mesh.num_vertices() / 3);
+  const Eigen::Vector3d offset(1.2, 0.1, -0.3);
+  for (double t : {0.25, 0.5, 1.0}) s.drag_move(t * offset);  // the mouse moves, then stops
+  const Positions preview = s.display_positions();
+  CorrectionParams p;
+  p.handles = {{handle, offset}};
+  p.radius = radius;
+  p.stiffness = stiffness;
+  const CorrectionResult r = s.correct(p);
+  EXPECT_EQ(r.new_self_intersections, 0);
+  EXPECT_EQ(r.intersection_action, "none");
+  EXPECT_LE((preview - r.V).cwiseAbs().maxCoeff(), 1e-9 * offset.norm());
+  // and the stiffness mattered: without it the release differs
+  CorrectionParams soft = p;
+  soft.stiffness.resize(0);
+  EXPECT_GT((correct_vessel(Mesh(data.V, data.F), soft).V - r.V).cwiseAbs().maxCoeff(), 1e-3 * offset.norm());
+}
