@@ -172,32 +172,14 @@ void run_correct(const CorrectArgs& a) {
     p.image.passes = a.passes;
   }
 
+  p.solver = a.solver == "global"      ? SteadySolver::Global
+             : a.solver == "iterative" ? SteadySolver::Iterative
+                                       : SteadySolver::Direct;
+  p.cg.tolerance = a.tol;
   nlohmann::json j;
   Positions V;
   Field disp;
-  if (a.solver == "iterative") {
-    if (p.handles.size() != 1 || p.method != CorrectionMethod::Fem || a.dynamic || !a.image.empty() ||
-        p.stiffness.size())
-      throw InputError("--solver iterative supports one handle with the static fem method only");
-    DragParams dp{.vertex = p.handles[0].vertex,
-                  .displacement = p.handles[0].displacement,
-                  .radius = a.radius,
-                  .rings = a.rings,
-                  .g1 = a.g1,
-                  .g2 = a.g2};
-    dp.cg.tolerance = a.tol;
-    dp.solver = SteadySolver::Iterative;
-    const DragReport r = run_drag(mesh, dp);
-    if (!r.result.cg.converged()) fmt::print(stderr, "warning: {}\n", r.result.cg.message);
-    j = drag_json(r);
-    j["new_self_intersections"] = SelfIntersectionChecker(mesh).count_new(r.result.V, r.result.region);
-    V = r.result.V;
-    disp = r.result.displacement;
-    if (!r.result.cg.converged()) {
-      print_json(j);
-      throw SolverError("the solve did not converge; nothing written");
-    }
-  } else {
+  {
     const CorrectionResult r = correct_vessel(mesh, p);
     V = r.V;
     disp = r.displacement;
@@ -218,7 +200,8 @@ void run_correct(const CorrectArgs& a) {
          {"applied_fraction", r.applied_fraction},
          {"substeps", r.substeps},
          {"intersection_action", r.intersection_action},
-         {"handles", p.handles.size()}};
+         {"handles", p.handles.size()},
+         {"solver", a.solver}};
     if (p.image.edges) {
       j["image"] = {{"pulled_vertices", r.pulled_vertices},
                     {"mean_edge_before", r.image_mean_edge_before},
@@ -299,8 +282,9 @@ void add_solve_commands(CLI::App& app) {
     cmd->add_option("--cube", a->cube, "Thesis direction cube (odd, >= 3) instead of the search along the normal");
     cmd->add_option("--passes", a->passes, "Image fixed-point passes")->capture_default_str();
     cmd->add_option("--solver", a->solver,
-                    "direct (default) | iterative (Jacobi-CG, plain operator, one handle; for comparison)")
-        ->check(CLI::IsMember({"direct", "iterative"}))
+                    "direct (default) | global (multigrid-CG, for very large regions) | iterative (Jacobi-CG, for "
+                    "comparison); global and iterative: static fem without --image")
+        ->check(CLI::IsMember({"direct", "global", "iterative"}))
         ->capture_default_str();
     cmd->add_option("--tolerance", a->tol, "CG relative residual tolerance (iterative)")->capture_default_str();
     cmd->add_option("-o,--output", a->out,

@@ -122,12 +122,12 @@ def interpolate(V, F, vertices, values, *, kind=None, method="componentwise", g1
 
 def _correction_options(radius, rings, method, g1, g2, laplacian, stiffness, dynamic, steps, mass, elasticity,
                         viscosity, allow_intersections, max_substeps, image, space, image_weight, image_sigma,
-                        search_radius, cube, passes):
+                        search_radius, cube, passes, solver):
     return dict(radius=radius, rings=rings, method=method, g1=g1, g2=g2, laplacian=laplacian, stiffness=stiffness,
                 dynamic=dynamic, steps=steps, mass=mass, elasticity=elasticity, viscosity=viscosity,
                 allow_intersections=allow_intersections, max_substeps=max_substeps, image=image, space=space,
                 image_weight=image_weight, image_sigma=image_sigma, search_radius=search_radius, cube=cube,
-                passes=passes)
+                passes=passes, solver=solver)
 
 
 _CORRECT_DOC = """
@@ -148,6 +148,8 @@ _CORRECT_DOC = """
     pair with the voxel-to-LPS-mm affine of :func:`read_volume`: pull the wall onto
     its edges. space: "lps" or "ras", the frame of V. image_weight (30),
     image_sigma (1 mm), search_radius (3 mm), cube (0: off), passes (4).
+    solver: "direct" (default), "global" (multigrid-CG, for very large regions) or
+    "iterative" (Jacobi-CG); the last two for the static fem correction without image.
 
     Returns a :class:`CorrectionResult`: V, displacement, region and the report fields
     of ``meshpde correct --json`` under the same names (``to_dict()`` gives them all).
@@ -157,10 +159,11 @@ _CORRECT_DOC = """
 def correct(V, F, vertices, moves, *, radius=0.0, rings=0, method="fem", g1=0.0, g2=1.0, laplacian="auto",
             stiffness=None, dynamic=False, steps=50, mass=0.1, elasticity=0.9, viscosity=0.6,
             allow_intersections=False, max_substeps=8, image=None, space="lps", image_weight=30.0, image_sigma=1.0,
-            search_radius=3.0, cube=0, passes=4):
+            search_radius=3.0, cube=0, passes=4, solver="direct"):
     return _meshpde._correct(V, F, vertices, moves, _correction_options(
         radius, rings, method, g1, g2, laplacian, stiffness, dynamic, steps, mass, elasticity, viscosity,
-        allow_intersections, max_substeps, image, space, image_weight, image_sigma, search_radius, cube, passes))
+        allow_intersections, max_substeps, image, space, image_weight, image_sigma, search_radius, cube, passes,
+        solver))
 
 
 correct.__doc__ = "Vessel-wall correction (seed 001), as ``meshpde correct``; the input is not modified.\n" + _CORRECT_DOC
@@ -175,9 +178,10 @@ class CorrectionSession(_meshpde._CorrectionSession):
     def apply(self, vertices, moves, *, radius=0.0, rings=0, method="fem", g1=0.0, g2=1.0, laplacian="auto",
               stiffness=None, dynamic=False, steps=50, mass=0.1, elasticity=0.9, viscosity=0.6,
               allow_intersections=False, max_substeps=8, image=None, space="lps", image_weight=30.0,
-              image_sigma=1.0, search_radius=3.0, cube=0, passes=4):
+              image_sigma=1.0, search_radius=3.0, cube=0, passes=4, solver="direct"):
         return self._apply(vertices, moves, _correction_options(
             radius, rings, method, g1, g2, laplacian, stiffness, dynamic, steps, mass, elasticity, viscosity,
-            allow_intersections, max_substeps, image, space, image_weight, image_sigma, search_radius, cube, passes))
+            allow_intersections, max_substeps, image, space, image_weight, image_sigma, search_radius, cube, passes,
+            solver))
 
     apply.__doc__ = "Applies a correction to the current positions; clears the redo history.\n" + _CORRECT_DOC

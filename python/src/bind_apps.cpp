@@ -120,6 +120,7 @@ py::object run_propagation(Propagation eq, const py::handle& V, const py::handle
 struct CorrectionOptions {
   CorrectionParams params;
   std::string method = "fem";
+  std::string solver = "direct";
   std::optional<std::string> image_space;
 };
 
@@ -195,6 +196,10 @@ CorrectionOptions correction_options(const Mesh& mesh, const py::handle& vertice
   num("viscosity", p.tissue.viscosity);
   if (const py::object v = get("allow_intersections"); !v.is_none()) p.prevent_intersections = !v.cast<bool>();
   integer("max_substeps", p.max_substeps);
+  if (const py::object v = get("solver"); !v.is_none()) {
+    c.solver = v.cast<std::string>();
+    p.solver = solver_arg(c.solver);
+  }
   if (const py::object image = get("image"); !image.is_none()) {
     double sigma = 1.0;
     num("image_sigma", sigma);
@@ -220,6 +225,7 @@ struct PyCorrectionResult {
   bool dynamic = false;
   int handles = 0;
   std::optional<std::string> image_space;
+  std::string solver;
 
   py::object image() const {
     if (!image_space) return py::none();
@@ -252,14 +258,15 @@ struct PyCorrectionResult {
     j["substeps"] = r.substeps;
     j["intersection_action"] = r.intersection_action;
     j["handles"] = handles;
+    j["solver"] = solver;
     if (image_space) j["image"] = image();
     return j;
   }
 };
 
 PyCorrectionResult wrap(CorrectionResult r, const CorrectionOptions& c) {
-  PyCorrectionResult out{std::move(r), c.method, c.params.dynamic, static_cast<int>(c.params.handles.size()),
-                         c.image_space};
+  PyCorrectionResult out{std::move(r),  c.method, c.params.dynamic, static_cast<int>(c.params.handles.size()),
+                         c.image_space, c.solver};
   if (!out.r.accuracy_warning.empty()) PyErr_WarnEx(PyExc_RuntimeWarning, out.r.accuracy_warning.c_str(), 1);
   return out;
 }
@@ -416,6 +423,7 @@ void bind_apps(py::module_& m) {
       .def_property_readonly("substeps", [](const PyCorrectionResult& c) { return c.r.substeps; })
       .def_property_readonly("intersection_action", [](const PyCorrectionResult& c) { return c.r.intersection_action; })
       .def_readonly("handles", &PyCorrectionResult::handles)
+      .def_readonly("solver", &PyCorrectionResult::solver)
       .def_property_readonly("image", &PyCorrectionResult::image)
       .def("to_dict", &PyCorrectionResult::to_dict, "The report as a dict, with the keys of `meshpde correct --json`.")
       .def("__repr__", [](const PyCorrectionResult& c) {

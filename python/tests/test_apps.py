@@ -168,3 +168,19 @@ def test_correct_with_image_guidance_reports_the_image(data):
     values, affine = meshpde.read_volume(data("aorta-mra.mha"))
     r2 = meshpde.correct(V, F, [500], ["normal:1"], radius=9.0, image=(values, affine), space="ras")
     assert np.abs(r2.V - r.V).max() <= 1e-9
+
+
+@pytest.mark.parametrize("solver", ["global", "iterative"])
+def test_correct_solvers_agree_with_the_direct_one_and_the_cli(cli, ico, tmp_path, solver):
+    path, V, F = ico
+    out = tmp_path / "c.ply"
+    report = cli("correct", path, "--vertex", 0, "--move", "0,0,0.1", "--radius", 0.6, "--solver", solver,
+                 "--tolerance", 1e-12, "-o", out, "--json", json_out=True)
+    assert report["solver"] == solver
+    direct = meshpde.correct(V, F, [0], [(0, 0, 0.1)], radius=0.6)
+    other = meshpde.correct(V, F, [0], [(0, 0, 0.1)], radius=0.6, solver=solver)
+    assert np.abs(other.V - direct.V).max() <= 1e-7 * 0.1
+    assert np.array_equal(other.region, direct.region)
+    assert np.abs(meshpde.read_mesh(out)[0] - direct.V).max() <= 1e-7 * 0.1
+    with pytest.raises(meshpde.InputError, match="static fem"):
+        meshpde.correct(V, F, [0], [(0, 0, 0.1)], radius=0.6, solver=solver, dynamic=True)

@@ -15,6 +15,7 @@
 #include "meshpde/core/errors.h"
 #include "meshpde/mesh/topology.h"
 #include "meshpde/operators/laplacian.h"
+#include "meshpde/pde/pde_session.h"
 #include "meshpde/pde/steady_direct.h"
 
 namespace meshpde {
@@ -107,6 +108,10 @@ void validate(const Mesh& mesh, const CorrectionParams& p) {
   for (double t : {p.tissue.mass, p.tissue.elasticity, p.tissue.viscosity})
     if (!(t >= 0 && t <= 1)) throw InputError(fmt::format("tissue parameter {} is outside [0, 1]", t));
   if (p.dynamic && p.steps < 1) throw InputError("a dynamic correction needs steps >= 1");
+  if (p.solver != SteadySolver::Direct && (p.dynamic || p.image.edges || p.method != CorrectionMethod::Fem))
+    throw InputError("the global and iterative solvers take the static fem correction without image guidance only");
+  if (p.solver == SteadySolver::Global && !(p.g2 > 0))
+    throw InputError("the global solver needs g2 > 0 (a bi-Laplacian term)");
   if (p.image.edges && p.method == CorrectionMethod::Springs)
     throw InputError("image guidance is available with the fem method only");
   if (p.image.cube_size != 0 && (p.image.cube_size < 3 || p.image.cube_size % 2 == 0))
@@ -299,6 +304,29 @@ Field fem_solve_local(const Mesh& mesh, const CorrectionParams& p, const std::ve
   const PdeCoefficients coef{.g0 = 0, .g1 = p.dynamic ? e * p.g1 : p.g1, .g2 = p.dynamic ? e * p.g2 : p.g2};
   if (p.dynamic)
     for (int v : s.free) extra[v] += c_inertia * s.mo.ops.mass[v];
+  if (p.solver != SteadySolver::Direct) {  // static and unguided (validate() made sure)
+    SteadySolveResult sr;
+    if (p.solver == SteadySolver::Global) {
+      sr = solve_steady(s.mo.mesh, s.mo.ops, coef, s.free, held, SteadySolver::Global);
+    } else {
+      PdeSession cg(s.mo.mesh, s.mo.ops, 3, PdeCoefficients{.alpha = 0, .b1 = 0, .b2 = 0, .g1 = coef.g1, .g2 = coef.g2},
+                    DomainOptions{.seed_rings = 0});
+      cg.cg_options = p.cg;
+      cg.activate(s.free);
+      for (const auto& h : p.handles) {
+        const Eigen::Vector3d x = held.row(h.vertex).transpose();
+        cg.constrain(h.vertex, std::span<const double>(x.data(), 3));
+      }
+      const StepResult step = cg.solve_steady();
+      if (!step.cg.converged())
+        throw SolverError(fmt::format("the iterative solve did not converge: {}", step.cg.message));
+      sr.values = cg.values();
+      sr.iterations = step.cg.iterations;
+      sr.relative_residual = step.cg.relative_residual;
+    }
+    r.relative_residual = std::max(r.relative_residual, sr.relative_residual);
+    return sr.values;
+  }
   const SteadyDirectSolver solver(s.mo.mesh, s.mo.ops, coef, s.free, SparseCholesky::Backend::Auto,
                                   extra.maxCoeff() > 0 ? extra : Eigen::VectorXd());
   const Eigen::MatrixX3d normals = guided ? vertex_normals(mesh) : Eigen::MatrixX3d();

@@ -71,6 +71,8 @@
 #include "meshpde/operators/fem_operators.h"
 #include "meshpde/operators/intrinsic_delaunay.h"
 #include "meshpde/operators/laplacian.h"
+#include "meshpde/pde/steady_direct.h"
+#include "meshpde/solvers/cg.h"
 
 namespace meshpde {
 
@@ -141,6 +143,13 @@ struct CorrectionParams {
   bool prevent_intersections = true;
   int max_substeps = 8;  ///< most steps a correction is split into before it is limited; default 8
   ImageGuidance image;   ///< off unless image.edges is set
+  /// How the Fem system is solved: Direct (default: a sparse Cholesky factor of the
+  /// region's matrix, with a condition estimate), Global (CG preconditioned by the
+  /// surface multigrid or the Laplacian factor, pde/global_bilaplacian.h: for regions
+  /// of hundreds of thousands of vertices; g2 > 0) or Iterative (Jacobi-CG, no factor:
+  /// for comparison). Global and Iterative solve the static, unguided problem only.
+  SteadySolver solver = SteadySolver::Direct;
+  CgOptions cg{.tolerance = 1e-10, .max_iterations = 50000};  ///< for SteadySolver::Iterative
 };
 
 /// A Fem correction solves on a copy of its region and this many rings around it
