@@ -1,0 +1,31 @@
+// The standard benchmarks behind `meshpde bench`: operator applies, interactive drags,
+// global steady solves, pokes and haptics, set-up of a real scan. Every figure comes
+// with the baseline it is measured against in the same run (machines are shared and
+// noisy: compare ratios, not absolute times). The JSON keys are listed, with what each
+// measures, in docs/benchmarks.md.
+#pragma once
+
+#include <filesystem>
+#include <functional>
+#include <nlohmann/json.hpp>
+#include <string>
+
+namespace meshpde::bench {
+
+struct BenchOptions {
+  bool quick = false;  ///< fewer repetitions and steps (the same meshes)
+  bool large = false;  ///< also the global solves on the 655k and 2.6M icospheres (minutes, several GB)
+  int threads = 0;     ///< thread limit for the whole run; 0: every core
+  /// Where the real meshes are (igea-134k.ply, bunny-36k.obj, fertility-4k.off); a
+  /// missing one leaves its figures out with a warning.
+  std::filesystem::path data_dir;
+  std::function<void(const std::string&)> progress;  ///< told before each step; may be empty
+  std::function<void(const std::string&)> warning;   ///< told what was left out and why; may be empty
+};
+
+/// Runs every benchmark and returns the figures as one JSON object (keys as
+/// `meshpde bench --json` prints them). Takes seconds with `quick`, minutes without.
+/// \throw SolverError if a solve it times fails.
+nlohmann::json run_standard_benchmarks(const BenchOptions& options);
+
+}  // namespace meshpde::bench

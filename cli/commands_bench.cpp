@@ -1,0 +1,34 @@
+// meshpde bench: parses the flags, runs the standard benchmarks (bench/suite) and
+// prints their figures.
+#include <fmt/format.h>
+
+#include <memory>
+
+#include "commands.h"
+#include "suite/standard_benchmarks.h"
+
+namespace meshpde::cli {
+
+void add_bench_command(CLI::App& app) {
+  auto* cmd = app.add_subcommand("bench", "Run the standard benchmarks and print figures with their baselines");
+  auto options = std::make_shared<bench::BenchOptions>();
+  auto json = std::make_shared<bool>(false);
+  cmd->add_flag("--quick", options->quick, "Fewer repetitions and steps (same meshes)");
+  cmd->add_flag("--json", *json, "Print a JSON object");
+  cmd->add_flag("--large", options->large,
+                "Also the global solves on the 655k and 2.6M icospheres (iteration counts; minutes, several GB)");
+  cmd->add_option("--threads", options->threads, "Thread limit for the whole run (default: every core)");
+  cmd->callback([=] {
+    options->data_dir = data_dir();
+    options->progress = [](const std::string& what) { fmt::print(stderr, "[bench] {}\n", what); };
+    options->warning = [](const std::string& what) { fmt::print(stderr, "warning: {}\n", what); };
+    const nlohmann::json j = bench::run_standard_benchmarks(*options);
+    if (*json) {
+      print_json(j);
+    } else {
+      for (auto it = j.begin(); it != j.end(); ++it) fmt::print("{:42} {}\n", it.key(), it.value().dump());
+    }
+  });
+}
+
+}  // namespace meshpde::cli
