@@ -25,7 +25,7 @@ DragResult drag_vertex(const Mesh& mesh, const FemOperators& ops, const DragPara
   if (p.radius <= 0 && p.rings <= 0) throw InputError("give a region of influence: a radius > 0 or rings > 0");
   if (ops.mass[p.vertex] <= 0) throw InputError(fmt::format("handle vertex {} has no incident area", p.vertex));
   DragResult r;
-  r.region = p.radius > 0 ? geodesic_ball(mesh, p.vertex, p.radius) : ring_ball(mesh, p.vertex, p.rings);
+  r.region = region_around(mesh, p.vertex, RegionSpec{.radius = p.radius, .rings = p.radius > 0 ? 0 : p.rings});
   if (p.solver != SteadySolver::Iterative) {
     r.region.erase(std::remove(r.region.begin(), r.region.end(), p.vertex), r.region.end());
     std::vector<int> free;
@@ -138,7 +138,7 @@ std::vector<int> region_of(const Mesh& mesh, const std::vector<int>& handles, co
     throw InputError(
         fmt::format("handle vertex {} does not exist (the mesh has {} vertices)", handles[0], mesh.num_vertices()));
   if (p.radius <= 0 && p.rings <= 0) throw InputError("give a region of influence: a radius > 0 or rings > 0");
-  return p.radius > 0 ? geodesic_ball(mesh, handles[0], p.radius) : ring_ball(mesh, handles[0], p.rings);
+  return region_around(mesh, handles[0], RegionSpec{.radius = p.radius, .rings = p.radius > 0 ? 0 : p.rings});
 }
 
 }  // namespace

@@ -41,7 +41,9 @@ struct DragResult {
   CgResult cg;
 };
 
-// geodesic_ball and ring_ball: mesh/regions.h.
+// The region is mesh/regions.h's region_around (the geodesic ball of the radius, else
+// the ring ball), the same rule as a correction's influence_region without its clamp;
+// when both radius and rings are given the radius is used.
 
 /// \throw InputError for a bad vertex or region; SolverError on a breakdown.
 DragResult drag_vertex(const Mesh& mesh, const FemOperators& ops, const DragParams& params);
