@@ -310,14 +310,9 @@ void add_solve_commands(CLI::App& app) {
       const BifurcationParams bp{.dent = true};
       const GeneratedMesh g = y_bifurcation(bp);
       const Mesh mesh(g.V, g.F);
-      // The handle: the wall vertex nearest the bottom of the dent.
-      const Eigen::Vector3d target(bp.trunk_radius - bp.dent_depth, 0, -0.5 * bp.trunk_length);
-      int handle = 0;
-      (mesh.positions().rowwise() - target.transpose()).rowwise().squaredNorm().minCoeff(&handle);
-      const Eigen::Vector3d p = mesh.positions().row(handle).transpose();
-      const double r_xy = std::hypot(p.x(), p.y());
-      const Eigen::Vector3d outward(p.x() / r_xy, p.y() / r_xy, 0);
-      const Eigen::Vector3d move = (bp.trunk_radius - r_xy) * outward;
+      const DentHandle dent = dent_handle(mesh.positions(), bp);
+      const int handle = dent.vertex;
+      const Eigen::Vector3d move = dent.move;
       std::filesystem::create_directories(a->outdir);
       const auto in_path = std::filesystem::path(a->outdir) / "bifurcation-dented.ply";
       const auto out_path = std::filesystem::path(a->outdir) / "bifurcation-corrected.ply";

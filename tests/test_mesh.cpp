@@ -1,6 +1,7 @@
 #include <gtest/gtest.h>
 
 #include <cctype>
+#include <cmath>
 #include <string>
 
 #include "meshpde/core/errors.h"
@@ -105,6 +106,25 @@ TEST(Generators, TubePlaneFinsAndBifurcation) {
   EXPECT_TRUE(yr.orientation_consistent);
   EXPECT_GT(yr.signed_volume, 0);
   EXPECT_GT(yr.min_angle_deg, 5.0);  // relaxed onto the surface: no slivers
+}
+
+// The demo's handle: a vertex at the bottom of the dent, moved radially back onto the
+// trunk's cylinder; on the undented mesh the same rule finds a wall vertex that needs
+// almost no move (the wall is already there, up to the relaxation's O(h^2)).
+TEST(Generators, DentHandleMovesTheDentsBottomBackOntoTheTrunk) {
+  for (const double cell : {1.0, 0.6}) {
+    const BifurcationParams bp{.cell = cell, .dent = true};
+    const GeneratedMesh dented = y_bifurcation(bp);
+    const DentHandle h = dent_handle(dented.V, bp);
+    const Eigen::Vector3d p = dented.V.row(h.vertex).transpose();
+    EXPECT_LT(std::hypot(p.x(), p.y()), bp.trunk_radius - 0.5 * bp.dent_depth) << "cell " << cell;
+    EXPECT_NEAR(p.z(), -0.5 * bp.trunk_length, cell) << "cell " << cell;
+    const Eigen::Vector3d q = p + h.move;
+    EXPECT_NEAR(std::hypot(q.x(), q.y()), bp.trunk_radius, 1e-12) << "cell " << cell;
+    EXPECT_EQ(h.move.z(), 0.0);
+    EXPECT_GT(h.move.dot(Eigen::Vector3d(p.x(), p.y(), 0)), 0.0) << "outward";
+    EXPECT_NEAR(h.move.norm(), bp.dent_depth, 0.6 * cell) << "cell " << cell;
+  }
 }
 
 TEST(Generators, MidpointSubdivisionQuadruplesFaces) {

@@ -330,6 +330,17 @@ GeneratedMesh subdivide_midpoint(const Positions& V, const Triangles& F) {
   return m;
 }
 
+DentHandle dent_handle(const Positions& V, const BifurcationParams& q) {
+  // The dent is centred on the trunk's wall at +x, halfway up the trunk.
+  const Eigen::Vector3d bottom(q.trunk_radius - q.dent_depth, 0, -0.5 * q.trunk_length);
+  DentHandle h;
+  (V.rowwise() - bottom.transpose()).rowwise().squaredNorm().minCoeff(&h.vertex);
+  const Eigen::Vector3d p = V.row(h.vertex).transpose();
+  const double r_xy = std::hypot(p.x(), p.y());
+  h.move = (q.trunk_radius - r_xy) * Eigen::Vector3d(p.x() / r_xy, p.y() / r_xy, 0);
+  return h;
+}
+
 const std::vector<std::string>& generator_names() {
   static const std::vector<std::string> names{"latlong",     "icosphere", "geodesic", "tube",
                                               "bifurcation", "plane",     "fins"};

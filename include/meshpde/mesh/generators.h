@@ -61,6 +61,16 @@ struct BifurcationParams {
 };
 GeneratedMesh y_bifurcation(const BifurcationParams& params = {});
 
+/// The correction of a dented bifurcation (`meshpde demo`): the wall vertex nearest the
+/// bottom of the dent, and the move (mm) that puts it back on the trunk's cylinder,
+/// radially outward from the trunk's axis (z).
+struct DentHandle {
+  int vertex = 0;
+  Eigen::Vector3d move = Eigen::Vector3d::Zero();
+};
+/// \pre V comes from y_bifurcation(params) with params.dent.
+DentHandle dent_handle(const Positions& V, const BifurcationParams& params = {});
+
 /// Every generator under one name, with one set of defaults: the table that
 /// `meshpde generate`, the editor and Python's `meshpde.generate` share.
 struct GeneratorParams {
