@@ -72,6 +72,38 @@ TEST(Direct, BackendsAgreeReuseTheAnalysisAndRejectIndefinite) {
   }
 }
 
+// Every backend refuses in words what it cannot do: a solve before a factor, a
+// right-hand side of the wrong height, CHOLMOD in a build without it.
+TEST(Direct, EveryBackendRefusesBadRequestsInWords) {
+  const Mesh m = make(icosphere(2));
+  const FemOperators ops = build_operators(m);
+  const Eigen::SparseMatrix<double> A = stiffness_matrix(m, ops) + mass_matrix(ops);
+  auto refused = [](auto&& call, const char* words) {
+    try {
+      call();
+      ADD_FAILURE() << "accepted; expected an error with '" << words << "'";
+    } catch (const SolverError& e) {
+      EXPECT_NE(std::string(e.what()).find(words), std::string::npos) << e.what();
+    }
+  };
+  std::vector<SparseCholesky::Backend> backends{SparseCholesky::Backend::Eigen};
+  if (SparseCholesky::cholmod_available()) {
+    backends.push_back(SparseCholesky::Backend::Cholmod);
+  } else {
+    refused([] { SparseCholesky s(SparseCholesky::Backend::Cholmod); }, "built without it");
+    refused([] { LeadingBlockCholesky s(SparseCholesky::Backend::Cholmod); }, "built without it");
+    refused([&] { SplitCholesky().factorize(A, 10, 10); }, "needs CHOLMOD");
+  }
+  for (const auto b : backends) {
+    SparseCholesky s(b);
+    refused([&] { s.solve(Eigen::MatrixXd::Ones(A.rows(), 1)); }, "before a successful factorize");
+    s.factorize(A);
+    refused([&] { s.solve(Eigen::MatrixXd::Ones(A.rows() + 1, 2)); }, "rows for a factor of");
+    EXPECT_LE((A * s.solve(Eigen::MatrixXd::Ones(A.rows(), 2)) - Eigen::MatrixXd::Ones(A.rows(), 2)).norm(), 1e-9)
+        << s.backend_name();
+  }
+}
+
 TEST(Direct, PivotRatioIsTheSmallestOverTheLargestPivot) {
   // A diagonal matrix's pivots are its entries (LDL^T and LL^T alike): 0.5 / 8. With
   // the 2 x 2 block [1 1; 1 1 + 1e-14] in place of its first two rows, one pivot is
