@@ -44,9 +44,10 @@ MeshData read_by_extension(const std::filesystem::path& path) {
 
 std::vector<std::string> write_by_extension(const std::filesystem::path& path, const MeshData& d, bool binary) {
 #ifdef MESHPDE_HAVE_MEDICAL
-  if (is_vtk_mesh_path(path)) return write_any_mesh(path, d);
-#endif
+  return write_any_mesh(path, d, WriteOptions{.binary = binary});
+#else
   return write_mesh(path, d, WriteOptions{.binary = binary});
+#endif
 }
 
 // Vertex fields as Python sees them: NAME_x, NAME_y, NAME_z (the library's storage of a

@@ -379,9 +379,10 @@ MeshData read_any_mesh(const std::filesystem::path& path) {
   return is_vtk_mesh_path(path) ? read_vtk_mesh(path) : read_mesh(path);
 }
 
-std::vector<std::string> write_any_mesh(const std::filesystem::path& path, const MeshData& data) {
+std::vector<std::string> write_any_mesh(const std::filesystem::path& path, const MeshData& data,
+                                        const WriteOptions& options) {
   require_mesh_extension(path);
-  if (!is_vtk_mesh_path(path)) return write_mesh(path, data);
+  if (!is_vtk_mesh_path(path)) return write_mesh(path, data, options);
   write_vtk_mesh(path, data);
   return {};
 }

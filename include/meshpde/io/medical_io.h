@@ -39,8 +39,11 @@ std::string write_vtk_mesh_to_memory(const MeshData& data, const std::string& ki
 
 /// Every mesh format the project reads: .obj .off .ply .stl (core) and .vtp .vtk.
 MeshData read_any_mesh(const std::filesystem::path& path);
-/// Writes by extension; returns warnings (fields a format cannot hold).
-std::vector<std::string> write_any_mesh(const std::filesystem::path& path, const MeshData& data);
+/// Writes by extension; returns warnings (fields a format cannot hold). `options`
+/// applies to the core formats (PLY and STL binary or ascii); .vtp and .vtk are always
+/// written binary.
+std::vector<std::string> write_any_mesh(const std::filesystem::path& path, const MeshData& data,
+                                        const WriteOptions& options = {});
 bool is_vtk_mesh_path(const std::filesystem::path& path);
 
 /// .mha .mhd .nii .nii.gz .nrrd .nhdr. \throw InputError naming the file.
