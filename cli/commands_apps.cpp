@@ -259,83 +259,13 @@ void add_fair_command(CLI::App& app) {
   });
 }
 
-/// Reads interpolation constraints: CSV lines "vertex,value[,value,value]" (a header
-/// line is allowed) or JSON {"constraints": [{"vertex": 12 or "@x,y,z", "value": 1 or [x, y, z]}]}.
+/// Reads an interpolation constraints file (CSV or JSON: parse_constraints).
 std::vector<InterpolationConstraint> read_constraints(const std::string& path, const Mesh& mesh, int m) {
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(fmt::format("{}: cannot open", path));
   std::stringstream ss;
   ss << in.rdbuf();
-  const std::string text = ss.str();
-  std::vector<InterpolationConstraint> out;
-  auto add = [&](int v, std::vector<double> x, const std::string& where) {
-    if (static_cast<int>(x.size()) != m)
-      throw InputError(fmt::format("{}: {}: {} values, expected {}", path, where, x.size(), m));
-    InterpolationConstraint c{v, Eigen::VectorXd(m)};
-    for (int k = 0; k < m; ++k) c.value[k] = x[k];
-    out.push_back(std::move(c));
-  };
-  const auto first = text.find_first_not_of(" \t\r\n");
-  if (first != std::string::npos && (text[first] == '{' || text[first] == '[')) {
-    nlohmann::json j;
-    try {
-      j = nlohmann::json::parse(text);
-    } catch (const nlohmann::json::parse_error& e) {
-      throw InputError(fmt::format("{}: invalid JSON: {}", path, e.what()));
-    }
-    const nlohmann::json& list = j.is_array() ? j : j.value("constraints", nlohmann::json::array());
-    if (!list.is_array()) throw InputError(fmt::format("{}: 'constraints' must be an array", path));
-    for (std::size_t k = 0; k < list.size(); ++k) {
-      const auto& e = list[k];
-      const std::string where = fmt::format("constraint {}", k);
-      if (!e.is_object() || !e.contains("vertex") || !e.contains("value"))
-        throw InputError(fmt::format("{}: {}: needs 'vertex' and 'value'", path, where));
-      const int v = e["vertex"].is_string() ? parse_vertex(mesh, e["vertex"].get<std::string>(), where.c_str())
-                                            : parse_vertex(mesh, e["vertex"].dump(), where.c_str());
-      std::vector<double> x;
-      if (e["value"].is_number())
-        x.push_back(e["value"].get<double>());
-      else if (e["value"].is_array())
-        for (const auto& q : e["value"]) {
-          if (!q.is_number()) throw InputError(fmt::format("{}: {}: values must be numbers", path, where));
-          x.push_back(q.get<double>());
-        }
-      else
-        throw InputError(fmt::format("{}: {}: 'value' must be a number or an array", path, where));
-      add(v, x, where);
-    }
-    return out;
-  }
-  std::stringstream lines(text);
-  std::string line;
-  int lineno = 0;
-  while (std::getline(lines, line)) {
-    ++lineno;
-    line = line.substr(0, line.find('#'));
-    if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
-    auto trim = [](std::string t) {
-      const auto b = t.find_first_not_of(" \t\r"), e = t.find_last_not_of(" \t\r");
-      return b == std::string::npos ? std::string() : t.substr(b, e - b + 1);
-    };
-    std::vector<std::string> f;
-    std::stringstream ls(line);
-    std::string item;
-    while (std::getline(ls, item, ',')) f.push_back(trim(item));
-    const std::string where = fmt::format("line {}", lineno);
-    if (out.empty() && !f[0].empty() && !std::isdigit(static_cast<unsigned char>(f[0][0]))) continue;  // header
-    const int v = parse_vertex(mesh, f[0], where.c_str());
-    std::vector<double> x;
-    for (std::size_t k = 1; k < f.size(); ++k) {
-      char* end = nullptr;
-      const double d = std::strtod(f[k].c_str(), &end);
-      if (f[k].empty() || *end != '\0' || !std::isfinite(d))
-        throw InputError(fmt::format("{}: {}: '{}' is not a number", path, where, f[k]));
-      x.push_back(d);
-    }
-    add(v, x, where);
-  }
-  if (out.empty()) throw InputError(fmt::format("{}: no constraints", path));
-  return out;
+  return parse_constraints(mesh, ss.str(), m, path);
 }
 
 void add_interpolate_command(CLI::App& app) {
@@ -434,54 +364,6 @@ void add_interpolate_command(CLI::App& app) {
   });
 }
 
-struct PathPoint {
-  double t;
-  Eigen::Vector3d offset;
-};
-
-/// Probe path CSV: "t,dx,dy,dz" per line (seconds; offset from the vertex's rest
-/// position in mesh units), times increasing; a header line is allowed.
-std::vector<PathPoint> read_path(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw InputError(fmt::format("{}: cannot open", path));
-  std::vector<PathPoint> out;
-  std::string line;
-  int lineno = 0;
-  while (std::getline(in, line)) {
-    ++lineno;
-    line = line.substr(0, line.find('#'));
-    std::replace(line.begin(), line.end(), ',', ' ');
-    std::stringstream ss(line);
-    std::vector<std::string> tok;
-    for (std::string t; ss >> t;) tok.push_back(t);
-    if (tok.empty()) continue;
-    if (out.empty() && !std::isdigit(static_cast<unsigned char>(tok[0][0])) && tok[0][0] != '-' && tok[0][0] != '.')
-      continue;  // header
-    if (tok.size() != 4) throw InputError(fmt::format("{}: line {}: expected t,dx,dy,dz", path, lineno));
-    double v[4];
-    for (int k = 0; k < 4; ++k) {
-      char* end = nullptr;
-      v[k] = std::strtod(tok[k].c_str(), &end);
-      if (*end != '\0' || !std::isfinite(v[k]))
-        throw InputError(fmt::format("{}: line {}: '{}' is not a number", path, lineno, tok[k]));
-    }
-    if (!out.empty() && v[0] <= out.back().t)
-      throw InputError(fmt::format("{}: line {}: times must increase", path, lineno));
-    out.push_back({v[0], Eigen::Vector3d(v[1], v[2], v[3])});
-  }
-  if (out.empty()) throw InputError(fmt::format("{}: no path points", path));
-  return out;
-}
-
-Eigen::Vector3d path_at(const std::vector<PathPoint>& p, double t) {
-  if (t <= p.front().t) return p.front().offset;
-  if (t >= p.back().t) return p.back().offset;
-  const auto it = std::upper_bound(p.begin(), p.end(), t, [](double x, const PathPoint& q) { return x < q.t; });
-  const auto& b = *it;
-  const auto& a = *(it - 1);
-  return a.offset + (b.offset - a.offset) * ((t - a.t) / (b.t - a.t));
-}
-
 void add_poke_command(CLI::App& app) {
   auto* cmd = app.add_subcommand("poke", "Replay a probe path on a haptic session: forces, latency, domain size");
   struct Args {
@@ -514,9 +396,13 @@ void add_poke_command(CLI::App& app) {
     const Mesh mesh = load_mesh(a->mesh);
     const int v = parse_vertex(mesh, a->vertex, "--vertex");
     const FemOperators ops = build_operators(mesh);
-    std::vector<PathPoint> path;
+    std::vector<ProbePathPoint> path;
     if (!a->path.empty()) {
-      path = read_path(a->path);
+      std::ifstream in(a->path, std::ios::binary);
+      if (!in) throw InputError(fmt::format("{}: cannot open", a->path));
+      std::stringstream text;
+      text << in.rdbuf();
+      path = parse_probe_path(text.str(), a->path);
     } else {
       const double h = mean_edge_length(mesh);
       Eigen::Vector3d n = Eigen::Vector3d::Zero();
@@ -546,7 +432,7 @@ void add_poke_command(CLI::App& app) {
       for (;;) {
         const double t = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
         if (t > t_end) break;
-        s.move_probe(path_at(path, t));
+        s.move_probe(probe_path_at(path, t));
         progress.update(static_cast<long long>(t * 1000));
         std::this_thread::sleep_for(std::chrono::microseconds(250));
       }
@@ -559,7 +445,7 @@ void add_poke_command(CLI::App& app) {
       progress.update(static_cast<long long>((t_end + a->settle) * 1000));
     } else {
       for (double t = period; t <= t_end + 1e-12; t += period) {
-        s.move_probe(path_at(path, t));
+        s.move_probe(probe_path_at(path, t));
         s.step(period);
       }
       snapshot();

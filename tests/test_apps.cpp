@@ -5,9 +5,13 @@
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <random>
 
+#include "meshpde/apps/haptics.h"
 #include "meshpde/apps/heat_wave.h"
+#include "meshpde/apps/interpolation.h"
+#include "meshpde/apps/selection.h"
 #include "meshpde/core/errors.h"
 #include "meshpde/mesh/generators.h"
 #include "meshpde/operators/fem_operators.h"
@@ -118,6 +122,79 @@ TEST(Selection, EveryKindAndClearErrors) {
   EXPECT_THROW(select_vertices(m, "rings:5"), InputError);
   EXPECT_THROW(select_vertices(m, "field:nope>1"), InputError);
   EXPECT_THROW(select_vertices(m, "sphere:1"), InputError);
+}
+
+// The parsers of the files users hand the tool (constraints, probe paths, vertex
+// lists) live in the library, so the CLI, Python and the fuzz targets share them.
+namespace {
+std::string error_of(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "(no error)";
+}
+}  // namespace
+
+TEST(Parsers, ConstraintsFromCsvAndJsonWithErrorsThatNameThePlace) {
+  const Mesh m = make(plane_grid(4, 4));  // 25 vertices on [0, 1]^2
+  const auto csv = parse_constraints(m, "vertex,value\n# a comment\n3, 1.5\n24,-2\n", 1, "c.csv");
+  ASSERT_EQ(csv.size(), 2u);
+  EXPECT_EQ(csv[0].vertex, 3);
+  EXPECT_EQ(csv[0].value[0], 1.5);
+  EXPECT_EQ(csv[1].vertex, 24);
+  EXPECT_EQ(csv[1].value[0], -2.0);
+  const auto json = parse_constraints(
+      m, R"({"constraints": [{"vertex": 0, "value": [1, 2, 3]}, {"vertex": "@0,0,0", "value": [4, 5, 6]}]})", 3,
+      "c.json");
+  ASSERT_EQ(json.size(), 2u);
+  EXPECT_EQ(json[1].vertex, 0);
+  EXPECT_EQ(json[1].value[2], 6.0);
+  EXPECT_EQ(parse_constraints(m, R"([{"vertex": 2, "value": 7}])", 1, "bare.json").size(), 1u);
+
+  EXPECT_NE(error_of([&] { parse_constraints(m, "1,2\n99,1\n", 1, "c.csv"); }).find("c.csv: line 2"),
+            std::string::npos);
+  EXPECT_NE(error_of([&] { parse_constraints(m, "1,abc\n", 1, "c.csv"); }).find("'abc' is not a number"),
+            std::string::npos);
+  EXPECT_NE(error_of([&] { parse_constraints(m, "1,2,3\n", 3, "c.csv"); }).find("2 values, expected 3"),
+            std::string::npos);
+  EXPECT_NE(error_of([&] { parse_constraints(m, "# nothing\n", 1, "c.csv"); }).find("no constraints"),
+            std::string::npos);
+  EXPECT_NE(error_of([&] { parse_constraints(m, "{\"constraints\": [", 1, "c.json"); }).find("invalid JSON"),
+            std::string::npos);
+  EXPECT_NE(error_of([&] { parse_constraints(m, R"([{"vertex": 1, "value": 1e999}])", 1, "c.json"); }).find("c.json"),
+            std::string::npos);
+  EXPECT_NE(error_of([&] {
+              parse_constraints(m, R"({"constraints": [{"vertex": 1}]})", 1, "c.json");
+            }).find("constraint 0: needs 'vertex' and 'value'"),
+            std::string::npos);
+  EXPECT_NE(error_of([&] { parse_constraints(m, R"({"constraints": 5})", 1, "c.json"); }).find("must be an array"),
+            std::string::npos);
+}
+
+TEST(Parsers, ProbePathInterpolatesBetweenIncreasingTimes) {
+  const auto p = parse_probe_path("t,dx,dy,dz\n0,0,0,0\n0.5 0 0 -1  # pressed\n1,0,0,-1\n", "p.csv");
+  ASSERT_EQ(p.size(), 3u);
+  EXPECT_EQ(probe_path_at(p, -1.0), Eigen::Vector3d::Zero());
+  EXPECT_NEAR(probe_path_at(p, 0.25).z(), -0.5, 1e-15);
+  EXPECT_EQ(probe_path_at(p, 2.0), Eigen::Vector3d(0, 0, -1));
+  EXPECT_NE(
+      error_of([] { parse_probe_path("0,0,0,0\n0,0,0,1\n", "p.csv"); }).find("p.csv: line 2: times must increase"),
+      std::string::npos);
+  EXPECT_NE(error_of([] { parse_probe_path("0,0,0\n", "p.csv"); }).find("line 1: expected t,dx,dy,dz"),
+            std::string::npos);
+  EXPECT_NE(error_of([] { parse_probe_path("0,0,0,nan\n", "p.csv"); }).find("'nan' is not a number"),
+            std::string::npos);
+  EXPECT_NE(error_of([] { parse_probe_path("t,dx,dy,dz\n", "p.csv"); }).find("no path points"), std::string::npos);
+}
+
+TEST(Parsers, VertexListsTakeCommasSpacesAndComments) {
+  const Mesh m = make(plane_grid(4, 4));
+  EXPECT_EQ(parse_vertex_list(m, "# head\n1, 2 3\n\n24\n", "s.txt"), (std::vector<int>{1, 2, 3, 24}));
+  EXPECT_NE(error_of([&] { parse_vertex_list(m, "1\n2 x\n", "s.txt"); }).find("s.txt: line 2"), std::string::npos);
+  EXPECT_NE(error_of([&] { parse_vertex_list(m, "25\n", "s.txt"); }).find("does not exist"), std::string::npos);
+  EXPECT_TRUE(parse_vertex_list(m, "", "s.txt").empty());
 }
 
 TEST(Fairing, BilaplacianFairingOfABumpReturnsThePlane) {

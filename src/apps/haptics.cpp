@@ -3,7 +3,10 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <cctype>
 #include <chrono>
+#include <cmath>
+#include <sstream>
 
 #include "meshpde/core/errors.h"
 #include "meshpde/mesh/topology.h"
@@ -211,6 +214,46 @@ double HapticSession::recent_p99_us() const {
 std::vector<HapticSample> HapticSession::log() const {
   std::lock_guard lock(mutex_);
   return log_;
+}
+
+std::vector<ProbePathPoint> parse_probe_path(const std::string& text, const std::string& name) {
+  std::vector<ProbePathPoint> out;
+  std::stringstream in(text);
+  std::string line;
+  int lineno = 0;
+  while (std::getline(in, line)) {
+    ++lineno;
+    line = line.substr(0, line.find('#'));
+    std::replace(line.begin(), line.end(), ',', ' ');
+    std::stringstream ss(line);
+    std::vector<std::string> tok;
+    for (std::string t; ss >> t;) tok.push_back(t);
+    if (tok.empty()) continue;
+    if (out.empty() && !std::isdigit(static_cast<unsigned char>(tok[0][0])) && tok[0][0] != '-' && tok[0][0] != '.')
+      continue;  // header
+    if (tok.size() != 4) throw InputError(fmt::format("{}: line {}: expected t,dx,dy,dz", name, lineno));
+    double v[4];
+    for (int k = 0; k < 4; ++k) {
+      char* end = nullptr;
+      v[k] = std::strtod(tok[k].c_str(), &end);
+      if (*end != '\0' || !std::isfinite(v[k]))
+        throw InputError(fmt::format("{}: line {}: '{}' is not a number", name, lineno, tok[k]));
+    }
+    if (!out.empty() && v[0] <= out.back().t)
+      throw InputError(fmt::format("{}: line {}: times must increase", name, lineno));
+    out.push_back({v[0], Eigen::Vector3d(v[1], v[2], v[3])});
+  }
+  if (out.empty()) throw InputError(fmt::format("{}: no path points", name));
+  return out;
+}
+
+Eigen::Vector3d probe_path_at(const std::vector<ProbePathPoint>& p, double t) {
+  if (t <= p.front().t) return p.front().offset;
+  if (t >= p.back().t) return p.back().offset;
+  const auto it = std::upper_bound(p.begin(), p.end(), t, [](double x, const ProbePathPoint& q) { return x < q.t; });
+  const auto& b = *it;
+  const auto& a = *(it - 1);
+  return a.offset + (b.offset - a.offset) * ((t - a.t) / (b.t - a.t));
 }
 
 }  // namespace meshpde

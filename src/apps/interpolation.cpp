@@ -2,8 +2,12 @@
 
 #include <fmt/format.h>
 
+#include <cctype>
 #include <cmath>
+#include <nlohmann/json.hpp>
+#include <sstream>
 
+#include "meshpde/apps/selection.h"
 #include "meshpde/core/errors.h"
 #include "meshpde/operators/connection.h"
 #include "meshpde/pde/pde_session.h"
@@ -144,6 +148,91 @@ InterpolationResult interpolate(const Mesh& mesh, const FemOperators& ops, Field
     r.values.row(c.vertex) = v - v.dot(n) * n;  // exact (tangential part of the given vector)
   }
   return r;
+}
+
+std::vector<InterpolationConstraint> parse_constraints(const Mesh& mesh, const std::string& text, int m,
+                                                       const std::string& path) {
+  if (m < 1) throw InputError(fmt::format("{}: a constraint needs at least one value (asked for {})", path, m));
+  // A vertex as an index or @X,Y,Z, its errors prefixed with the file and the place.
+  auto parse_vertex = [&](const std::string& spec, const std::string& where) {
+    try {
+      return parse_vertex_spec(mesh, spec);
+    } catch (const InputError& e) {
+      throw InputError(fmt::format("{}: {}: {}", path, where, e.what()));
+    }
+  };
+  std::vector<InterpolationConstraint> out;
+  auto add = [&](int v, std::vector<double> x, const std::string& where) {
+    if (static_cast<int>(x.size()) != m)
+      throw InputError(fmt::format("{}: {}: {} values, expected {}", path, where, x.size(), m));
+    InterpolationConstraint c{v, Eigen::VectorXd(m)};
+    for (int k = 0; k < m; ++k) {
+      if (!std::isfinite(x[k])) throw InputError(fmt::format("{}: {}: value {} is not finite", path, where, k + 1));
+      c.value[k] = x[k];
+    }
+    out.push_back(std::move(c));
+  };
+  const auto first = text.find_first_not_of(" \t\r\n");
+  if (first != std::string::npos && (text[first] == '{' || text[first] == '[')) {
+    nlohmann::json j;
+    try {
+      j = nlohmann::json::parse(text);
+    } catch (const nlohmann::json::exception& e) {  // syntax, a number out of range, bad UTF-8
+      throw InputError(fmt::format("{}: invalid JSON: {}", path, e.what()));
+    }
+    const nlohmann::json& list = j.is_array() ? j : j.value("constraints", nlohmann::json::array());
+    if (!list.is_array()) throw InputError(fmt::format("{}: 'constraints' must be an array", path));
+    for (std::size_t k = 0; k < list.size(); ++k) {
+      const auto& e = list[k];
+      const std::string where = fmt::format("constraint {}", k);
+      if (!e.is_object() || !e.contains("vertex") || !e.contains("value"))
+        throw InputError(fmt::format("{}: {}: needs 'vertex' and 'value'", path, where));
+      const int v = e["vertex"].is_string() ? parse_vertex(e["vertex"].get<std::string>(), where)
+                                            : parse_vertex(e["vertex"].dump(), where);
+      std::vector<double> x;
+      if (e["value"].is_number())
+        x.push_back(e["value"].get<double>());
+      else if (e["value"].is_array())
+        for (const auto& q : e["value"]) {
+          if (!q.is_number()) throw InputError(fmt::format("{}: {}: values must be numbers", path, where));
+          x.push_back(q.get<double>());
+        }
+      else
+        throw InputError(fmt::format("{}: {}: 'value' must be a number or an array", path, where));
+      add(v, x, where);
+    }
+    return out;
+  }
+  std::stringstream lines(text);
+  std::string line;
+  int lineno = 0;
+  while (std::getline(lines, line)) {
+    ++lineno;
+    line = line.substr(0, line.find('#'));
+    if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
+    auto trim = [](std::string t) {
+      const auto b = t.find_first_not_of(" \t\r"), e = t.find_last_not_of(" \t\r");
+      return b == std::string::npos ? std::string() : t.substr(b, e - b + 1);
+    };
+    std::vector<std::string> f;
+    std::stringstream ls(line);
+    std::string item;
+    while (std::getline(ls, item, ',')) f.push_back(trim(item));
+    const std::string where = fmt::format("line {}", lineno);
+    if (out.empty() && !f[0].empty() && !std::isdigit(static_cast<unsigned char>(f[0][0]))) continue;  // header
+    const int v = parse_vertex(f[0], where);
+    std::vector<double> x;
+    for (std::size_t k = 1; k < f.size(); ++k) {
+      char* end = nullptr;
+      const double d = std::strtod(f[k].c_str(), &end);
+      if (f[k].empty() || *end != '\0' || !std::isfinite(d))
+        throw InputError(fmt::format("{}: {}: '{}' is not a number", path, where, f[k]));
+      x.push_back(d);
+    }
+    add(v, x, where);
+  }
+  if (out.empty()) throw InputError(fmt::format("{}: no constraints", path));
+  return out;
 }
 
 }  // namespace meshpde

@@ -32,6 +32,28 @@ std::vector<std::string> split(const std::string& s, char sep) {
 
 }  // namespace
 
+std::vector<int> parse_vertex_list(const Mesh& mesh, const std::string& text, const std::string& name) {
+  std::vector<int> out;
+  std::stringstream in(text);
+  std::string line;
+  int lineno = 0;
+  while (std::getline(in, line)) {
+    ++lineno;
+    line = line.substr(0, line.find('#'));
+    std::replace(line.begin(), line.end(), ',', ' ');
+    std::stringstream ss(line);
+    std::string tok;
+    while (ss >> tok) {
+      try {
+        out.push_back(parse_vertex_spec(mesh, tok));
+      } catch (const InputError& e) {
+        throw InputError(fmt::format("{}: line {}: {}", name, lineno, e.what()));
+      }
+    }
+  }
+  return out;
+}
+
 int parse_vertex_spec(const Mesh& mesh, const std::string& spec) {
   if (!spec.empty() && spec[0] == '@') {
     const auto parts = split(spec.substr(1), ',');
@@ -77,24 +99,11 @@ std::vector<int> select_vertices(const Mesh& mesh, const std::string& spec, cons
   } else if (kind == "boundary") {
     out = boundary_vertices(mesh);
   } else if (kind == "file") {
-    std::ifstream in(rest);
+    std::ifstream in(rest, std::ios::binary);
     if (!in) throw InputError(fmt::format("selection '{}': cannot open {}", spec, rest));
-    std::string line;
-    int lineno = 0;
-    while (std::getline(in, line)) {
-      ++lineno;
-      line = line.substr(0, line.find('#'));
-      std::replace(line.begin(), line.end(), ',', ' ');
-      std::stringstream ss(line);
-      std::string tok;
-      while (ss >> tok) {
-        try {
-          out.push_back(parse_vertex_spec(mesh, tok));
-        } catch (const InputError& e) {
-          throw InputError(fmt::format("{}: line {}: {}", rest, lineno, e.what()));
-        }
-      }
-    }
+    std::stringstream text;
+    text << in.rdbuf();
+    out = parse_vertex_list(mesh, text.str(), rest);
   } else if (kind == "rings" || kind == "radius") {
     const auto last = rest.rfind(':');
     if (last == std::string::npos)

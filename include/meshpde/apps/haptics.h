@@ -19,6 +19,7 @@
 #include <atomic>
 #include <memory>
 #include <mutex>
+#include <string>
 #include <thread>
 #include <vector>
 
@@ -131,5 +132,23 @@ class HapticSession {
   std::vector<int> published_;
   int snapshot_active_ = 0;
 };
+
+/// A point of a recorded probe path: at time `t` (seconds) the probe is `offset` (mesh
+/// units) away from the contact vertex's rest position.
+struct ProbePathPoint {
+  double t = 0;
+  Eigen::Vector3d offset = Eigen::Vector3d::Zero();
+};
+
+/// Parses a probe path CSV: one "t,dx,dy,dz" a line (commas or whitespace between
+/// them), times strictly increasing; `#` starts a comment; a header line is allowed.
+/// `name` (the file) is quoted in errors with the line.
+/// \throw InputError for a malformed line, a non-finite number, times that do not
+///        increase, or no point at all.
+std::vector<ProbePathPoint> parse_probe_path(const std::string& text, const std::string& name);
+
+/// The probe's offset at time t: linear between the path's points, held before the
+/// first and after the last. \pre the path is not empty and its times increase.
+Eigen::Vector3d probe_path_at(const std::vector<ProbePathPoint>& path, double t);
 
 }  // namespace meshpde

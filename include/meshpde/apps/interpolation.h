@@ -17,6 +17,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <string>
 #include <vector>
 
 #include "meshpde/mesh/mesh.h"
@@ -54,6 +55,19 @@ struct InterpolationResult {
 InterpolationResult interpolate(const Mesh& mesh, const FemOperators& ops, FieldKind kind,
                                 const std::vector<InterpolationConstraint>& constraints,
                                 const InterpolationParams& params = {});
+
+/// Parses interpolation constraints, `values` numbers each (1 for scalars, 3 for
+/// displacements and tangent vectors), from the text of a constraints file:
+///   CSV:  one "vertex,value[,value,value]" a line; `#` starts a comment; a header line
+///         is allowed;
+///   JSON: {"constraints": [{"vertex": 12 or "@x,y,z", "value": 1 or [x, y, z]}]} or the
+///         bare array.
+/// A vertex is an index or @X,Y,Z (the nearest vertex). `name` (the file) is quoted in
+/// errors with the line or the constraint's number.
+/// \throw InputError for malformed text, a vertex not in the mesh, a wrong count of
+///        values, a non-finite value, or no constraint at all.
+std::vector<InterpolationConstraint> parse_constraints(const Mesh& mesh, const std::string& text, int values,
+                                                       const std::string& name);
 
 /// The same on plain (V, F) with the cotangent operators.
 inline InterpolationResult interpolate(const Positions& V, const Triangles& F, FieldKind kind,

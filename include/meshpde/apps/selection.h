@@ -31,6 +31,11 @@ std::vector<int> select_vertices(const Mesh& mesh, const std::string& spec, cons
 std::vector<int> select_vertices(const Mesh& mesh, const std::vector<std::string>& specs,
                                  const VertexFields& fields = {});
 
+/// The vertex indices of a `file:` selection's text: whitespace or commas between
+/// them, `#` starts a comment; `name` (the file) is quoted in errors with the line.
+/// \throw InputError for a token that is not a vertex of the mesh.
+std::vector<int> parse_vertex_list(const Mesh& mesh, const std::string& text, const std::string& name);
+
 /// Vertex given as an index or @X,Y,Z. \throw InputError
 int parse_vertex_spec(const Mesh& mesh, const std::string& spec);
 
