@@ -6,6 +6,7 @@
 #include <zlib.h>
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
@@ -461,4 +462,117 @@ TEST(Volume, BadVolumesAreErrorsNamingTheFile) {
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("x.nrrd"), std::string::npos);
   }
+}
+
+// meshpde's own MetaImage and NIfTI readers (fuzzing found VTK's crash and leak on
+// damaged files): both byte orders, extensions, compressed data, and refusals in words.
+namespace {
+
+// The NIfTI-1 header of nifti(), with every field it sets written big-endian, and
+// big-endian data: what a big-endian machine writes.
+std::string nifti_big_endian(const std::string& little) {
+  std::string b = little;
+  auto swap_at = [&](std::size_t at, std::size_t n) { std::reverse(b.begin() + at, b.begin() + at + n); };
+  swap_at(0, 4);
+  for (int i = 0; i < 8; ++i) swap_at(40 + 2 * i, 2);
+  swap_at(70, 2);
+  swap_at(72, 2);
+  for (int i = 0; i < 8; ++i) swap_at(76 + 4 * i, 4);
+  for (const std::size_t at : {108, 112, 116}) swap_at(at, 4);
+  swap_at(252, 2);
+  swap_at(254, 2);
+  for (int i = 0; i < 6; ++i) swap_at(256 + 4 * i, 4);  // quatern_b..d, qoffset_x..z
+  for (int i = 0; i < 12; ++i) swap_at(280 + 4 * i, 4);
+  for (std::size_t at = 352; at + 4 <= b.size(); at += 4) swap_at(at, 4);
+  return b;
+}
+
+std::string refusal(const fs::path& p) {
+  try {
+    read_volume(p);
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "(read)";
+}
+
+}  // namespace
+
+TEST(Volume, OwnReadersTakeBothByteOrdersExtensionsAndCompressedData) {
+  const Eigen::Matrix3d R = rotation();
+  auto world = [&](const Eigen::Vector3d& ijk) -> Eigen::Vector3d { return kOffset + R * kSpacing.cwiseProduct(ijk); };
+  for (int sform = 0; sform < 2; ++sform) {
+    SCOPED_TRACE(sform ? "sform" : "qform");
+    const std::string little = nifti(sform, 2.0, 3.0);
+    const fs::path big = scratch("big.nii"), big_gz = scratch("big.nii.gz");
+    write_bytes(big, nifti_big_endian(little));
+    write_bytes(big_gz, gzip(nifti_big_endian(little)));
+    expect_geometry(read_volume(big), Space::RAS, world, 2.0, 3.0);
+    expect_geometry(read_volume(big_gz), Space::RAS, world, 2.0, 3.0);
+    // A 48-byte extension between the header and the data: vox_offset 400.
+    std::string extended = little.substr(0, 352) + std::string(48, '\x07') + little.substr(352);
+    const float offset = 400;
+    std::memcpy(extended.data() + 108, &offset, 4);
+    const fs::path ext = scratch("extended.nii.gz");
+    write_bytes(ext, gzip(extended));
+    expect_geometry(read_volume(ext), Space::RAS, world, 2.0, 3.0);
+  }
+  // MetaImage: 16-bit big-endian voxels, zlib-compressed, attached.
+  std::string shorts;
+  for (const float x : ramp(4, 5, 6)) {
+    const auto s = static_cast<std::uint16_t>(x);
+    shorts += static_cast<char>(s >> 8);
+    shorts += static_cast<char>(s & 0xff);
+  }
+  uLongf size = compressBound(shorts.size());
+  std::string z(size, '\0');
+  ASSERT_EQ(
+      compress(reinterpret_cast<Bytef*>(z.data()), &size, reinterpret_cast<const Bytef*>(shorts.data()), shorts.size()),
+      Z_OK);
+  z.resize(size);
+  const fs::path mha = scratch("shorts.mha");
+  write_bytes(mha,
+              fmt::format("ObjectType = Image\nNDims = 3\nBinaryData = True\nBinaryDataByteOrderMSB = True\n"
+                          "CompressedData = True\nCompressedDataSize = {}\nElementSpacing = 0.5 0.7 1.2\n"
+                          "Offset = 10 -20 5\nDimSize = 4 5 6\nElementType = MET_USHORT\nElementDataFile = LOCAL\n",
+                          z.size()) +
+                  z);
+  expect_geometry(
+      read_volume(mha), Space::LPS,
+      [](const Eigen::Vector3d& ijk) -> Eigen::Vector3d { return kOffset + kSpacing.cwiseProduct(ijk); }, 1, 0);
+}
+
+TEST(Volume, OwnReadersRefuseDamagedHeadersInWords) {
+  const std::string head = "ObjectType = Image\nNDims = 3\nDimSize = 4 5 6\nElementType = MET_FLOAT\n";
+  const fs::path mha = scratch("damaged.mha");
+  write_bytes(mha, head + "ElementDataFile = LIST\n");
+  EXPECT_NE(refusal(mha).find("only LOCAL or one data file"), std::string::npos) << refusal(mha);
+  write_bytes(mha, head + "ElementDataFile = slice%03d.raw\n");
+  EXPECT_NE(refusal(mha).find("only LOCAL or one data file"), std::string::npos) << refusal(mha);
+  write_bytes(mha,
+              "ObjectType = Image\nNDims = 3\nDimSize = 1000 1000 1000\nElementType = MET_FLOAT\n"
+              "CompressedData = True\nElementDataFile = LOCAL\n" +
+                  gzip(std::string(64, '\0')));
+  EXPECT_NE(refusal(mha).find("cannot hold 1000 x 1000 x 1000 voxels"), std::string::npos) << refusal(mha);
+  write_bytes(mha, head + "ElementDataFile = LOCAL\n" + std::string(10, '\0'));
+  EXPECT_NE(refusal(mha).find("truncated data"), std::string::npos) << refusal(mha);
+  write_bytes(mha, "ObjectType = Image\nNDims = 3\nDimSize = 4 5 x\nElementDataFile = LOCAL\n");
+  EXPECT_NE(refusal(mha).find("'x' is not a number"), std::string::npos) << refusal(mha);
+
+  const std::string good = nifti(true, 1, 0);
+  const fs::path nii = scratch("damaged.nii.gz");
+  const std::string z = gzip(good);
+  write_bytes(nii, z.substr(0, z.size() / 2));
+  EXPECT_NE(refusal(nii).find("ends after"), std::string::npos) << refusal(nii);
+  std::string series = good;
+  const std::int16_t four = 4, two = 2;
+  std::memcpy(series.data() + 40, &four, 2);
+  std::memcpy(series.data() + 48, &two, 2);
+  const fs::path s = scratch("series.nii");
+  write_bytes(s, series);
+  EXPECT_NE(refusal(s).find("a 3D scalar image is needed"), std::string::npos) << refusal(s);
+  write_bytes(s, good.substr(0, 200));
+  EXPECT_NE(refusal(s).find("shorter than a NIfTI-1 header"), std::string::npos) << refusal(s);
+  write_bytes(s, good.substr(0, 400));
+  EXPECT_NE(refusal(s).find("truncated data"), std::string::npos) << refusal(s);
 }

@@ -1,0 +1,162 @@
+#include "volume_formats.h"
+
+#include <fmt/format.h>
+#include <zlib.h>
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <limits>
+
+#include "meshpde/core/errors.h"
+
+namespace meshpde::detail {
+
+std::string read_file_bytes(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(fmt::format("{}: cannot open for reading", path.string()));
+  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  if (in.bad()) throw InputError(fmt::format("{}: read error", path.string()));
+  return bytes;
+}
+
+struct Inflater::State {
+  z_stream z{};
+};
+
+Inflater::Inflater(const std::string& bytes, std::size_t offset, std::string name)
+    : state_(std::make_unique<State>()),
+      compressed_(bytes.size() - std::min(offset, bytes.size())),
+      name_(std::move(name)) {
+  z_stream& z = state_->z;
+  z.next_in = reinterpret_cast<Bytef*>(const_cast<char*>(bytes.data() + std::min(offset, bytes.size())));
+  // zlib takes an unsigned int of input at a time; refill is not needed below 4 GB.
+  if (compressed_ > std::numeric_limits<uInt>::max())
+    throw InputError(fmt::format("{}: compressed data of {} bytes is too large", name_, compressed_));
+  z.avail_in = static_cast<uInt>(compressed_);
+  // 15 + 32: zlib or gzip, detected from the header.
+  if (inflateInit2(&z, 15 + 32) != Z_OK) throw InputError(fmt::format("{}: cannot start zlib", name_));
+}
+
+Inflater::~Inflater() {
+  inflateEnd(&state_->z);
+}
+
+std::string Inflater::take(std::size_t n) {
+  std::string out(n, '\0');
+  z_stream& z = state_->z;
+  std::size_t done = 0;
+  while (done < n) {
+    const std::size_t chunk = std::min<std::size_t>(n - done, std::numeric_limits<uInt>::max());
+    z.next_out = reinterpret_cast<Bytef*>(out.data() + done);
+    z.avail_out = static_cast<uInt>(chunk);
+    const int rc = inflate(&z, Z_NO_FLUSH);
+    done += chunk - z.avail_out;
+    if (done == n) break;
+    // Z_BUF_ERROR: no progress possible, the input is used up.
+    if (rc == Z_STREAM_END || rc == Z_BUF_ERROR)
+      throw InputError(fmt::format("{}: compressed data ends after {} of {} bytes", name_, done, n));
+    if (rc != Z_OK)
+      throw InputError(
+          fmt::format("{}: damaged compressed data ({})", name_, z.msg ? z.msg : "zlib error " + std::to_string(rc)));
+  }
+  return out;
+}
+
+std::size_t inflated_bound(std::size_t compressed) {
+  return compressed * 1100 + (1u << 16);
+}
+
+std::size_t element_size(Element e) {
+  switch (e) {
+    case Element::U8:
+    case Element::I8:
+      return 1;
+    case Element::U16:
+    case Element::I16:
+      return 2;
+    case Element::U32:
+    case Element::I32:
+    case Element::F32:
+      return 4;
+    case Element::U64:
+    case Element::I64:
+    case Element::F64:
+      return 8;
+  }
+  return 0;
+}
+
+namespace {
+
+template <class T>
+T load(const char* p, bool big_endian) {
+  unsigned char b[sizeof(T)];
+  std::memcpy(b, p, sizeof(T));
+  if (big_endian != (std::endian::native == std::endian::big)) std::reverse(b, b + sizeof(T));
+  T v;
+  std::memcpy(&v, b, sizeof(T));
+  return v;
+}
+
+template <class T>
+void convert(const char* data, std::size_t n, bool big, double slope, double inter, std::vector<float>& out) {
+  for (std::size_t i = 0; i < n; ++i)
+    out[i] = static_cast<float>(static_cast<double>(load<T>(data + i * sizeof(T), big)) * slope + inter);
+}
+
+}  // namespace
+
+void convert_elements(const char* data, std::size_t n, Element e, bool big, double slope, double inter,
+                      std::vector<float>& out) {
+  out.resize(n);
+  switch (e) {
+    case Element::U8:
+      return convert<std::uint8_t>(data, n, big, slope, inter, out);
+    case Element::I8:
+      return convert<std::int8_t>(data, n, big, slope, inter, out);
+    case Element::U16:
+      return convert<std::uint16_t>(data, n, big, slope, inter, out);
+    case Element::I16:
+      return convert<std::int16_t>(data, n, big, slope, inter, out);
+    case Element::U32:
+      return convert<std::uint32_t>(data, n, big, slope, inter, out);
+    case Element::I32:
+      return convert<std::int32_t>(data, n, big, slope, inter, out);
+    case Element::U64:
+      return convert<std::uint64_t>(data, n, big, slope, inter, out);
+    case Element::I64:
+      return convert<std::int64_t>(data, n, big, slope, inter, out);
+    case Element::F32:
+      return convert<float>(data, n, big, slope, inter, out);
+    case Element::F64:
+      return convert<double>(data, n, big, slope, inter, out);
+  }
+}
+
+std::size_t checked_voxels(const std::array<long long, 3>& dims, const std::string& name) {
+  std::size_t n = 1;
+  for (int a = 0; a < 3; ++a) {
+    if (dims[a] <= 0 || dims[a] > std::numeric_limits<int>::max())
+      throw InputError(fmt::format("{}: dimension {} is {}", name, a, dims[a]));
+    if (n > std::numeric_limits<std::size_t>::max() / 16 / static_cast<std::size_t>(dims[a]))
+      throw InputError(fmt::format("{}: {} x {} x {} voxels is too many", name, dims[0], dims[1], dims[2]));
+    n *= static_cast<std::size_t>(dims[a]);
+  }
+  return n;
+}
+
+void set_geometry_from_axes(Volume& v, const Eigen::Matrix3d& axes, const Eigen::Vector3d& origin_lps) {
+  for (int c = 0; c < 3; ++c) {
+    const double len = axes.col(c).norm();
+    if (!(len > 0) || !std::isfinite(len))
+      throw InputError(fmt::format("{}: the direction of axis {} has length {}", v.name, c, len));
+    v.spacing[c] = len;
+    v.direction.col(c) = axes.col(c) / len;
+  }
+  v.origin = origin_lps;
+}
+
+}  // namespace meshpde::detail

@@ -1,0 +1,67 @@
+// Internal to meshpde::medical: the volume readers of our own (MetaImage and NIfTI-1:
+// fuzzing found VTK 9.1's readers of both crash, leak or abort on damaged files), and
+// what they share. Every size in a header is checked against the bytes present before
+// anything is allocated; every error names the file.
+#pragma once
+
+#include <Eigen/Core>
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "meshpde/image/volume.h"
+
+namespace meshpde::detail {
+
+/// A whole file's bytes. \throw InputError naming the file when it cannot be read.
+std::string read_file_bytes(const std::filesystem::path& path);
+
+/// Inflates zlib or gzip data (detected from its header) on demand, never more than
+/// asked for: a header can be read first and the data's size checked before the rest.
+class Inflater {
+ public:
+  Inflater(const std::string& bytes, std::size_t offset, std::string name);
+  ~Inflater();
+  Inflater(const Inflater&) = delete;
+  Inflater& operator=(const Inflater&) = delete;
+  /// The next n bytes of the inflated stream. \throw InputError if the stream is
+  /// damaged or ends before n bytes.
+  std::string take(std::size_t n);
+  /// Compressed bytes in the stream (for a bound on what it can inflate to).
+  std::size_t compressed_size() const { return compressed_; }
+
+ private:
+  struct State;
+  std::unique_ptr<State> state_;
+  std::size_t compressed_;
+  std::string name_;
+};
+
+/// The most bytes deflate can expand `compressed` bytes to (its ratio is at most about
+/// 1032:1), plus a margin: a larger claimed size is a damaged or hostile header.
+std::size_t inflated_bound(std::size_t compressed);
+
+/// Voxel element types of the file formats.
+enum class Element { U8, I8, U16, I16, U32, I32, U64, I64, F32, F64 };
+std::size_t element_size(Element e);
+/// Converts n elements at `data` (big- or little-endian) to float, times `slope` plus
+/// `intercept`.
+void convert_elements(const char* data, std::size_t n, Element e, bool big_endian, double slope, double intercept,
+                      std::vector<float>& out);
+
+/// Voxel count of dims, or throws InputError (naming the volume) when a dimension is
+/// not positive or the count would overflow.
+std::size_t checked_voxels(const std::array<long long, 3>& dims, const std::string& name);
+
+/// Splits A = direction * diag(spacing) into spacing (column norms) and a unit-column
+/// direction; sets the origin. \throw InputError for a zero or non-finite column.
+void set_geometry_from_axes(Volume& v, const Eigen::Matrix3d& axes, const Eigen::Vector3d& origin_lps);
+
+Volume read_metaimage(const std::filesystem::path& path);
+Volume read_nifti(const std::filesystem::path& path);
+
+}  // namespace meshpde::detail
