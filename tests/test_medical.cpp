@@ -576,3 +576,50 @@ TEST(Volume, OwnReadersRefuseDamagedHeadersInWords) {
   write_bytes(s, good.substr(0, 400));
   EXPECT_NE(refusal(s).find("truncated data"), std::string::npos) << refusal(s);
 }
+
+TEST(Volume, NrrdEncodingsDetachedDataAndSpacesByMeshpdesOwnReader) {
+  const std::vector<float> values = ramp(4, 5, 6);
+  auto lps = [](const Eigen::Vector3d& ijk) -> Eigen::Vector3d { return kOffset + kSpacing.cwiseProduct(ijk); };
+  const std::string common = "NRRD0005\n# a comment\ntype: float\ndimension: 3\nsizes: 4 5 6\nkey:=value\n";
+  const std::string geometry =
+      "space: left-posterior-superior\nspace directions: (0.5,0,0) (0,0.7,0) (0,0,1.2)\n"
+      "space origin: (10,-20,5)\n";
+  // ascii
+  std::string text;
+  for (const float x : values) text += fmt::format("{} ", x);
+  const fs::path a = scratch("ascii.nrrd");
+  write_bytes(a, common + geometry + "encoding: ascii\n\n" + text + "\n");
+  expect_geometry(read_volume(a), Space::LPS, lps, 1, 0);
+  // hex, big-endian
+  std::string hex;
+  for (const float x : values) {
+    std::uint32_t u;
+    std::memcpy(&u, &x, 4);
+    hex += fmt::format("{:08x}\n", u);
+  }
+  write_bytes(a, common + geometry + "endian: big\nencoding: hex\n\n" + hex);
+  expect_geometry(read_volume(a), Space::LPS, lps, 1, 0);
+  // detached raw data with a leading junk block skipped from the end (byte skip -1)
+  const fs::path nhdr = scratch("detached.nhdr"), raw = scratch("detached.raw");
+  write_bytes(raw, std::string(17, 'x') + bytes_of(values));
+  write_bytes(nhdr, common + geometry + "endian: little\nencoding: raw\nbyte skip: -1\ndata file: detached.raw\n");
+  expect_geometry(read_volume(nhdr), Space::LPS, lps, 1, 0);
+  // left-anterior-superior: the file's y axis is LPS's -y
+  write_bytes(a, common +
+                     "space: left-anterior-superior\nspace directions: (0.5,0,0) (0,-0.7,0) (0,0,1.2)\n"
+                     "space origin: (10,20,5)\nendian: little\nencoding: raw\n\n" +
+                     bytes_of(values));
+  expect_geometry(read_volume(a), Space::LPS, lps, 1, 0);
+  // refused in words
+  write_bytes(a, common + "space: left-posterior-superior\nspace directions: none (0,1,0) (0,0,1)\nencoding: raw\n\n" +
+                     bytes_of(values));
+  EXPECT_NE(refusal(a).find("without a direction"), std::string::npos) << refusal(a);
+  write_bytes(a, common + "encoding: bzip2\n\nBZh");
+  EXPECT_NE(refusal(a).find("encoding 'bzip2' is not read"), std::string::npos) << refusal(a);
+  write_bytes(a, "NRRD0004\ntype: float\ndimension: 4\nsizes: 1 4 5 6\nencoding: raw\n\n");
+  EXPECT_NE(refusal(a).find("a 3D scalar image is needed"), std::string::npos) << refusal(a);
+  write_bytes(a, common + "encoding: gzip\n\n" + gzip(std::string(100, '\0')));
+  EXPECT_NE(refusal(a).find("ends after"), std::string::npos) << refusal(a);
+  write_bytes(a, "NRRD0004\ntype: float\ndimension: 3\nsizes: 1000 1000 1000\nencoding: ascii\n\n1 2 3\n");
+  EXPECT_NE(refusal(a).find("cannot hold"), std::string::npos) << refusal(a);
+}

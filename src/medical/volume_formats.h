@@ -63,5 +63,6 @@ void set_geometry_from_axes(Volume& v, const Eigen::Matrix3d& axes, const Eigen:
 
 Volume read_metaimage(const std::filesystem::path& path);
 Volume read_nifti(const std::filesystem::path& path);
+Volume read_nrrd(const std::filesystem::path& path);
 
 }  // namespace meshpde::detail
