@@ -113,7 +113,8 @@ std::vector<int> select_vertices(const Mesh& mesh, const std::string& spec, cons
     if (kind == "rings") {
       if (x < 0 || x != std::floor(x))
         throw InputError(fmt::format("selection '{}': rings must be a whole number", spec));
-      out = ring_ball(mesh, v, static_cast<int>(x));
+      // More rings than vertices reach no further: clamped, so a huge count is no overflow.
+      out = ring_ball(mesh, v, static_cast<int>(std::min(x, static_cast<double>(mesh.num_vertices()))));
     } else {
       if (!(x > 0)) throw InputError(fmt::format("selection '{}': the radius must be positive", spec));
       out = geodesic_ball(mesh, v, x);

@@ -160,6 +160,10 @@ MeshData read_ply(std::string_view bytes, const std::string& name) {
       e.count = in.integer("the element count");
       e.header_line = in.line_number();
       if (e.count < 0) in.error(fmt::format("element '{}' has a negative count {}", e.name, e.count));
+      // One vertex and one face element: a second would mix its count with the first's.
+      if ((e.name == "vertex" || e.name == "face") &&
+          std::any_of(elements.begin(), elements.end(), [&](const Element& x) { return x.name == e.name; }))
+        in.error(fmt::format("a second '{}' element", e.name));
       elements.push_back(std::move(e));
     } else if (key == "property") {
       if (elements.empty()) in.error("property before any element");

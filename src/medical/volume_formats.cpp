@@ -15,11 +15,18 @@
 namespace meshpde::detail {
 
 std::string read_file_bytes(const std::filesystem::path& path) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec))  // a directory opens, then throws on reading
+    throw InputError(fmt::format("{}: not a readable file", path.string()));
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(fmt::format("{}: cannot open for reading", path.string()));
-  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  if (in.bad()) throw InputError(fmt::format("{}: read error", path.string()));
-  return bytes;
+  try {
+    std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    if (in.bad()) throw InputError(fmt::format("{}: read error", path.string()));
+    return bytes;
+  } catch (const std::ios_base::failure& e) {
+    throw InputError(fmt::format("{}: read error ({})", path.string(), e.what()));
+  }
 }
 
 struct Inflater::State {

@@ -1,0 +1,144 @@
+#include "fuzz_seeds.h"
+
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include "meshpde/io/mesh_io.h"
+#include "meshpde/mesh/generators.h"
+#ifdef MESHPDE_FUZZ_MEDICAL
+#include "meshpde/io/medical_io.h"
+#endif
+
+namespace meshpde::fuzz {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+void put(const fs::path& dir, const std::string& name, const std::string& bytes, int& count) {
+  fs::create_directories(dir);
+  std::ofstream(dir / name, std::ios::binary) << bytes;
+  ++count;
+}
+
+// A small closed mesh with a scalar and a vector field, as every format can hold.
+MeshData small_mesh() {
+  const GeneratedMesh g = icosphere(1, 2.0);
+  MeshData d;
+  d.V = g.V;
+  d.F = g.F;
+  d.vertex_scalars["phi"] = g.V.col(2);
+  for (const char* c : {"_x", "_y", "_z"}) d.vertex_scalars[std::string("n") + c] = g.V.col(0) * 0.5;
+  return d;
+}
+
+std::string float_bytes(int n) {
+  std::string s(static_cast<std::size_t>(n) * 4, '\0');
+  for (int k = 0; k < n; ++k) {
+    const float x = static_cast<float>(k) - 3.5f;
+    std::memcpy(s.data() + 4 * k, &x, 4);
+  }
+  return s;
+}
+
+// NIfTI-1, 2 x 3 x 2 float voxels, sform and qform both set (the header byte by byte,
+// as the NIfTI-1 standard lays it out).
+[[maybe_unused]] std::string nifti() {
+  std::string h(352, '\0');
+  auto at = [&](std::size_t offset, auto value) { std::memcpy(h.data() + offset, &value, sizeof(value)); };
+  at(0, std::int32_t{348});
+  const std::int16_t dim[8] = {3, 2, 3, 2, 1, 1, 1, 1};
+  for (int i = 0; i < 8; ++i) at(40 + 2 * i, dim[i]);
+  at(70, std::int16_t{16});  // DT_FLOAT32
+  at(72, std::int16_t{32});
+  const float pixdim[8] = {1, 0.5f, 0.7f, 1.2f, 1, 1, 1, 1};
+  for (int i = 0; i < 8; ++i) at(76 + 4 * i, pixdim[i]);
+  at(108, float{352});
+  at(112, float{2});
+  at(123, std::uint8_t{10});
+  at(252, std::int16_t{1});
+  at(254, std::int16_t{1});
+  for (int r = 0; r < 3; ++r) {
+    at(280 + 16 * r + 4 * r, pixdim[1 + r]);
+    at(280 + 16 * r + 12, float(10 * r));
+  }
+  std::memcpy(h.data() + 344, "n+1\0", 4);
+  return h + float_bytes(12);
+}
+
+}  // namespace
+
+int write_seeds(const fs::path& root) {
+  int count = 0;
+  const MeshData m = small_mesh();
+  put(root / "obj", "icosphere.obj", write_mesh_to_memory(m, MeshFormat::Obj), count);
+  put(root / "obj", "quads.obj", "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvn 0 0 1\nvt 0 0\nf 1/1/1 2/1/1 3/1/1 4/1/1\n",
+      count);
+  put(root / "off", "icosphere.off", write_mesh_to_memory(m, MeshFormat::Off), count);
+  put(root / "off", "quad.off", "OFF\n4 1 0\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n4 0 1 2 3\n", count);
+  put(root / "ply", "binary.ply", write_mesh_to_memory(m, MeshFormat::Ply), count);
+  put(root / "ply", "ascii.ply", write_mesh_to_memory(m, MeshFormat::Ply, {.binary = false}), count);
+  put(root / "ply", "big-endian.ply",
+      std::string("ply\nformat binary_big_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+                  "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n") +
+          std::string(36, '\0') + std::string("\x03\0\0\0\0\0\0\0\x01\0\0\0\x02", 13),
+      count);
+  put(root / "stl", "binary.stl", write_mesh_to_memory(m, MeshFormat::Stl), count);
+  put(root / "stl", "ascii.stl", write_mesh_to_memory(m, MeshFormat::Stl, {.binary = false}), count);
+  put(root / "constraints", "scalar.csv", "vertex,value\n0,1\n5, -2.5 # a comment\n", count);
+  put(root / "constraints", "vector.csv", "3,0,0.1,0\n7,1e-3,2,3\n", count);
+  put(root / "constraints", "list.json",
+      R"({"constraints": [{"vertex": 0, "value": [0, 0.1, 0]}, {"vertex": "@0.5,0.5,0", "value": 1}]})", count);
+  put(root / "constraints", "bare.json", R"([{"vertex": 4, "value": 2}])", count);
+  put(root / "probe_path", "press.csv", "t,dx,dy,dz\n0,0,0,0\n0.5,0,0,-0.05 # pressed\n0.7 0 0 -0.05\n", count);
+  put(root / "selection", "list.txt", "# vertices\n1, 2 3\n40\n", count);
+  for (const char* spec :
+       {"rings:@0.5,0.5,0:2", "radius:20:0.3", "halfspace:1,0,0:0.25", "field:h>0.5", "boundary", "all"})
+    put(root / "selection", std::string(spec).substr(0, std::string(spec).find(':')) + ".txt", std::string(spec) + "\n",
+        count);
+#ifdef MESHPDE_FUZZ_MEDICAL
+  put(root / "vtp", "appended-zlib.vtp", write_vtk_mesh_to_memory(m, "vtp"), count);
+  put(root / "vtp", "ascii.vtp",
+      R"(<?xml version="1.0"?>
+<VTKFile type="PolyData" version="0.1" byte_order="LittleEndian" header_type="UInt32">
+<PolyData><Piece NumberOfPoints="3" NumberOfPolys="1">
+<PointData Scalars="s"><DataArray type="Float32" Name="s" format="ascii">1 2 3</DataArray></PointData>
+<Points><DataArray type="Float64" NumberOfComponents="3" format="ascii">0 0 0 1 0 0 0 1 0</DataArray></Points>
+<Polys><DataArray type="Int64" Name="connectivity" format="ascii">0 1 2</DataArray>
+<DataArray type="Int64" Name="offsets" format="ascii">3</DataArray></Polys>
+</Piece></PolyData></VTKFile>
+)",
+      count);
+  put(root / "vtk", "binary.vtk", write_vtk_mesh_to_memory(m, "vtk"), count);
+  put(root / "vtk", "ascii.vtk",
+      "# vtk DataFile Version 3.0\nSPACE=RAS\nASCII\nDATASET POLYDATA\nPOINTS 4 float\n0 0 0 1 0 0 1 1 0 0 1 0\n"
+      "POLYGONS 1 5\n4 0 1 2 3\nPOINT_DATA 4\nSCALARS s float 1\nLOOKUP_TABLE default\n1 2 3 4\n",
+      count);
+  put(root / "metaimage", "float.mha",
+      "ObjectType = Image\nNDims = 3\nBinaryData = True\nBinaryDataByteOrderMSB = False\nCompressedData = False\n"
+      "TransformMatrix = -1 0 0 0 -1 0 0 0 1\nOffset = 1 2 3\nElementSpacing = 0.5 0.7 1.2\nDimSize = 2 3 2\n"
+      "ElementType = MET_FLOAT\nElementDataFile = LOCAL\n" +
+          float_bytes(12),
+      count);
+  put(root / "metaimage", "short.mha",
+      "ObjectType = Image\nNDims = 3\nDimSize = 2 2 2\nElementType = MET_SHORT\nElementDataFile = LOCAL\n" +
+          std::string(16, '\x01'),
+      count);
+  put(root / "nifti", "float.nii", nifti(), count);
+  put(root / "nrrd", "raw.nrrd",
+      "NRRD0004\ntype: float\ndimension: 3\nspace: right-anterior-superior\nsizes: 2 3 2\n"
+      "space directions: (0.5,0,0) (0,0.7,0) (0,0,1.2)\nkinds: domain domain domain\nendian: little\n"
+      "encoding: raw\nspace origin: (1,2,3)\n\n" +
+          float_bytes(12),
+      count);
+  put(root / "nrrd", "ascii.nrrd",
+      "NRRD0004\ntype: short\ndimension: 3\nsizes: 2 2 2\nspacings: 1 1 2\nencoding: ascii\n\n1 2 3 4 5 6 7 8\n",
+      count);
+  // nifti_gz: scripts/fuzz gzips the .nii seed (gzip, not a library of ours).
+#endif
+  return count;
+}
+
+}  // namespace meshpde::fuzz
