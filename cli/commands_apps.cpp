@@ -404,14 +404,7 @@ void add_poke_command(CLI::App& app) {
       text << in.rdbuf();
       path = parse_probe_path(text.str(), a->path);
     } else {
-      const double h = mean_edge_length(mesh);
-      Eigen::Vector3d n = Eigen::Vector3d::Zero();
-      for (int w : mesh.neighbors(v)) {
-        const Eigen::Vector3d e1 = mesh.positions().row(w) - mesh.positions().row(v);
-        n += e1;  // towards the neighbours' centroid: inward on a convex patch
-      }
-      n = n.norm() > 0 ? n.normalized() : Eigen::Vector3d::UnitZ();
-      path = {{0.0, Eigen::Vector3d::Zero()}, {0.5, a->depth * h * n}, {0.7, a->depth * h * n}};
+      path = press_path(mesh, v, a->depth);
     }
     HapticSession s(mesh, ops, a->h);
     s.touch(v);

@@ -189,6 +189,18 @@ TEST(Parsers, ProbePathInterpolatesBetweenIncreasingTimes) {
   EXPECT_NE(error_of([] { parse_probe_path("t,dx,dy,dz\n", "p.csv"); }).find("no path points"), std::string::npos);
 }
 
+TEST(Parsers, PressPathGoesInwardByTheDepthInEdgeLengths) {
+  const Mesh m = make(icosphere(2));
+  const int v = 7;
+  const auto p = press_path(m, v, 0.5);
+  ASSERT_EQ(p.size(), 3u);
+  const Eigen::Vector3d bottom = probe_path_at(p, 0.6);
+  EXPECT_NEAR(bottom.norm(), 0.5 * mean_edge_length(m), 1e-12);
+  EXPECT_LT(bottom.dot(m.positions().row(v).transpose()), 0.0) << "into the sphere";
+  EXPECT_NEAR(probe_path_at(p, 0.25).norm(), 0.25 * mean_edge_length(m), 1e-12);
+  EXPECT_THROW(press_path(m, m.num_vertices(), 0.5), InputError);
+}
+
 TEST(Parsers, VertexListsTakeCommasSpacesAndComments) {
   const Mesh m = make(plane_grid(4, 4));
   EXPECT_EQ(parse_vertex_list(m, "# head\n1, 2 3\n\n24\n", "s.txt"), (std::vector<int>{1, 2, 3, 24}));

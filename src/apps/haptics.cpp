@@ -247,6 +247,16 @@ std::vector<ProbePathPoint> parse_probe_path(const std::string& text, const std:
   return out;
 }
 
+std::vector<ProbePathPoint> press_path(const Mesh& mesh, int vertex, double depth_edges) {
+  if (vertex < 0 || vertex >= mesh.num_vertices())
+    throw InputError(fmt::format("vertex {} does not exist (the mesh has {} vertices)", vertex, mesh.num_vertices()));
+  Eigen::Vector3d n = Eigen::Vector3d::Zero();
+  for (const int w : mesh.neighbors(vertex)) n += (mesh.positions().row(w) - mesh.positions().row(vertex)).transpose();
+  n = n.norm() > 0 ? n.normalized() : Eigen::Vector3d::UnitZ();
+  const Eigen::Vector3d bottom = depth_edges * mean_edge_length(mesh) * n;
+  return {{0.0, Eigen::Vector3d::Zero()}, {0.5, bottom}, {0.7, bottom}};
+}
+
 Eigen::Vector3d probe_path_at(const std::vector<ProbePathPoint>& p, double t) {
   if (t <= p.front().t) return p.front().offset;
   if (t >= p.back().t) return p.back().offset;

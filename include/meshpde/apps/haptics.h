@@ -147,6 +147,11 @@ struct ProbePathPoint {
 ///        increase, or no point at all.
 std::vector<ProbePathPoint> parse_probe_path(const std::string& text, const std::string& name);
 
+/// `meshpde poke`'s default path: a press into the surface at `vertex`, towards its
+/// neighbours' centroid (inward on a convex patch; +z where there is no such
+/// direction), to `depth_edges` mean edge lengths over 0.5 s, then held until 0.7 s.
+std::vector<ProbePathPoint> press_path(const Mesh& mesh, int vertex, double depth_edges);
+
 /// The probe's offset at time t: linear between the path's points, held before the
 /// first and after the last. \pre the path is not empty and its times increase.
 Eigen::Vector3d probe_path_at(const std::vector<ProbePathPoint>& path, double t);
