@@ -271,5 +271,29 @@ check "demo moved vertices" [ "$(json "$T/d.json" "d['moved_vertices'] > 100")" 
 check "demo converged" [ "$(json "$T/d.json" "d['converged']")" = True ]
 check "demo output" [ -s "$T/demo/bifurcation-corrected.ply" ]
 
+# A killed write leaves the old file or the complete new one, never half a file
+# (writes go to a temporary file that is renamed over the target): the tool is killed
+# with SIGKILL at several moments while it converts a large mesh over an older one.
+"$M" generate icosphere --level 7 -o "$T/new-src.ply" >/dev/null
+"$M" convert "$T/new-src.ply" "$T/new.obj" >/dev/null 2>&1 || bad "convert a large mesh"
+"$M" generate icosphere --level 2 -o "$T/old.obj" >/dev/null
+killed=0 mid_write=0
+for step in $(seq 1 21); do
+  delay=$(printf '0.%02d' $((step * 3)))
+  rm -f "$T"/.target.obj.tmp*
+  cp "$T/old.obj" "$T/target.obj"
+  "$M" convert "$T/new-src.ply" "$T/target.obj" >/dev/null 2>&1 &
+  pid=$!
+  sleep "$delay"
+  kill -9 "$pid" 2>/dev/null && killed=$((killed + 1))
+  wait "$pid" 2>/dev/null
+  # A temporary file left behind: killed while writing (it cannot be cleaned up then).
+  compgen -G "$T/.target.obj.tmp*" >/dev/null && mid_write=$((mid_write + 1))
+  check "after SIGKILL at ${delay} s the target is the old or the complete new file" \
+    bash -c "cmp -s '$T/target.obj' '$T/old.obj' || cmp -s '$T/target.obj' '$T/new.obj'"
+done
+echo "cli: SIGKILL during convert: $killed of 21 runs killed, $mid_write of them while writing"
+check "the tool was killed mid-run at least once" [ "$killed" -gt 0 ]
+
 echo "cli: $pass passed, $fail failed"
 [ "$fail" -eq 0 ]
