@@ -1,8 +1,11 @@
 // Mesh helpers shared by the test files.
 #pragma once
 
+#include <functional>
 #include <random>
+#include <string>
 
+#include "meshpde/core/errors.h"
 #include "meshpde/mesh/generators.h"
 #include "meshpde/mesh/mesh.h"
 #include "meshpde/mesh/topology.h"
@@ -32,6 +35,16 @@ inline GeneratedMesh jittered_plane(int n, double amplitude, unsigned seed) {
       g.V(i, 1) += jitter(rng);
     }
   return g;
+}
+
+/// The message of the InputError that f throws, or "(no error)".
+inline std::string error_of(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "(no error)";
 }
 
 }  // namespace meshpde::test

@@ -1,0 +1,172 @@
+// apps/interpolation.h: scattered-data interpolation and its constraint files.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <string>
+
+#include "meshpde/apps/interpolation.h"
+#include "meshpde/core/errors.h"
+#include "meshpde/mesh/generators.h"
+#include "meshpde/operators/connection.h"
+#include "meshpde/operators/fem_operators.h"
+#include "test_data.h"
+#include "test_support.h"
+
+using namespace meshpde;
+using test::error_of;
+using test::make;
+
+namespace {
+int nearest(const Mesh& m, const Eigen::Vector3d& p) {
+  int v = 0;
+  (m.positions().rowwise() - p.transpose()).rowwise().squaredNorm().minCoeff(&v);
+  return v;
+}
+InterpolationConstraint con(int v, std::initializer_list<double> x) {
+  InterpolationConstraint c{v, Eigen::VectorXd(static_cast<Eigen::Index>(x.size()))};
+  int k = 0;
+  for (double e : x) c.value[k++] = e;
+  return c;
+}
+}  // namespace
+
+TEST(Interpolation, ExactAtConstraintsForEveryMix) {
+  Mesh m;
+  if (!test::load_data("bunny-3k.off", m)) return;
+  const FemOperators ops = build_operators(m);
+  const std::vector<InterpolationConstraint> cons = {con(10, {1.0}), con(1000, {-2.0}), con(2500, {0.5})};
+  for (const auto& [g1, g2] : {std::pair{1.0, 0.0}, {0.0, 1.0}, {1.0, 0.1}}) {
+    const auto r = interpolate(m, ops, FieldKind::Scalar, cons, InterpolationParams{.g1 = g1, .g2 = g2});
+    for (const auto& c : cons) {
+      EXPECT_EQ(r.values(c.vertex, 0), c.value[0]);
+    }
+    EXPECT_TRUE(r.cg.converged());
+    // Laplacian interpolation obeys the maximum principle (up to obtuse-angle effects).
+    if (g2 == 0) {
+      EXPECT_LE(r.values.maxCoeff(), 1.0 + 1e-6);
+    }
+  }
+  const auto d = interpolate(m, ops, FieldKind::Displacement, {con(7, {0.0, 0.01, 0.0}), con(900, {0, 0, 0})});
+  EXPECT_EQ(d.values.row(7), Eigen::RowVector3d(0, 0.01, 0));
+  EXPECT_THROW(interpolate(m, ops, FieldKind::Scalar, {con(7, {1.0}), con(7, {2.0})}), InputError);
+  EXPECT_THROW(interpolate(m, ops, FieldKind::Scalar, {con(7, {1.0, 2.0})}), InputError);
+  EXPECT_THROW(interpolate(m, ops, FieldKind::Scalar, {}), InputError);
+}
+
+TEST(Interpolation, BilaplacianReproducesLinearFields) {
+  const Mesh m = make(plane_grid(14, 14));
+  const FemOperators ops = build_operators(m);
+  std::vector<InterpolationConstraint> cons;
+  for (int i = 0; i < m.num_vertices(); ++i) {
+    const Eigen::RowVector3d p = m.positions().row(i);
+    if (std::min({p.x(), 1 - p.x(), p.y(), 1 - p.y()}) < 1.5 / 14) cons.push_back(con(i, {3 * p.x() - p.y() + 2}));
+  }
+  const auto r = interpolate(m, ops, FieldKind::Scalar, cons, InterpolationParams{.g1 = 0, .g2 = 1});
+  for (int i = 0; i < m.num_vertices(); ++i)
+    EXPECT_NEAR(r.values(i, 0), 3 * m.positions()(i, 0) - m.positions()(i, 1) + 2, 1e-9);
+}
+
+TEST(Interpolation, TangentFieldsAreTangent) {
+  Mesh m;
+  if (!test::load_data("bunny-3k.off", m)) return;
+  const FemOperators ops = build_operators(m);
+  const Eigen::MatrixX3d N = vertex_normals(m);
+  std::vector<InterpolationConstraint> cons;
+  for (int v : {100, 800, 1600, 3000}) {
+    const Eigen::Vector3d a = Eigen::Vector3d(1, 0.3, -0.2).cross(N.row(v).transpose());  // tangent at v
+    cons.push_back(con(v, {a.x(), a.y(), a.z()}));
+  }
+  for (const auto method : {TangentMethod::Componentwise, TangentMethod::Connection}) {
+    const auto r =
+        interpolate(m, ops, FieldKind::Tangent, cons, InterpolationParams{.g1 = 1, .g2 = 0.05, .method = method});
+    for (int i = 0; i < m.num_vertices(); ++i)
+      ASSERT_LE(std::abs(r.values.row(i).dot(N.row(i))), 1e-9 * std::max(1e-300, r.values.row(i).norm())) << i;
+    for (const auto& c : cons) {
+      EXPECT_LE((r.values.row(c.vertex).transpose() - c.value).norm(), 1e-12);
+    }
+  }
+}
+
+TEST(Interpolation, ConnectionHolonomyAroundLatitudeLoops) {
+  const int n = 40;
+  const Mesh m = make(latlong_sphere(n, 1.0));
+  const Connection c = build_connection(m);
+  for (int k : {4, 10, 20}) {
+    // Ring k (polar angle k pi / n) holds vertices 1 + (k-1) 2n ... in meridian order.
+    double angle = 0;
+    const int first = 1 + (k - 1) * 2 * n;
+    for (int j = 0; j < 2 * n; ++j) {
+      const int a = first + j, b = first + (j + 1) % (2 * n);
+      angle += c.transport(m, b, m.find_slot(b, a));  // carry the vector from a to b
+    }
+    double defect = 0;  // faces with every corner in the pole .. ring k
+    const auto& F = m.triangles();
+    const auto& V = m.positions();
+    for (int f = 0; f < m.num_faces(); ++f) {
+      if (F.row(f).maxCoeff() >= first + 2 * n) continue;
+      double kf = -M_PI;
+      for (int q = 0; q < 3; ++q) {
+        const int v = F(f, q);
+        const Eigen::Vector3d u = V.row(F(f, (q + 1) % 3)) - V.row(v), w = V.row(F(f, (q + 2) % 3)) - V.row(v);
+        kf += std::atan2(u.cross(w).norm(), u.dot(w)) * 2 * M_PI / c.theta[v];
+      }
+      defect += kf;
+    }
+    auto wrap = [](double x) { return std::remainder(x, 2 * M_PI); };
+    EXPECT_NEAR(wrap(angle - defect), 0.0, 1e-9) << "ring " << k;
+    const double analytic = 2 * M_PI * (1 - std::cos(M_PI * k / n));
+    EXPECT_NEAR(wrap(angle - analytic), 0.0, 0.02 * analytic) << "ring " << k;
+  }
+}
+
+TEST(Interpolation, ConnectionKeepsMagnitudesWhereComponentwiseCollapses) {
+  const Mesh m = make(icosphere(4));
+  const FemOperators ops = build_operators(m);
+  // Two "eastward" unit vectors at opposite points of the equator.
+  const int a = nearest(m, {1, 0, 0}), b = nearest(m, {-1, 0, 0}), mid = nearest(m, {0, 1, 0});
+  const std::vector<InterpolationConstraint> cons = {con(a, {0, 1, 0}), con(b, {0, -1, 0})};
+  const InterpolationParams base{.g1 = 1, .g2 = 0};
+  const auto comp = interpolate(m, ops, FieldKind::Tangent, cons, base);
+  InterpolationParams cp = base;
+  cp.method = TangentMethod::Connection;
+  const auto conn = interpolate(m, ops, FieldKind::Tangent, cons, cp);
+  EXPECT_LT(comp.values.row(mid).norm(), 0.3);  // the 3D components cancel
+  EXPECT_GT(conn.values.row(mid).norm(), 0.8);
+  EXPECT_GT(conn.values.row(mid).normalized().dot(Eigen::RowVector3d(-1, 0, 0)), 0.9);  // still eastward
+}
+
+TEST(Parsers, ConstraintsFromCsvAndJsonWithErrorsThatNameThePlace) {
+  const Mesh m = make(plane_grid(4, 4));  // 25 vertices on [0, 1]^2
+  const auto csv = parse_constraints(m, "vertex,value\n# a comment\n3, 1.5\n24,-2\n", 1, "c.csv");
+  ASSERT_EQ(csv.size(), 2u);
+  EXPECT_EQ(csv[0].vertex, 3);
+  EXPECT_EQ(csv[0].value[0], 1.5);
+  EXPECT_EQ(csv[1].vertex, 24);
+  EXPECT_EQ(csv[1].value[0], -2.0);
+  const auto json = parse_constraints(
+      m, R"({"constraints": [{"vertex": 0, "value": [1, 2, 3]}, {"vertex": "@0,0,0", "value": [4, 5, 6]}]})", 3,
+      "c.json");
+  ASSERT_EQ(json.size(), 2u);
+  EXPECT_EQ(json[1].vertex, 0);
+  EXPECT_EQ(json[1].value[2], 6.0);
+  EXPECT_EQ(parse_constraints(m, R"([{"vertex": 2, "value": 7}])", 1, "bare.json").size(), 1u);
+
+  EXPECT_NE(error_of([&] { parse_constraints(m, "1,2\n99,1\n", 1, "c.csv"); }).find("c.csv: line 2"),
+            std::string::npos);
+  EXPECT_NE(error_of([&] { parse_constraints(m, "1,abc\n", 1, "c.csv"); }).find("'abc' is not a number"),
+            std::string::npos);
+  EXPECT_NE(error_of([&] { parse_constraints(m, "1,2,3\n", 3, "c.csv"); }).find("2 values, expected 3"),
+            std::string::npos);
+  EXPECT_NE(error_of([&] { parse_constraints(m, "# nothing\n", 1, "c.csv"); }).find("no constraints"),
+            std::string::npos);
+  EXPECT_NE(error_of([&] { parse_constraints(m, "{\"constraints\": [", 1, "c.json"); }).find("invalid JSON"),
+            std::string::npos);
+  EXPECT_NE(error_of([&] { parse_constraints(m, R"([{"vertex": 1, "value": 1e999}])", 1, "c.json"); }).find("c.json"),
+            std::string::npos);
+  EXPECT_NE(error_of([&] {
+              parse_constraints(m, R"({"constraints": [{"vertex": 1}]})", 1, "c.json");
+            }).find("constraint 0: needs 'vertex' and 'value'"),
+            std::string::npos);
+  EXPECT_NE(error_of([&] { parse_constraints(m, R"({"constraints": 5})", 1, "c.json"); }).find("must be an array"),
+            std::string::npos);
+}
