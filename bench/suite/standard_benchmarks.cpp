@@ -173,7 +173,6 @@ nlohmann::json run_standard_benchmarks(const BenchOptions& options) {
     if (options.warning) options.warning(what);
   };
   const bool quick = options.quick, large = options.large;
-  const auto data_dir = [&] { return options.data_dir; };
   nlohmann::json j;
   const int reps = quick ? 3 : 10;
   const int steps = quick ? 300 : 1000;
@@ -576,7 +575,7 @@ nlohmann::json run_standard_benchmarks(const BenchOptions& options) {
     // About a million vertices of a real mesh: fertility-4k (genus 4) midpoint-
     // subdivided four times (1.15M vertices), the handle at its top, the lowest 2 %
     // (by height) held.
-    const auto fertility = data_dir() / "fertility-4k.off";
+    const auto fertility = options.data_dir / "fertility-4k.off";
     if (std::filesystem::exists(fertility)) {
       progress("global bi-Laplacian on fertility-4k subdivided 4 times");
       MeshData d = read_mesh(fertility);
@@ -656,7 +655,7 @@ nlohmann::json run_standard_benchmarks(const BenchOptions& options) {
   // Haptic poke on a real scan and on the same scan subdivided twice (2.15M vertices):
   // the default haptic session, pressed along the inward normal to half an edge over
   // 0.5 s and held, stepped at 1 kHz (dt = 1 ms) as fast as it goes.
-  const auto igea = data_dir() / "igea-134k.ply";
+  const auto igea = options.data_dir / "igea-134k.ply";
   if (std::filesystem::exists(igea)) {
     auto haptic = [&](const Mesh& mesh, const std::string& tag) {
       progress("haptic poke on " + tag);
@@ -699,7 +698,7 @@ nlohmann::json run_standard_benchmarks(const BenchOptions& options) {
     warn(igea.string() + " not found; haptic figures skipped");
   }
 
-  const auto bunny = data_dir() / "bunny-36k.obj";
+  const auto bunny = options.data_dir / "bunny-36k.obj";
   if (std::filesystem::exists(bunny)) {
     progress("setup on bunny-36k");
     double load = 1e30, total = 1e30;

@@ -17,17 +17,6 @@ namespace meshpde::detail {
 
 namespace {
 
-std::string lower(std::string s) {
-  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return std::tolower(c); });
-  return s;
-}
-
-std::string trim(const std::string& s) {
-  const auto b = s.find_first_not_of(" \t\r");
-  const auto e = s.find_last_not_of(" \t\r");
-  return b == std::string::npos ? std::string() : s.substr(b, e - b + 1);
-}
-
 // Numbers of a header value; InputError naming the key for anything else.
 std::vector<double> numbers(const std::string& value, const std::string& key, const std::string& name) {
   std::vector<double> v;
@@ -108,7 +97,7 @@ Volume read_metaimage(const std::filesystem::path& path) {
   const bool big = (h.count("binarydatabyteordermsb") && truth(h.at("binarydatabyteordermsb"))) ||
                    (h.count("elementbyteordermsb") && truth(h.at("elementbyteordermsb")));
   const bool compressed = h.count("compresseddata") && truth(h.at("compresseddata"));
-  const std::size_t data_bytes = voxels * element_size(type);
+  const VoxelLayout layout{dims, voxels, type, big};
 
   // Where the data are: after the header (LOCAL), or in one other file beside it.
   std::string detached;
@@ -116,8 +105,7 @@ Volume read_metaimage(const std::filesystem::path& path) {
   std::size_t offset = pos;
   const std::string file = h.at("elementdatafile");
   if (lower(file) != "local") {
-    if (file.empty() || lower(file).rfind("list", 0) == 0 || file.find('%') != std::string::npos ||
-        file.find(' ') != std::string::npos)
+    if (!is_single_data_file(file))
       throw InputError(
           fmt::format("{}: ElementDataFile = '{}': only LOCAL or one data file is read", name, file.substr(0, 80)));
     const std::filesystem::path other = path.parent_path() / file;
@@ -129,7 +117,7 @@ Volume read_metaimage(const std::filesystem::path& path) {
       if (skip.size() != 1 || skip[0] < -1 || skip[0] != std::floor(skip[0]))
         throw InputError(fmt::format("{}: HeaderSize = {} is not a byte count", name, h.at("headersize")));
       // -1: the data are the last bytes of the file.
-      offset = skip[0] < 0 ? (detached.size() >= data_bytes ? detached.size() - data_bytes : 0)
+      offset = skip[0] < 0 ? (detached.size() >= layout.bytes() ? detached.size() - layout.bytes() : 0)
                            : static_cast<std::size_t>(std::min<double>(skip[0], static_cast<double>(detached.size())));
     }
   }
@@ -139,17 +127,9 @@ Volume read_metaimage(const std::filesystem::path& path) {
   v.dims = {static_cast<int>(dims[0]), static_cast<int>(dims[1]), static_cast<int>(dims[2])};
   if (compressed) {
     Inflater inflater(*data, offset, name);
-    if (data_bytes > inflated_bound(inflater.compressed_size()))
-      throw InputError(fmt::format("{}: {} compressed bytes cannot hold {} x {} x {} voxels", name,
-                                   inflater.compressed_size(), dims[0], dims[1], dims[2]));
-    const std::string raw = inflater.take(data_bytes);
-    convert_elements(raw.data(), voxels, type, big, 1, 0, v.values);
+    v.values = inflated_voxels(inflater, 0, layout, name);
   } else {
-    if (data->size() < offset || data->size() - offset < data_bytes)
-      throw InputError(fmt::format("{}: {} data bytes for {} x {} x {} voxels of {} bytes (truncated data?)", name,
-                                   data->size() - std::min(offset, data->size()), dims[0], dims[1], dims[2],
-                                   element_size(type)));
-    convert_elements(data->data() + offset, voxels, type, big, 1, 0, v.values);
+    v.values = raw_voxels(*data, offset, layout, name);
   }
 
   // Each quantity has synonyms in the MetaIO format; the first present wins.

@@ -105,26 +105,14 @@ Volume read_nifti(const std::filesystem::path& path) {
   if (!(vox_offset >= 348) || vox_offset > 1e9 || vox_offset != std::floor(vox_offset))
     throw InputError(fmt::format("{}: vox_offset {} (must be a whole number of bytes >= 348)", name, vox_offset));
   const auto offset = static_cast<std::size_t>(vox_offset);
-  const std::size_t data_bytes = voxels * element_size(type);
+  const VoxelLayout layout{dims, voxels, type, h.swap != (std::endian::native == std::endian::big)};
 
   Volume v;
   v.name = name;
   v.dims = {static_cast<int>(dims[0]), static_cast<int>(dims[1]), static_cast<int>(dims[2])};
-  if (gz) {
-    if (offset - kHeaderBytes + data_bytes > inflated_bound(inflater->compressed_size()))
-      throw InputError(fmt::format("{}: {} compressed bytes cannot hold {} x {} x {} voxels", name,
-                                   inflater->compressed_size(), dims[0], dims[1], dims[2]));
-    inflater->take(offset - kHeaderBytes);  // extensions
-    const std::string data = inflater->take(data_bytes);
-    convert_elements(data.data(), voxels, type, h.swap != (std::endian::native == std::endian::big), 1, 0, v.values);
-  } else {
-    if (file.size() < offset || file.size() - offset < data_bytes)
-      throw InputError(fmt::format("{}: {} data bytes for {} x {} x {} voxels of {} bytes (truncated data?)", name,
-                                   file.size() - std::min(offset, file.size()), dims[0], dims[1], dims[2],
-                                   element_size(type)));
-    convert_elements(file.data() + offset, voxels, type, h.swap != (std::endian::native == std::endian::big), 1, 0,
-                     v.values);
-  }
+  // The voxels start at vox_offset; in a gzip stream the header is already taken.
+  v.values =
+      gz ? inflated_voxels(*inflater, offset - kHeaderBytes, layout, name) : raw_voxels(file, offset, layout, name);
   // scl_slope 0 (or not finite) means unscaled, as the standard says.
   double slope = h.get<float>(112), inter = h.get<float>(116);
   if (slope == 0 || !std::isfinite(slope)) slope = 1, inter = 0;

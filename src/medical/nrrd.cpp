@@ -17,17 +17,6 @@ namespace meshpde::detail {
 
 namespace {
 
-std::string lower(std::string s) {
-  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return std::tolower(c); });
-  return s;
-}
-
-std::string trim(const std::string& s) {
-  const auto b = s.find_first_not_of(" \t\r");
-  const auto e = s.find_last_not_of(" \t\r");
-  return b == std::string::npos ? std::string() : s.substr(b, e - b + 1);
-}
-
 std::string clip(const std::string& s) {
   return s.size() > 60 ? s.substr(0, 60) + "..." : s;
 }
@@ -170,8 +159,7 @@ Volume read_nrrd(const std::filesystem::path& path) {
   std::size_t offset = pos;
   if (h.count("data file") || h.count("datafile")) {
     const std::string file = h.count("data file") ? h.at("data file") : h.at("datafile");
-    if (file.empty() || lower(file).rfind("list", 0) == 0 || file.find('%') != std::string::npos ||
-        file.find(' ') != std::string::npos)
+    if (!is_single_data_file(file))
       throw InputError(fmt::format("{}: data file '{}': only one detached data file is read", name, clip(file)));
     detached = read_file_bytes(path.parent_path() / file);
     data = &detached;
@@ -189,13 +177,13 @@ Volume read_nrrd(const std::filesystem::path& path) {
       offset = eol == std::string::npos ? data->size() : eol + 1;
     }
   }
-  const std::size_t data_bytes = voxels * element_size(type);
+  const VoxelLayout layout{dims, voxels, type, big};
   if (h.count("byte skip") || h.count("byteskip")) {
     const double skip = number(h.count("byte skip") ? h.at("byte skip") : h.at("byteskip"), "byte skip", name);
     if (skip < -1 || skip != std::floor(skip)) throw InputError(fmt::format("{}: byte skip {} is invalid", name, skip));
     if (skip == -1) {
       if (encoding != "raw") throw InputError(fmt::format("{}: byte skip -1 needs raw encoding", name));
-      offset = data->size() >= data_bytes ? data->size() - data_bytes : offset;
+      offset = data->size() >= layout.bytes() ? data->size() - layout.bytes() : offset;
     } else {
       offset += static_cast<std::size_t>(std::min<double>(skip, static_cast<double>(data->size())));
     }
@@ -206,17 +194,10 @@ Volume read_nrrd(const std::filesystem::path& path) {
   v.name = name;
   v.dims = {static_cast<int>(dims[0]), static_cast<int>(dims[1]), static_cast<int>(dims[2])};
   if (encoding == "raw") {
-    if (data->size() - offset < data_bytes)
-      throw InputError(fmt::format("{}: {} data bytes for {} x {} x {} voxels of {} bytes (truncated data?)", name,
-                                   data->size() - offset, dims[0], dims[1], dims[2], element_size(type)));
-    convert_elements(data->data() + offset, voxels, type, big, 1, 0, v.values);
+    v.values = raw_voxels(*data, offset, layout, name);
   } else if (encoding == "gzip" || encoding == "gz") {
     Inflater inflater(*data, offset, name);
-    if (data_bytes > inflated_bound(inflater.compressed_size()))
-      throw InputError(fmt::format("{}: {} compressed bytes cannot hold {} x {} x {} voxels", name,
-                                   inflater.compressed_size(), dims[0], dims[1], dims[2]));
-    const std::string raw = inflater.take(data_bytes);
-    convert_elements(raw.data(), voxels, type, big, 1, 0, v.values);
+    v.values = inflated_voxels(inflater, 0, layout, name);
   } else if (encoding == "ascii" || encoding == "text" || encoding == "txt") {
     // At least one byte a value: a count the text cannot hold is refused before allocating.
     if (data->size() - offset < voxels)
@@ -234,9 +215,9 @@ Volume read_nrrd(const std::filesystem::path& path) {
     }
   } else if (encoding == "hex") {
     std::string raw;
-    raw.reserve(std::min(data_bytes, (data->size() - offset) / 2 + 1));
+    raw.reserve(std::min(layout.bytes(), (data->size() - offset) / 2 + 1));
     int high = -1;
-    for (std::size_t k = offset; k < data->size() && raw.size() < data_bytes; ++k) {
+    for (std::size_t k = offset; k < data->size() && raw.size() < layout.bytes(); ++k) {
       const int c = static_cast<unsigned char>((*data)[k]);
       if (std::isspace(c)) continue;
       if (!std::isxdigit(c)) throw InputError(fmt::format("{}: hex data byte {} is not a hex digit", name, k));
@@ -248,8 +229,8 @@ Volume read_nrrd(const std::filesystem::path& path) {
         high = -1;
       }
     }
-    if (raw.size() < data_bytes)
-      throw InputError(fmt::format("{}: {} hex bytes for {} bytes of voxels", name, raw.size(), data_bytes));
+    if (raw.size() < layout.bytes())
+      throw InputError(fmt::format("{}: {} hex bytes for {} bytes of voxels", name, raw.size(), layout.bytes()));
     convert_elements(raw.data(), voxels, type, big, 1, 0, v.values);
   } else {
     throw InputError(fmt::format("{}: encoding '{}' is not read (raw, gzip, ascii or hex)", name, clip(encoding)));

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <bit>
+#include <cctype>
 #include <cmath>
 #include <cstring>
 #include <fstream>
@@ -141,6 +142,45 @@ void convert_elements(const char* data, std::size_t n, Element e, bool big, doub
     case Element::F64:
       return convert<double>(data, n, big, slope, inter, out);
   }
+}
+
+std::string lower(std::string s) {
+  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return std::tolower(c); });
+  return s;
+}
+
+std::string trim(const std::string& s) {
+  const auto b = s.find_first_not_of(" \t\r");
+  const auto e = s.find_last_not_of(" \t\r");
+  return b == std::string::npos ? std::string() : s.substr(b, e - b + 1);
+}
+
+bool is_single_data_file(const std::string& value) {
+  return !value.empty() && lower(value).rfind("list", 0) != 0 && value.find('%') == std::string::npos &&
+         value.find(' ') == std::string::npos;
+}
+
+std::vector<float> raw_voxels(const std::string& data, std::size_t offset, const VoxelLayout& l,
+                              const std::string& name) {
+  const std::size_t present = data.size() - std::min(offset, data.size());
+  if (present < l.bytes())
+    throw InputError(fmt::format("{}: {} data bytes for {} x {} x {} voxels of {} bytes (truncated data?)", name,
+                                 present, l.dims[0], l.dims[1], l.dims[2], element_size(l.type)));
+  std::vector<float> out;
+  convert_elements(data.data() + offset, l.voxels, l.type, l.big_endian, 1, 0, out);
+  return out;
+}
+
+std::vector<float> inflated_voxels(Inflater& inflater, std::size_t skip, const VoxelLayout& l,
+                                   const std::string& name) {
+  if (skip + l.bytes() > inflated_bound(inflater.compressed_size()))
+    throw InputError(fmt::format("{}: {} compressed bytes cannot hold {} x {} x {} voxels", name,
+                                 inflater.compressed_size(), l.dims[0], l.dims[1], l.dims[2]));
+  if (skip > 0) inflater.take(skip);
+  const std::string raw = inflater.take(l.bytes());
+  std::vector<float> out;
+  convert_elements(raw.data(), l.voxels, l.type, l.big_endian, 1, 0, out);
+  return out;
 }
 
 std::size_t checked_voxels(const std::array<long long, 3>& dims, const std::string& name) {

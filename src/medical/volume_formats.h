@@ -53,6 +53,32 @@ std::size_t element_size(Element e);
 void convert_elements(const char* data, std::size_t n, Element e, bool big_endian, double slope, double intercept,
                       std::vector<float>& out);
 
+/// Lower-cased copy; whitespace-trimmed copy (the header parsers' keys and values).
+std::string lower(std::string s);
+std::string trim(const std::string& s);
+
+/// Whether a header's data-file value is one plain file name (not a list, a printf
+/// pattern like "slice%03d.raw", or several names), the only kind read.
+bool is_single_data_file(const std::string& value);
+
+/// How the voxels are stored: their count along i, j, k, their element type and byte order.
+struct VoxelLayout {
+  std::array<long long, 3> dims{};
+  std::size_t voxels = 0;  ///< checked_voxels(dims)
+  Element type = Element::F32;
+  bool big_endian = false;
+  std::size_t bytes() const { return voxels * element_size(type); }
+};
+/// The voxels stored raw at data[offset...], as floats. \throw InputError naming the
+/// file when fewer bytes are there than the layout needs.
+std::vector<float> raw_voxels(const std::string& data, std::size_t offset, const VoxelLayout& layout,
+                              const std::string& name);
+/// The voxels from a compressed stream, after `skip` bytes that precede them (NIfTI's
+/// extensions). \throw InputError when the compressed bytes cannot inflate to that much
+/// (checked before anything is allocated) or the stream is damaged or short.
+std::vector<float> inflated_voxels(Inflater& inflater, std::size_t skip, const VoxelLayout& layout,
+                                   const std::string& name);
+
 /// Voxel count of dims, or throws InputError (naming the volume) when a dimension is
 /// not positive or the count would overflow.
 std::size_t checked_voxels(const std::array<long long, 3>& dims, const std::string& name);

@@ -11,13 +11,8 @@
 namespace meshpde {
 namespace {
 
-std::string lower(std::string s) {
-  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return std::tolower(c); });
-  return s;
-}
-
 bool name_ends(const std::filesystem::path& path, const std::string& suffix) {
-  const std::string name = lower(path.filename().string());
+  const std::string name = detail::lower(path.filename().string());
   return name.size() >= suffix.size() && name.compare(name.size() - suffix.size(), suffix.size(), suffix) == 0;
 }
 

@@ -74,8 +74,6 @@ bool CholmodFactor::factorize(const Eigen::SparseMatrix<double>& A) {
 
 Eigen::MatrixXd CholmodFactor::solve(const Eigen::MatrixXd& B, bool written_out) const {
   const Impl& d = *impl_;
-  if (B.rows() != d.llt.rows())
-    throw SolverError(fmt::format("direct solve: {} rows for a factor of {}", B.rows(), d.llt.rows()));
   // Written-out sweeps (supernodal_sweeps.h) for up to four columns: 1.5-2x faster
   // than cholmod_solve on the factors of surface meshes. From five columns on,
   // cholmod_solve's BLAS-3 calls are about as fast or faster (164k, eight columns,

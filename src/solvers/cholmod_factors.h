@@ -30,8 +30,8 @@ class CholmodFactor {
   /// definite.
   bool factorize(const Eigen::SparseMatrix<double>& A);
   /// X = A^-1 B. With `written_out`, one to four columns go through meshpde's own
-  /// sweeps (supernodal_sweeps.h), more through cholmod_solve.
-  /// \throw SolverError if B's row count is not the factor's.
+  /// sweeps (supernodal_sweeps.h), more through cholmod_solve. \pre B has the factor's
+  /// row count (SparseCholesky::solve checks it).
   Eigen::MatrixXd solve(const Eigen::MatrixXd& B, bool written_out) const;
   double nonzeros() const;     ///< nonzeros of L in the analysis in use
   double pivot_ratio() const;  ///< smallest over largest squared diagonal entry of L; 0 if unknown
