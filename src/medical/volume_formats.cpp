@@ -109,16 +109,15 @@ T load(const char* p, bool big_endian) {
   return v;
 }
 
-template <class T>
-void convert(const char* data, std::size_t n, bool big, double slope, double inter, std::vector<float>& out) {
+template <class T, class Out>
+void convert(const char* data, std::size_t n, bool big, double slope, double inter, std::vector<Out>& out) {
   for (std::size_t i = 0; i < n; ++i)
-    out[i] = static_cast<float>(static_cast<double>(load<T>(data + i * sizeof(T), big)) * slope + inter);
+    out[i] = static_cast<Out>(static_cast<double>(load<T>(data + i * sizeof(T), big)) * slope + inter);
 }
 
-}  // namespace
-
-void convert_elements(const char* data, std::size_t n, Element e, bool big, double slope, double inter,
-                      std::vector<float>& out) {
+template <class Out>
+void convert_any(const char* data, std::size_t n, Element e, bool big, double slope, double inter,
+                 std::vector<Out>& out) {
   out.resize(n);
   switch (e) {
     case Element::U8:
@@ -142,6 +141,21 @@ void convert_elements(const char* data, std::size_t n, Element e, bool big, doub
     case Element::F64:
       return convert<double>(data, n, big, slope, inter, out);
   }
+}
+
+}  // namespace
+
+void convert_elements(const char* data, std::size_t n, Element e, bool big, double slope, double inter,
+                      std::vector<float>& out) {
+  convert_any(data, n, e, big, slope, inter, out);
+}
+
+void convert_elements(const char* data, std::size_t n, Element e, bool big, std::vector<double>& out) {
+  convert_any(data, n, e, big, 1.0, 0.0, out);
+}
+
+std::uint64_t load_unsigned(const char* data, std::size_t bytes, bool big_endian) {
+  return bytes == 8 ? load<std::uint64_t>(data, big_endian) : load<std::uint32_t>(data, big_endian);
 }
 
 std::string lower(std::string s) {

@@ -1,6 +1,6 @@
 // Internal to meshpde::medical: the volume readers of our own (MetaImage and NIfTI-1:
 // fuzzing found VTK 9.1's readers of both crash, leak or abort on damaged files), and
-// what they share. Every size in a header is checked against the bytes present before
+// what they share with each other and with the VTK PolyData readers (polydata.h). Every size in a header is checked against the bytes present before
 // anything is allocated; every error names the file.
 #pragma once
 
@@ -52,6 +52,10 @@ std::size_t element_size(Element e);
 /// `intercept`.
 void convert_elements(const char* data, std::size_t n, Element e, bool big_endian, double slope, double intercept,
                       std::vector<float>& out);
+/// The same, to double and unscaled (mesh coordinates and arrays keep their precision).
+void convert_elements(const char* data, std::size_t n, Element e, bool big_endian, std::vector<double>& out);
+/// An unsigned 4- or 8-byte integer at `data` (VTK XML block headers).
+std::uint64_t load_unsigned(const char* data, std::size_t bytes, bool big_endian);
 
 /// Lower-cased copy; whitespace-trimmed copy (the header parsers' keys and values).
 std::string lower(std::string s);

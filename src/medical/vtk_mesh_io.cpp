@@ -1,17 +1,14 @@
-// VTK PolyData reading and writing (.vtp XML, .vtk legacy) through VTK 9.
+// VTK PolyData files (.vtp XML, .vtk legacy): read by our own readers (polydata.h),
+// written through VTK 9.
 #include <fmt/format.h>
 #include <vtkCellArray.h>
-#include <vtkCellArrayIterator.h>
 #include <vtkCellData.h>
 #include <vtkDataArray.h>
 #include <vtkPointData.h>
 #include <vtkPoints.h>
 #include <vtkPolyData.h>
-#include <vtkPolyDataReader.h>
 #include <vtkPolyDataWriter.h>
 #include <vtkSmartPointer.h>
-#include <vtkType.h>
-#include <vtkXMLPolyDataReader.h>
 #include <vtkXMLPolyDataWriter.h>
 
 #include <algorithm>
@@ -21,6 +18,7 @@
 
 #include "meshpde/core/errors.h"
 #include "meshpde/io/medical_io.h"
+#include "polydata.h"
 #include "vtk_capture.h"
 
 namespace meshpde {
@@ -47,12 +45,6 @@ constexpr TypeName kTypes[] = {
     {VTK_UNSIGNED_LONG, "UInt64"},
 };
 
-std::string type_name(int vtk_type) {
-  for (const auto& t : kTypes)
-    if (t.vtk == vtk_type) return t.name;
-  return "Float64";
-}
-
 int type_id(const std::string& name) {
   for (const auto& t : kTypes)
     if (name == t.name) return t.vtk;
@@ -63,138 +55,6 @@ std::string lower_ext(const std::filesystem::path& path) {
   std::string ext = path.extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
   return ext;
-}
-
-std::string detect_space(const std::string& text) {
-  if (text.find("SPACE=LPS") != std::string::npos) return "LPS";
-  if (text.find("SPACE=RAS") != std::string::npos) return "RAS";
-  return {};
-}
-
-Eigen::MatrixXd array_values(vtkDataArray* a, const std::vector<vtkIdType>& rows) {
-  const int nc = a->GetNumberOfComponents();
-  Eigen::MatrixXd m(static_cast<Eigen::Index>(rows.size()), nc);
-  for (std::size_t r = 0; r < rows.size(); ++r)
-    for (int c = 0; c < nc; ++c) m(static_cast<Eigen::Index>(r), c) = a->GetComponent(rows[r], c);
-  return m;
-}
-
-MeshData convert(vtkPolyData* pd, const std::string& name, const std::string& space) {
-  MeshData d;
-  d.space = space;
-  const vtkIdType np = pd->GetNumberOfPoints();
-  if (np == 0 || !pd->GetPoints()) throw InputError(fmt::format("{}: contains no points", name));
-  d.V.resize(np, 3);
-  for (vtkIdType i = 0; i < np; ++i) {
-    double p[3];
-    pd->GetPoint(i, p);
-    if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2]))
-      throw InputError(fmt::format("{}: point {} has a non-finite coordinate", name, i));
-    d.V.row(i) << p[0], p[1], p[2];
-  }
-
-  // Cell data are numbered verts, lines, polys, strips (VTK's PolyData order).
-  const vtkIdType first_poly = pd->GetNumberOfVerts() + pd->GetNumberOfLines();
-  const vtkIdType first_strip = first_poly + pd->GetNumberOfPolys();
-  std::vector<std::array<int, 3>> tris;
-  std::vector<vtkIdType> source_cell;
-  long long polygons = 0, strips = 0;
-  auto check = [&](vtkIdType cell, vtkIdType v) {
-    if (v < 0 || v >= np)
-      throw InputError(fmt::format("{}: cell {} refers to point {} (the file has {} points)", name, cell, v, np));
-    return static_cast<int>(v);
-  };
-  {
-    auto it = vtkSmartPointer<vtkCellArrayIterator>::Take(pd->GetPolys()->NewIterator());
-    vtkIdType c = 0;
-    for (it->GoToFirstCell(); !it->IsDoneWithTraversal(); it->GoToNextCell(), ++c) {
-      vtkIdType n;
-      const vtkIdType* p;
-      it->GetCurrentCell(n, p);
-      if (n < 3) throw InputError(fmt::format("{}: polygon {} has {} corners", name, first_poly + c, n));
-      if (n > 3) ++polygons;
-      for (vtkIdType k = 1; k + 1 < n; ++k) {
-        tris.push_back({check(first_poly + c, p[0]), check(first_poly + c, p[k]), check(first_poly + c, p[k + 1])});
-        source_cell.push_back(first_poly + c);
-      }
-    }
-  }
-  {
-    auto it = vtkSmartPointer<vtkCellArrayIterator>::Take(pd->GetStrips()->NewIterator());
-    vtkIdType c = 0;
-    for (it->GoToFirstCell(); !it->IsDoneWithTraversal(); it->GoToNextCell(), ++c) {
-      vtkIdType n;
-      const vtkIdType* p;
-      it->GetCurrentCell(n, p);
-      ++strips;
-      for (vtkIdType k = 0; k + 2 < n; ++k) {
-        const vtkIdType cell = first_strip + c;
-        // Every other triangle of a strip is reversed to keep one orientation.
-        if (k % 2 == 0)
-          tris.push_back({check(cell, p[k]), check(cell, p[k + 1]), check(cell, p[k + 2])});
-        else
-          tris.push_back({check(cell, p[k + 1]), check(cell, p[k]), check(cell, p[k + 2])});
-        source_cell.push_back(cell);
-      }
-    }
-  }
-  if (tris.empty())
-    throw InputError(fmt::format("{}: contains no polygons ({} vertex and {} line cells; a surface is needed)", name,
-                                 pd->GetNumberOfVerts(), pd->GetNumberOfLines()));
-  d.F.resize(static_cast<Eigen::Index>(tris.size()), 3);
-  for (std::size_t t = 0; t < tris.size(); ++t)
-    d.F.row(static_cast<Eigen::Index>(t)) << tris[t][0], tris[t][1], tris[t][2];
-  if (polygons)
-    d.warnings.push_back(
-        fmt::format("{}: triangulated {} polygons with more than three corners{}", name, polygons,
-                    pd->GetCellData()->GetNumberOfArrays() ? " (their cell data repeated per triangle)" : ""));
-  if (strips) d.warnings.push_back(fmt::format("{}: unrolled {} triangle strips", name, strips));
-  if (pd->GetNumberOfVerts() + pd->GetNumberOfLines() > 0)
-    d.warnings.push_back(
-        fmt::format("{}: ignored {} vertex and {} line cells", name, pd->GetNumberOfVerts(), pd->GetNumberOfLines()));
-
-  std::vector<vtkIdType> all_points(static_cast<std::size_t>(np));
-  for (vtkIdType i = 0; i < np; ++i) all_points[static_cast<std::size_t>(i)] = i;
-  vtkPointData* point_data = pd->GetPointData();
-  for (int a = 0; a < point_data->GetNumberOfArrays(); ++a) {
-    vtkDataArray* arr = point_data->GetArray(a);
-    if (!arr) {
-      d.warnings.push_back(fmt::format("{}: ignored non-numeric point array {}", name, a));
-      continue;
-    }
-    const std::string key = arr->GetName() ? arr->GetName() : fmt::format("point_array_{}", a);
-    if (arr->GetNumberOfTuples() != np)
-      throw InputError(
-          fmt::format("{}: point array '{}' has {} tuples for {} points", name, key, arr->GetNumberOfTuples(), np));
-    const Eigen::MatrixXd values = array_values(arr, all_points);
-    const std::string type = type_name(arr->GetDataType());
-    if (values.cols() == 1) {
-      d.vertex_scalars[key] = values.col(0);
-      d.scalar_types[key] = type;
-    } else if (values.cols() == 3) {
-      const char* suffix[3] = {"_x", "_y", "_z"};
-      for (int c = 0; c < 3; ++c) {
-        d.vertex_scalars[key + suffix[c]] = values.col(c);
-        d.scalar_types[key + suffix[c]] = type;
-      }
-    } else {
-      d.point_arrays[key] = DataArray{values, type};
-    }
-  }
-  vtkCellData* cell_data = pd->GetCellData();
-  for (int a = 0; a < cell_data->GetNumberOfArrays(); ++a) {
-    vtkDataArray* arr = cell_data->GetArray(a);
-    if (!arr) {
-      d.warnings.push_back(fmt::format("{}: ignored non-numeric cell array {}", name, a));
-      continue;
-    }
-    const std::string key = arr->GetName() ? arr->GetName() : fmt::format("cell_array_{}", a);
-    if (arr->GetNumberOfTuples() != pd->GetNumberOfCells())
-      throw InputError(fmt::format("{}: cell array '{}' has {} tuples for {} cells", name, key,
-                                   arr->GetNumberOfTuples(), pd->GetNumberOfCells()));
-    d.cell_arrays[key] = DataArray{array_values(arr, source_cell), type_name(arr->GetDataType())};
-  }
-  return d;
 }
 
 vtkSmartPointer<vtkDataArray> make_array(const std::string& name, const Eigen::MatrixXd& values,
@@ -274,45 +134,9 @@ bool is_vtk_mesh_path(const std::filesystem::path& path) {
 }
 
 MeshData read_vtk_mesh_from_memory(const std::string& bytes, const std::string& kind, const std::string& name) {
-  detail::VtkErrorCapture capture;
-  vtkSmartPointer<vtkPolyData> pd;
-  std::string space;
-  if (kind == "vtp") {
-    if (bytes.find("<VTKFile") == std::string::npos)
-      throw InputError(fmt::format("{}: not a VTK XML file (no <VTKFile> element)", name));
-    if (bytes.find("type=\"PolyData\"") == std::string::npos)
-      throw InputError(fmt::format("{}: the VTK XML file does not hold PolyData", name));
-    auto reader = vtkSmartPointer<vtkXMLPolyDataReader>::New();
-    capture.watch(reader);
-    reader->ReadFromInputStringOn();
-    reader->SetInputString(bytes);
-    reader->Update();
-    if (const auto e = capture.error(); !e.empty()) throw InputError(fmt::format("{}: {}", name, e));
-    pd = reader->GetOutput();
-    space = detect_space(bytes.substr(0, std::min<std::size_t>(bytes.size(), 4096)));
-  } else if (kind == "vtk") {
-    if (bytes.rfind("# vtk DataFile", 0) != 0)
-      throw InputError(fmt::format("{}:1: not a legacy VTK file (expected '# vtk DataFile Version')", name));
-    auto reader = vtkSmartPointer<vtkPolyDataReader>::New();
-    capture.watch(reader);
-    reader->ReadFromInputStringOn();
-    reader->SetInputString(bytes);
-    reader->ReadAllScalarsOn();
-    reader->ReadAllVectorsOn();
-    reader->ReadAllNormalsOn();
-    reader->ReadAllFieldsOn();
-    reader->ReadAllTensorsOn();
-    reader->ReadAllTCoordsOn();
-    reader->ReadAllColorScalarsOn();
-    reader->Update();
-    if (const auto e = capture.error(); !e.empty()) throw InputError(fmt::format("{}: {}", name, e));
-    pd = reader->GetOutput();
-    if (reader->GetHeader()) space = detect_space(reader->GetHeader());
-  } else {
-    throw InputError(fmt::format("{}: unknown VTK kind '{}' (vtp or vtk)", name, kind));
-  }
-  if (!pd) throw InputError(fmt::format("{}: the reader produced no PolyData", name));
-  return convert(pd, name, space);
+  if (kind == "vtp") return detail::mesh_from_polydata(detail::read_vtp_polydata(bytes, name), name);
+  if (kind == "vtk") return detail::mesh_from_polydata(detail::read_legacy_vtk_polydata(bytes, name), name);
+  throw InputError(fmt::format("{}: unknown VTK kind '{}' (vtp or vtk)", name, kind));
 }
 
 MeshData read_vtk_mesh(const std::filesystem::path& path) {
