@@ -9,6 +9,7 @@
 #include <thread>
 
 #include "commands.h"
+#include "meshpde/operators/laplacian.h"
 #include "meshpde/apps/fairing.h"
 #include "meshpde/apps/haptics.h"
 #include "meshpde/apps/heat_wave.h"
@@ -187,7 +188,7 @@ void add_fair_command(CLI::App& app) {
   auto* cmd = app.add_subcommand(
       "fair", "Fair the free part of a mesh: membrane (--order 1) or thin plate (--order 2), selection held fixed");
   struct Args {
-    std::string mesh, out, png, view = "30,20", up = "y", size = "960x720", solver = "direct";
+    std::string mesh, out, png, view = "30,20", up = "y", size = "960x720", solver = "direct", laplacian = "auto";
     std::vector<std::string> fixed;
     FairParams p;
     bool json = false;
@@ -208,6 +209,11 @@ void add_fair_command(CLI::App& app) {
                   "--order 2) | iterative (Jacobi-CG)")
       ->check(CLI::IsMember({"direct", "global", "iterative"}))
       ->capture_default_str();
+  cmd->add_option("--laplacian", a->laplacian,
+                  "auto (intrinsic Delaunay on badly shaped or non-manifold meshes) | cotan | intrinsic; "
+                  "--regularize always re-assembles area-weighted cotangent operators")
+      ->check(CLI::IsMember({"auto", "cotan", "intrinsic"}))
+      ->capture_default_str();
   cmd->add_option("--dt", a->p.dt, "Regularization step (unit-free)")->capture_default_str();
   cmd->add_option("--steps", a->p.steps, "Regularization steps")->capture_default_str();
   cmd->add_option("--damping", a->p.damping, "Regularization damping relative to the mean area (0: quasi-static)")
@@ -226,6 +232,7 @@ void add_fair_command(CLI::App& app) {
     const auto t0 = std::chrono::steady_clock::now();
     FairParams params = a->p;
     params.solver = steady_solver(a->solver);
+    params.laplacian = parse_laplacian_kind(a->laplacian);
     const FairResult r = fair(mesh, fixed, params);
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     Eigen::VectorXd free_mask = Eigen::VectorXd::Ones(mesh.num_vertices());
@@ -246,6 +253,8 @@ void add_fair_command(CLI::App& app) {
                   {"seconds", seconds},
                   {"cg_iterations", r.cg_iterations},
                   {"relative_residual", r.worst_residual},
+                  {"laplacian", to_string(r.laplacian)},
+                  {"laplacian_reason", r.laplacian_reason},
                   {"before", quality_json(r.before)},
                   {"after", quality_json(r.after)}});
     } else {
@@ -272,7 +281,8 @@ void add_interpolate_command(CLI::App& app) {
   auto* cmd = app.add_subcommand("interpolate",
                                  "Spread values given at a few vertices: scalars, displacements or tangent vectors");
   struct Args {
-    std::string mesh, constraints, kind = "scalar", method = "componentwise", out, png, solver = "direct";
+    std::string mesh, constraints, kind = "scalar", method = "componentwise", out, png, solver = "direct",
+                         laplacian = "auto";
     std::string view = "30,20", up = "y", size = "960x720";
     double g1 = 0, g2 = 1;
     bool json = false;
@@ -293,6 +303,11 @@ void add_interpolate_command(CLI::App& app) {
                   "iterative (Jacobi-CG)")
       ->check(CLI::IsMember({"direct", "global", "iterative"}))
       ->capture_default_str();
+  cmd->add_option("--laplacian", a->laplacian,
+                  "auto (intrinsic Delaunay on badly shaped or non-manifold meshes; tangent fields: cotan) | cotan | "
+                  "intrinsic")
+      ->check(CLI::IsMember({"auto", "cotan", "intrinsic"}))
+      ->capture_default_str();
   cmd->add_option("--method", a->method, "tangent fields: componentwise (seed) | connection | both")
       ->check(CLI::IsMember({"componentwise", "connection", "both"}))
       ->capture_default_str();
@@ -312,7 +327,6 @@ void add_interpolate_command(CLI::App& app) {
                            : a->kind == "displacement" ? FieldKind::Displacement
                                                        : FieldKind::Tangent;
     const auto cons = read_constraints(a->constraints, mesh, kind == FieldKind::Scalar ? 1 : 3);
-    const FemOperators ops = build_operators(mesh);
     std::vector<std::pair<std::string, TangentMethod>> runs;
     if (kind != FieldKind::Tangent || a->method == "componentwise" || a->method == "both")
       runs.emplace_back("componentwise", TangentMethod::Componentwise);
@@ -324,9 +338,14 @@ void add_interpolate_command(CLI::App& app) {
     nlohmann::json report{{"constraints", cons.size()}, {"g1", a->g1}, {"g2", a->g2}};
     for (const auto& [name, method] : runs) {
       const auto t0 = std::chrono::steady_clock::now();
-      const InterpolationResult r = interpolate(
-          mesh, ops, kind, cons,
-          InterpolationParams{.g1 = a->g1, .g2 = a->g2, .method = method, .solver = steady_solver(a->solver)});
+      const InterpolationResult r = interpolate(mesh, kind, cons,
+                                                InterpolationParams{.g1 = a->g1,
+                                                                    .g2 = a->g2,
+                                                                    .method = method,
+                                                                    .solver = steady_solver(a->solver),
+                                                                    .laplacian = parse_laplacian_kind(a->laplacian)});
+      report["laplacian"] = to_string(r.laplacian);
+      report["laplacian_reason"] = r.laplacian_reason;
       const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
       RenderOptions ro = a->r;
       apply_view_options(ro, a->view, a->up, a->size);

@@ -90,7 +90,8 @@ def wave(V, F, *, sources=None, flux=None, impulses=None, dt=1e-3, steps=100, sp
                           callback)
 
 
-def fair(V, F, fixed, *, order=2, regularize=False, dt=1.0, steps=15, damping=0.0, solver="direct"):
+def fair(V, F, fixed, *, order=2, regularize=False, dt=1.0, steps=15, damping=0.0, solver="direct",
+         laplacian="auto"):
     """Fairing: the free vertices solve the membrane (order 1) or thin-plate (order 2)
     equation with ``fixed`` held, as ``meshpde fair``.
 
@@ -98,26 +99,32 @@ def fair(V, F, fixed, *, order=2, regularize=False, dt=1.0, steps=15, damping=0.
     "rings:V:K", "radius:V:R", "halfspace:NX,NY,NZ:D", "all", ...).
     regularize: seed 000's area-weighted membrane flow (``steps`` steps of ``dt``).
     solver: "direct" (sparse Cholesky), "global" (multigrid-CG, order 2) or "iterative".
+    laplacian: "auto" (intrinsic Delaunay on badly shaped or non-manifold meshes),
+    "cotan" or "intrinsic"; ``regularize`` always uses area-weighted cotangent operators.
 
     Returns a namespace with ``V`` (n, 3), triangle quality ``before`` and ``after``
-    (dicts), ``cg_iterations`` and ``worst_residual``.
+    (dicts), ``cg_iterations``, ``worst_residual``, ``laplacian`` (the operators used)
+    and ``laplacian_reason``.
     """
-    return _meshpde._fair(V, F, fixed, order, regularize, dt, steps, damping, solver)
+    return _meshpde._fair(V, F, fixed, order, regularize, dt, steps, damping, solver, laplacian)
 
 
-def interpolate(V, F, vertices, values, *, kind=None, method="componentwise", g1=0.0, g2=1.0, solver="direct"):
+def interpolate(V, F, vertices, values, *, kind=None, method="componentwise", g1=0.0, g2=1.0, solver="direct",
+                laplacian="auto"):
     """Scattered-data interpolation (g1 K + g2 K D K) u = 0 with u given at ``vertices``.
 
     values: (k,) for scalars, (k, 3) for displacements or tangent vectors.
     kind: "scalar", "displacement" or "tangent" (default: scalar for 1-D values,
     displacement for (k, 3)). method (tangent only): "componentwise" or "connection".
     g2 > 0 reproduces linear fields exactly; g1 alone gives spikes.
+    laplacian: "auto" (intrinsic Delaunay on badly shaped or non-manifold meshes; tangent
+    fields always use the cotangent operators of the input triangles), "cotan" or "intrinsic".
     Returns (n,) or (n, 3).
     """
     if kind is None:
         import numpy as np
         kind = "scalar" if np.ndim(values) == 1 else "displacement"
-    return _meshpde._interpolate(V, F, vertices, values, kind, method, g1, g2, solver)
+    return _meshpde._interpolate(V, F, vertices, values, kind, method, g1, g2, solver, laplacian)
 
 
 def _correction_options(radius, rings, method, g1, g2, laplacian, stiffness, dynamic, steps, mass, elasticity,

@@ -323,7 +323,7 @@ void bind_apps(py::module_& m) {
   m.def(
       "_fair",
       [](const py::handle& V, const py::handle& F, const py::handle& fixed, int order, bool regularize, double dt,
-         int steps, double damping, const std::string& solver) {
+         int steps, double damping, const std::string& solver, const std::string& laplacian) {
         const Mesh mesh = mesh_arg(V, F);
         const std::vector<int> held = selection_arg(mesh, fixed, "fixed");
         FairParams p;
@@ -333,6 +333,7 @@ void bind_apps(py::module_& m) {
         p.steps = steps;
         p.damping = damping;
         p.solver = solver_arg(solver);
+        p.laplacian = parse_laplacian_kind(laplacian);
         FairResult r;
         {
           py::gil_scoped_release release;
@@ -351,15 +352,18 @@ void bind_apps(py::module_& m) {
         d["after"] = quality(r.after);
         d["cg_iterations"] = r.cg_iterations;
         d["worst_residual"] = r.worst_residual;
+        d["laplacian"] = to_string(r.laplacian);
+        d["laplacian_reason"] = r.laplacian_reason;
         return py::module_::import("types").attr("SimpleNamespace")(**d);
       },
       py::arg("V"), py::arg("F"), py::arg("fixed"), py::arg("order"), py::arg("regularize"), py::arg("dt"),
-      py::arg("steps"), py::arg("damping"), py::arg("solver"));
+      py::arg("steps"), py::arg("damping"), py::arg("solver"), py::arg("laplacian"));
 
   m.def(
       "_interpolate",
       [](const py::handle& V, const py::handle& F, const py::handle& vertices, const py::handle& values,
-         const std::string& kind, const std::string& method, double g1, double g2, const std::string& solver) {
+         const std::string& kind, const std::string& method, double g1, double g2, const std::string& solver,
+         const std::string& laplacian) {
         const Mesh mesh = mesh_arg(V, F);
         const std::vector<int> at = vertices_arg(vertices, "vertices", mesh.num_vertices());
         FieldKind k = FieldKind::Scalar;
@@ -381,16 +385,17 @@ void bind_apps(py::module_& m) {
         p.g2 = g2;
         p.method = method == "connection" ? TangentMethod::Connection : TangentMethod::Componentwise;
         p.solver = solver_arg(solver);
+        p.laplacian = parse_laplacian_kind(laplacian);
         InterpolationResult r;
         {
           py::gil_scoped_release release;
-          r = interpolate(mesh, build_operators(mesh), k, cons, p);
+          r = interpolate(mesh, k, cons, p);
         }
         if (k == FieldKind::Scalar) return py::object(to_numpy(Eigen::VectorXd(r.values.col(0))));
         return py::object(to_numpy(r.values));
       },
       py::arg("V"), py::arg("F"), py::arg("vertices"), py::arg("values"), py::arg("kind"), py::arg("method"),
-      py::arg("g1"), py::arg("g2"), py::arg("solver"));
+      py::arg("g1"), py::arg("g2"), py::arg("solver"), py::arg("laplacian"));
 
   py::class_<PyCorrectionResult>(
       m, "CorrectionResult",

@@ -73,9 +73,11 @@ FairResult fair(const Mesh& mesh, const std::vector<int>& fixed, const FairParam
     std::vector<int> free;
     for (int v = 0; v < nv; ++v)
       if (!is_fixed[v]) free.push_back(v);
-    const FemOperators ops = build_operators(mesh);
-    SteadySolveResult s =
-        solve_steady(mesh, ops, PdeCoefficients{.g0 = 0, .g1 = g1, .g2 = g2}, free, mesh.positions(), p.solver);
+    const MeshOperators mo = build_mesh_operators(mesh, p.laplacian);
+    r.laplacian = mo.kind;
+    r.laplacian_reason = mo.reason;
+    SteadySolveResult s = solve_steady(mo.mesh, mo.ops, PdeCoefficients{.g0 = 0, .g1 = g1, .g2 = g2}, free,
+                                       mesh.positions(), p.solver);
     r.V = std::move(s.values);
     r.worst_residual = s.relative_residual;
     r.cg_iterations = s.iterations;
@@ -92,12 +94,21 @@ FairResult fair(const Mesh& mesh, const std::vector<int>& fixed, const FairParam
       mean_area = oo.face_weights.mean();
       if (mean_area > 0) oo.face_weights /= mean_area;
     }
-    const FemOperators ops = build_operators(current, oo);
+    MeshOperators mo;
+    if (p.regularize) {
+      mo.mesh = current;
+      mo.ops = build_operators(current, oo);
+      mo.reason = "area-weighted cotangent operators of the regularization";
+    } else {
+      mo = build_mesh_operators(current, p.laplacian);
+    }
+    r.laplacian = mo.kind;
+    r.laplacian_reason = mo.reason;
     // Damping acts on M (length^2): dividing by the mean area makes dt and damping
     // unit-free, so the same parameters work for a bunny in metres or a vessel in mm.
     const double b1 = p.regularize ? p.damping / (mean_area > 0 ? mean_area : 1.0) : 0.0;
     const PdeCoefficients c{.alpha = 0, .b1 = b1, .b2 = 0, .g0 = 0, .g1 = g1, .g2 = g2};
-    PdeSession s(current, ops, 3, c, DomainOptions{.seed_rings = 0});
+    PdeSession s(mo.mesh, mo.ops, 3, c, DomainOptions{.seed_rings = 0});
     s.cg_options = p.cg;
     s.set_values(current.positions());
     for (int v = 0; v < nv; ++v) {

@@ -150,6 +150,23 @@ InterpolationResult interpolate(const Mesh& mesh, const FemOperators& ops, Field
   return r;
 }
 
+InterpolationResult interpolate(const Mesh& mesh, FieldKind kind, const std::vector<InterpolationConstraint>& cons,
+                                const InterpolationParams& p) {
+  LaplacianKind lk = p.laplacian;
+  if (kind == FieldKind::Tangent) {
+    if (lk == LaplacianKind::IntrinsicDelaunay)
+      throw InputError("tangent fields need the cotangent operators of the input triangles (laplacian cotan or auto)");
+    lk = LaplacianKind::Cotan;
+  }
+  const MeshOperators mo = build_mesh_operators(mesh, lk);
+  InterpolationResult r = interpolate(mo.mesh, mo.ops, kind, cons, p);
+  r.laplacian = mo.kind;
+  r.laplacian_reason = kind == FieldKind::Tangent && p.laplacian == LaplacianKind::Auto
+                           ? "tangent fields use the input triangles"
+                           : mo.reason;
+  return r;
+}
+
 std::vector<InterpolationConstraint> parse_constraints(const Mesh& mesh, const std::string& text, int m,
                                                        const std::string& path) {
   if (m < 1) throw InputError(fmt::format("{}: a constraint needs at least one value (asked for {})", path, m));

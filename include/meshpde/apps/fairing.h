@@ -25,6 +25,7 @@
 #include <vector>
 
 #include "meshpde/mesh/mesh.h"
+#include "meshpde/operators/laplacian.h"
 #include "meshpde/pde/steady_direct.h"
 #include "meshpde/solvers/cg.h"
 
@@ -42,6 +43,11 @@ struct FairParams {
   double damping = 0.0;
   SteadySolver solver = SteadySolver::Direct;  ///< for the static solve (Global: order 2 only)
   CgOptions cg{.tolerance = 1e-10, .max_iterations = 100000};
+  /// Operators of the static solve: Auto (default) takes intrinsic Delaunay on badly
+  /// shaped meshes (operators/laplacian.h), where the cotangent K has weights of 1e9
+  /// and more and a direct solve breaks down. The regularization re-assembles
+  /// area-weighted cotangent operators every step, whatever this says.
+  LaplacianKind laplacian = LaplacianKind::Auto;
 };
 
 /// Triangle shape statistics.
@@ -61,6 +67,8 @@ struct FairResult {
   TriangleQuality before, after;  ///< over the faces touching a free vertex
   long long cg_iterations = 0;
   double worst_residual = 0;  ///< largest relative residual over the solves
+  LaplacianKind laplacian = LaplacianKind::Cotan;  ///< the operators of the static solve
+  std::string laplacian_reason;                    ///< why Auto chose them
 };
 
 /// \throw InputError if nothing is fixed, a fixed index is out of range, or order is not 1 or 2;

@@ -23,6 +23,7 @@
 #include "meshpde/mesh/mesh.h"
 #include "meshpde/mesh/topology.h"  // vertex_normals, used by tangent interpolation
 #include "meshpde/operators/fem_operators.h"
+#include "meshpde/operators/laplacian.h"
 #include "meshpde/pde/steady_direct.h"
 #include "meshpde/solvers/cg.h"
 
@@ -43,17 +44,30 @@ struct InterpolationParams {
   /// Direct, Global (large meshes; g2 > 0) or Iterative (Jacobi-CG), pde/steady_direct.h
   SteadySolver solver = SteadySolver::Direct;
   CgOptions cg{.tolerance = 1e-11, .max_iterations = 200000};  ///< for SteadySolver::Iterative
+  /// Operators of the overloads without `ops`: Auto (default) takes intrinsic Delaunay
+  /// on badly shaped meshes (operators/laplacian.h), where the cotangent K has weights
+  /// of 1e9 and more and a direct solve breaks down. Tangent fields always use the
+  /// cotangent operators, on the input triangles their normals and connection need.
+  LaplacianKind laplacian = LaplacianKind::Auto;
 };
 
 struct InterpolationResult {
   Field values;  ///< #V x 1 or #V x 3
   CgResult cg;   ///< of the (last) solve: iterations (0 for direct) and relative residual
+  LaplacianKind laplacian = LaplacianKind::Cotan;  ///< the operators used (overloads without `ops`)
+  std::string laplacian_reason;                    ///< why Auto chose them
 };
 
+/// Interpolation with the caller's operators (params.laplacian is not used).
 /// \throw InputError (bad vertex, duplicate vertex, wrong value size, g1 = g2 = 0, no
 /// constraint), SolverError (breakdown).
 InterpolationResult interpolate(const Mesh& mesh, const FemOperators& ops, FieldKind kind,
                                 const std::vector<InterpolationConstraint>& constraints,
+                                const InterpolationParams& params = {});
+
+/// The same with the operators params.laplacian asks for (what the tool and the Python
+/// module run). \throw InputError also for an intrinsic Laplacian asked for a tangent field.
+InterpolationResult interpolate(const Mesh& mesh, FieldKind kind, const std::vector<InterpolationConstraint>& constraints,
                                 const InterpolationParams& params = {});
 
 /// Parses interpolation constraints, `values` numbers each (1 for scalars, 3 for
@@ -69,12 +83,11 @@ InterpolationResult interpolate(const Mesh& mesh, const FemOperators& ops, Field
 std::vector<InterpolationConstraint> parse_constraints(const Mesh& mesh, const std::string& text, int values,
                                                        const std::string& name);
 
-/// The same on plain (V, F) with the cotangent operators.
+/// The same on plain (V, F).
 inline InterpolationResult interpolate(const Positions& V, const Triangles& F, FieldKind kind,
                                        const std::vector<InterpolationConstraint>& constraints,
                                        const InterpolationParams& params = {}) {
-  const Mesh mesh(V, F);
-  return interpolate(mesh, build_operators(mesh), kind, constraints, params);
+  return interpolate(Mesh(V, F), kind, constraints, params);
 }
 
 }  // namespace meshpde
