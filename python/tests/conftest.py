@@ -15,12 +15,19 @@ import meshpde
 
 
 @pytest.fixture(scope="session")
-def cli():
+def cli_path():
+    """The command-line tool of this build (ctest sets MESHPDE_CLI)."""
     path = os.environ.get("MESHPDE_CLI")
     if not path or not pathlib.Path(path).exists():
         if os.environ.get("CI") == "true":
             pytest.fail("MESHPDE_CLI is not set to the meshpde tool (ctest sets it)")
         pytest.skip("MESHPDE_CLI not set: run through ctest to compare with the command-line tool")
+    return path
+
+
+@pytest.fixture(scope="session")
+def cli(cli_path):
+    path = cli_path
 
     def run(*args, json_out=False):
         out = subprocess.run([path, *map(str, args)], capture_output=True, text=True, timeout=300)
