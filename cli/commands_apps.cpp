@@ -9,7 +9,6 @@
 #include <thread>
 
 #include "commands.h"
-#include "meshpde/operators/laplacian.h"
 #include "meshpde/apps/fairing.h"
 #include "meshpde/apps/haptics.h"
 #include "meshpde/apps/heat_wave.h"
@@ -18,6 +17,7 @@
 #include "meshpde/core/errors.h"
 #include "meshpde/mesh/topology.h"
 #include "meshpde/operators/fem_operators.h"
+#include "meshpde/operators/laplacian.h"
 #include "meshpde/viz/render.h"
 #include "progress.h"
 
@@ -282,7 +282,7 @@ void add_interpolate_command(CLI::App& app) {
                                  "Spread values given at a few vertices: scalars, displacements or tangent vectors");
   struct Args {
     std::string mesh, constraints, kind = "scalar", method = "componentwise", out, png, solver = "direct",
-                         laplacian = "auto";
+                                   laplacian = "auto";
     std::string view = "30,20", up = "y", size = "960x720";
     double g1 = 0, g2 = 1;
     bool json = false;

@@ -276,7 +276,8 @@ TEST(VtkReaders, EveryRealVtpFileReadsAsVtkReadsIt) {
     w->SetFileTypeToBinary();
     w->WriteToOutputStringOn();
     ASSERT_TRUE(w->Write());
-    expect_same(detail::read_legacy_vtk_polydata(w->GetOutputStdString(), name), vtk_read_legacy(w->GetOutputStdString()));
+    expect_same(detail::read_legacy_vtk_polydata(w->GetOutputStdString(), name),
+                vtk_read_legacy(w->GetOutputStdString()));
     ++files;
   }
   if (test::under_ci()) {

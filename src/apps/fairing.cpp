@@ -76,8 +76,8 @@ FairResult fair(const Mesh& mesh, const std::vector<int>& fixed, const FairParam
     const MeshOperators mo = build_mesh_operators(mesh, p.laplacian);
     r.laplacian = mo.kind;
     r.laplacian_reason = mo.reason;
-    SteadySolveResult s = solve_steady(mo.mesh, mo.ops, PdeCoefficients{.g0 = 0, .g1 = g1, .g2 = g2}, free,
-                                       mesh.positions(), p.solver);
+    SteadySolveResult s =
+        solve_steady(mo.mesh, mo.ops, PdeCoefficients{.g0 = 0, .g1 = g1, .g2 = g2}, free, mesh.positions(), p.solver);
     r.V = std::move(s.values);
     r.worst_residual = s.relative_residual;
     r.cg_iterations = s.iterations;

@@ -29,7 +29,7 @@ struct LegacyType {
   std::string_view xml;  // the VTK XML type name we report
 };
 constexpr LegacyType kLegacyTypes[] = {
-    {"unsigned_char", Element::U8, "UInt8"},   {"char", Element::I8, "Int8"},
+    {"unsigned_char", Element::U8, "UInt8"},    {"char", Element::I8, "Int8"},
     {"unsigned_short", Element::U16, "UInt16"}, {"short", Element::I16, "Int16"},
     {"unsigned_int", Element::U32, "UInt32"},   {"int", Element::I32, "Int32"},
     {"unsigned_long", Element::U64, "UInt64"},  {"long", Element::I64, "Int64"},
@@ -170,7 +170,8 @@ class LegacyReader {
     if (binary_) {
       line();  // the rest of the keyword line; the data start after its newline
       const std::size_t es = element_size(t.element);
-      if (n > left() / es) fail(fmt::format("{}: {} {} values need more bytes than the {} left", what, n, t.name, left()));
+      if (n > left() / es)
+        fail(fmt::format("{}: {} {} values need more bytes than the {} left", what, n, t.name, left()));
       convert_elements(s_.data() + pos_, n, t.element, true, out);
       pos_ += n * es;
       return out;
@@ -210,7 +211,8 @@ class LegacyReader {
       skip_metadata_if_present();
       if (lower(std::string(token("CONNECTIVITY"))) != "connectivity")
         fail(fmt::format("{}: expected CONNECTIVITY", kind));
-      out.connectivity = ids(values(b, type(token("the connectivity type")), fmt::format("{} connectivity", kind)), kind);
+      out.connectivity =
+          ids(values(b, type(token("the connectivity type")), fmt::format("{} connectivity", kind)), kind);
       if (!offsets.empty()) {
         if (offsets.front() != 0) fail(fmt::format("{}: the offsets start at {}, not 0", kind, offsets.front()));
         for (std::size_t c = 1; c < offsets.size(); ++c) {
@@ -343,7 +345,8 @@ class LegacyReader {
       if (section != Section::None && n != tuples)
         fail(fmt::format("field array '{}' has {} tuples, not {}", clip(name), n, tuples));
       const LegacyType& t = type(token("the field array type"));
-      if (n > s_.size() / static_cast<std::size_t>(nc)) fail(fmt::format("field array '{}' is longer than the file", clip(name)));
+      if (n > s_.size() / static_cast<std::size_t>(nc))
+        fail(fmt::format("field array '{}' is longer than the file", clip(name)));
       add(section, tuples, name, t, nc, values(n * static_cast<std::size_t>(nc), t, name));
     }
   }

@@ -81,7 +81,8 @@ MeshData mesh_from_polydata(PolyData&& pd, const std::string& name) {
   if (polygons)
     d.warnings.push_back(fmt::format("{}: triangulated {} polygons with more than three corners{}", name, polygons,
                                      pd.cell_arrays.empty() ? "" : " (their cell data repeated per triangle)"));
-  if (pd.strips.size() > 0) d.warnings.push_back(fmt::format("{}: unrolled {} triangle strips", name, pd.strips.size()));
+  if (pd.strips.size() > 0)
+    d.warnings.push_back(fmt::format("{}: unrolled {} triangle strips", name, pd.strips.size()));
   if (first_poly > 0)
     d.warnings.push_back(
         fmt::format("{}: ignored {} vertex and {} line cells", name, pd.verts.size(), pd.lines.size()));
@@ -90,9 +91,8 @@ MeshData mesh_from_polydata(PolyData&& pd, const std::string& name) {
   for (std::size_t i = 0; i < np; ++i) all_points[i] = i;
   for (const NamedArray& a : pd.point_arrays) {
     if (a.tuples() != np || a.values.size() != np * static_cast<std::size_t>(a.components))
-      throw InputError(
-          fmt::format("{}: point array '{}' has {} values for {} points of {} components", name, a.name,
-                      a.values.size(), np, a.components));
+      throw InputError(fmt::format("{}: point array '{}' has {} values for {} points of {} components", name, a.name,
+                                   a.values.size(), np, a.components));
     const Eigen::MatrixXd values = rows_of(a, all_points);
     if (values.cols() == 1) {
       d.vertex_scalars[a.name] = values.col(0);

@@ -1,7 +1,7 @@
 // Internal to meshpde::medical: the volume readers of our own (MetaImage and NIfTI-1:
 // fuzzing found VTK 9.1's readers of both crash, leak or abort on damaged files), and
-// what they share with each other and with the VTK PolyData readers (polydata.h). Every size in a header is checked against the bytes present before
-// anything is allocated; every error names the file.
+// what they share with each other and with the VTK PolyData readers (polydata.h). Every size in a header is checked
+// against the bytes present before anything is allocated; every error names the file.
 #pragma once
 
 #include <Eigen/Core>

@@ -262,9 +262,9 @@ class Base64Source : public ByteSource {
       if (pos_ >= t_.size()) throw InputError(fmt::format("{}: the base64 data end early", what_));
       x = value(t_[pos_]);
       if (x < 0)
-        throw InputError(fmt::format("{}: '{}' is not a base64 character", what_,
-                                     std::isprint(static_cast<unsigned char>(t_[pos_])) ? std::string(1, t_[pos_])
-                                                                                        : std::string("\\x??")));
+        throw InputError(fmt::format(
+            "{}: '{}' is not a base64 character", what_,
+            std::isprint(static_cast<unsigned char>(t_[pos_])) ? std::string(1, t_[pos_]) : std::string("\\x??")));
       ++pos_;
     }
     if (v[0] == 64 || v[1] == 64 || (v[2] == 64 && v[3] != 64))
@@ -292,9 +292,9 @@ struct FileSettings {
 
 bool element_of(const std::string& type, Element& e) {
   static constexpr std::pair<std::string_view, Element> kTypes[] = {
-      {"Int8", Element::I8},     {"UInt8", Element::U8},     {"Int16", Element::I16},   {"UInt16", Element::U16},
-      {"Int32", Element::I32},   {"UInt32", Element::U32},   {"Int64", Element::I64},   {"UInt64", Element::U64},
-      {"Float32", Element::F32}, {"Float64", Element::F64}, {"Char", Element::I8},     {"Int", Element::I32}};
+      {"Int8", Element::I8},     {"UInt8", Element::U8},    {"Int16", Element::I16}, {"UInt16", Element::U16},
+      {"Int32", Element::I32},   {"UInt32", Element::U32},  {"Int64", Element::I64}, {"UInt64", Element::U64},
+      {"Float32", Element::F32}, {"Float64", Element::F64}, {"Char", Element::I8},   {"Int", Element::I32}};
   for (const auto& [n, t] : kTypes)
     if (type == n) {
       e = t;
@@ -306,7 +306,9 @@ bool element_of(const std::string& type, Element& e) {
 // The bytes of one binary array (after its header), inflated when compressed.
 std::string binary_block(ByteSource& src, const FileSettings& f, const std::string& what) {
   const std::size_t h = f.header_bytes;
-  auto word = [&](const std::string& bytes, std::size_t i) { return load_unsigned(bytes.data() + i * h, h, f.big_endian); };
+  auto word = [&](const std::string& bytes, std::size_t i) {
+    return load_unsigned(bytes.data() + i * h, h, f.big_endian);
+  };
   if (!f.zlib) {
     const std::uint64_t n = word(src.take(h), 0);
     if (n > src.bound())
@@ -324,8 +326,8 @@ std::string binary_block(ByteSource& src, const FileSettings& f, const std::stri
   for (std::uint64_t b = 0; b < blocks; ++b) {
     const std::uint64_t c = word(sizes, static_cast<std::size_t>(b));
     if (c > src.bound() || compressed_total > src.bound() - c)
-      throw InputError(fmt::format("{}: its blocks claim more compressed bytes than the {} that follow", what,
-                                   src.bound()));
+      throw InputError(
+          fmt::format("{}: its blocks claim more compressed bytes than the {} that follow", what, src.bound()));
     compressed_total += c;
   }
   if (last_size > block_size)
@@ -385,12 +387,14 @@ std::string array_values(const XmlNode& da, const FileSettings& f, const std::st
     Base64Source src(da.text, what);
     bytes = binary_block(src, f, what);
   } else if (format == "appended") {
-    if (f.appended.data() == nullptr) throw InputError(fmt::format("{} is appended but the file has no <AppendedData>", what));
+    if (f.appended.data() == nullptr)
+      throw InputError(fmt::format("{} is appended but the file has no <AppendedData>", what));
     const std::string off = da.attribute_or("offset", "");
     unsigned long long offset = 0;
     const auto [p, ec] = std::from_chars(off.data(), off.data() + off.size(), offset);
     if (off.empty() || ec != std::errc() || p != off.data() + off.size() || offset > f.appended.size())
-      throw InputError(fmt::format("{}: offset '{}' is not within the {} appended bytes", what, off, f.appended.size()));
+      throw InputError(
+          fmt::format("{}: offset '{}' is not within the {} appended bytes", what, off, f.appended.size()));
     const std::string_view from = f.appended.substr(static_cast<std::size_t>(offset));
     if (f.appended_base64) {
       Base64Source src(from, what);
@@ -450,8 +454,8 @@ std::vector<NamedArray> data_arrays(const XmlNode* parent, const char* kind, std
     if (a.type == "Char") a.type = "Int8";
     if (a.type == "Int") a.type = "Int32";
     if (a.values.size() != tuples * static_cast<std::size_t>(a.components))
-      throw InputError(fmt::format("{}: {} values, expected {} {} x {} components", what, a.values.size(), tuples,
-                                   kind, a.components));
+      throw InputError(fmt::format("{}: {} values, expected {} {} x {} components", what, a.values.size(), tuples, kind,
+                                   a.components));
     out.push_back(std::move(a));
   }
   return out;
@@ -488,14 +492,13 @@ CellList cell_list(const XmlNode* cells, const char* kind, std::size_t count, co
   out.connectivity = to_ids(values, what + " connectivity");
   if (const auto why = array_values(*offs, f, what + " offsets", type, values); !why.empty())
     throw InputError(fmt::format("{} offsets: {}", what, why));
-  if (values.size() != count)
-    throw InputError(fmt::format("{}: {} offsets for {} cells", what, values.size(), count));
+  if (values.size() != count) throw InputError(fmt::format("{}: {} offsets for {} cells", what, values.size(), count));
   const std::vector<std::int64_t> ends = to_ids(values, what + " offsets");
   std::int64_t previous = 0;
   for (std::size_t c = 0; c < ends.size(); ++c) {
     if (ends[c] < previous || ends[c] > static_cast<std::int64_t>(out.connectivity.size()))
-      throw InputError(fmt::format("{}: offset {} of cell {} is out of order or past the {} connectivity entries",
-                                   what, ends[c], c, out.connectivity.size()));
+      throw InputError(fmt::format("{}: offset {} of cell {} is out of order or past the {} connectivity entries", what,
+                                   ends[c], c, out.connectivity.size()));
     previous = ends[c];
   }
   if (previous != static_cast<std::int64_t>(out.connectivity.size()))
@@ -607,7 +610,8 @@ PolyData read_vtp_polydata(const std::string& bytes, const std::string& name) {
     throw InputError(fmt::format("{}: not a VTK XML file (no <VTKFile> element)", name));
   XmlParser parser(bytes, name);
   const XmlNode root = parser.parse_document();
-  if (root.tag != "VTKFile") throw InputError(fmt::format("{}: the root element is <{}>, not <VTKFile>", name, root.tag));
+  if (root.tag != "VTKFile")
+    throw InputError(fmt::format("{}: the root element is <{}>, not <VTKFile>", name, root.tag));
   const std::string type = root.attribute_or("type", "");
   if (type != "PolyData")
     throw InputError(fmt::format("{}: the VTK XML file holds {}, not PolyData", name, type.empty() ? "?" : type));
@@ -625,9 +629,10 @@ PolyData read_vtp_polydata(const std::string& bytes, const std::string& name) {
   if (compressor == "vtkZLibDataCompressor")
     f.zlib = true;
   else if (!compressor.empty())
-    throw InputError(fmt::format("{}: compressor '{}' is not supported (uncompressed or vtkZLibDataCompressor; "
-                                 "re-save with zlib)",
-                                 name, compressor));
+    throw InputError(
+        fmt::format("{}: compressor '{}' is not supported (uncompressed or vtkZLibDataCompressor; "
+                    "re-save with zlib)",
+                    name, compressor));
   if (parser.has_appended()) {
     f.appended = std::string_view(bytes).substr(parser.appended_start());
     const std::string encoding = parser.appended_node().attribute_or("encoding", "raw");

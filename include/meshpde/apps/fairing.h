@@ -66,7 +66,7 @@ struct FairResult {
   Positions V;                    ///< faired positions
   TriangleQuality before, after;  ///< over the faces touching a free vertex
   long long cg_iterations = 0;
-  double worst_residual = 0;  ///< largest relative residual over the solves
+  double worst_residual = 0;                       ///< largest relative residual over the solves
   LaplacianKind laplacian = LaplacianKind::Cotan;  ///< the operators of the static solve
   std::string laplacian_reason;                    ///< why Auto chose them
 };

@@ -67,7 +67,8 @@ InterpolationResult interpolate(const Mesh& mesh, const FemOperators& ops, Field
 
 /// The same with the operators params.laplacian asks for (what the tool and the Python
 /// module run). \throw InputError also for an intrinsic Laplacian asked for a tangent field.
-InterpolationResult interpolate(const Mesh& mesh, FieldKind kind, const std::vector<InterpolationConstraint>& constraints,
+InterpolationResult interpolate(const Mesh& mesh, FieldKind kind,
+                                const std::vector<InterpolationConstraint>& constraints,
                                 const InterpolationParams& params = {});
 
 /// Parses interpolation constraints, `values` numbers each (1 for scalars, 3 for
