@@ -304,7 +304,10 @@ Vertices within `rings` edges of `vertex`.)doc",
       },
       R"doc(self_intersections(V, F) -> (p, 2) int
 
-Pairs of triangles that intersect (not counting shared corners or edges).)doc",
+Pairs of triangles (i < j) that overlap beyond the corners or edge they share: crossing
+triangles, coplanar overlaps, triangles of one corner meeting elsewhere, and two wings
+of an edge folded onto each other (mesh/self_intersections.h; CGAL's
+Polygon_mesh_processing::self_intersections counts the same pairs).)doc",
       py::arg("V"), py::arg("F"));
 
   m.def(
