@@ -258,6 +258,14 @@ TEST(SelfIntersectionsCgal, FoldsCoplanarOverlapsAndCornerOverlapsAreCounted) {
   D.col(2).tail(3).setConstant(1e-3);  // lifted off the plane: apart
   EXPECT_TRUE(SelfIntersectionChecker(Mesh(D, H)).all_pairs().empty());
   EXPECT_TRUE(pmp_rule_pairs(D, H).empty());
+
+  // A face with a repeated corner index (a segment) beside a triangle it shares an
+  // edge with: counted, before and after alike, and nothing read past the faces.
+  Triangles R(2, 3);
+  R << 0, 1, 2, 1, 0, 0;
+  const SelfIntersectionChecker with_segment(Mesh(V, R));
+  EXPECT_EQ(with_segment.all_pairs().size(), 1u);
+  EXPECT_EQ(with_segment.count_new(V, std::vector<int>{0, 1, 2}), 0);
 }
 
 // 300 seeded random drags (issue 21 part 3): a random handle, direction and region

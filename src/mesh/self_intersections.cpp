@@ -210,12 +210,16 @@ struct SelfIntersectionChecker::Impl {
     int shared_s[3], shared_t[3], n = 0;
     for (int a = 0; a < 3; ++a)
       for (int b = 0; b < 3; ++b)
-        if (F(s, a) == F(t, b)) {
+        if (F(s, a) == F(t, b) && n < 3) {
           shared_s[n] = a;
           shared_t[n] = b;
           ++n;
         }
     auto p = [&](int f, int c) { return at(V, F(f, c)); };
+    // A triangle with a repeated corner index is a segment or a point: it overlaps
+    // whatever it shares a corner with (the same before and after a correction).
+    const auto repeated = [&](int f) { return F(f, 0) == F(f, 1) || F(f, 1) == F(f, 2) || F(f, 2) == F(f, 0); };
+    if (n > 0 && (repeated(s) || repeated(t))) return true;
     if (n == 0) return triangles_intersect(p(s, 0), p(s, 1), p(s, 2), p(t, 0), p(t, 1), p(t, 2));
     if (n == 1) {
       const int a = shared_s[0], b = shared_t[0];
@@ -226,7 +230,6 @@ struct SelfIntersectionChecker::Impl {
     // One edge (e0, e1): the wings r of s and w of t around it.
     const int e0 = F(s, shared_s[0]), e1 = F(s, shared_s[1]);
     const int r = F(s, 3 - shared_s[0] - shared_s[1]), w = F(t, 3 - shared_t[0] - shared_t[1]);
-    if (r == w) return true;
     const double now = fold_angle(at(V, e0), at(V, e1), at(V, r), at(V, w));
     if (std::abs(now) <= kFoldAngle) return true;  // folded onto each other
     const double before = fold_angle(at(V0, e0), at(V0, e1), at(V0, r), at(V0, w));
