@@ -63,7 +63,7 @@ void add_propagation_command(CLI::App& app, Propagation eq) {
                                  heat ? "Heat diffusion u_t = k lap(u) from fixed-value sources or fluxes"
                                       : "Wave propagation u_tt + b u_t = c^2 lap(u) from sources, fluxes or impulses");
   struct Args {
-    std::string mesh, out, png, frames, initial, view = "30,20", up = "y", size = "960x720";
+    std::string mesh, out, png, frames, initial, view = "30,20", up = "y", size = "960x720", laplacian = "auto";
     std::vector<std::string> sources, fluxes, impulses;
     double dt = 1e-3, k = 1, c = 1, b = 0;
     int steps = 100, every = 10;
@@ -84,6 +84,10 @@ void add_propagation_command(CLI::App& app, Propagation eq) {
     cmd->add_option("--damping", a->b, "Mass-proportional damping b (1/s)")->capture_default_str();
   }
   cmd->add_flag("--local", a->local, "Solve on a self-adjusting active domain instead of the whole mesh");
+  cmd->add_option("--laplacian", a->laplacian,
+                  "auto (intrinsic Delaunay on badly shaped or non-manifold meshes) | cotan | intrinsic")
+      ->check(CLI::IsMember({"auto", "cotan", "intrinsic"}))
+      ->capture_default_str();
   cmd->add_option("--frames", a->frames, "Directory for frame_NNNNN.csv files (one value per vertex)");
   cmd->add_option("--every", a->every, "Write a frame every N steps")->capture_default_str();
   cmd->add_option("-o,--output", a->out, "Final mesh with the field 'u' (.ply)");
@@ -95,7 +99,10 @@ void add_propagation_command(CLI::App& app, Propagation eq) {
       throw InputError(fmt::format("{}: the field needs a .ply output", a->out));
     MeshData d;
     const Mesh mesh = load_mesh(a->mesh, &d);
-    const FemOperators ops = build_operators(mesh);
+    // The intrinsic operators live on their own connectivity (same vertices): the
+    // solve runs there, pictures and outputs on the input triangles.
+    const MeshOperators mo = build_mesh_operators(mesh, parse_laplacian_kind(a->laplacian));
+    const FemOperators& ops = mo.ops;
     PropagationParams p{.equation = heat ? Propagation::Heat : Propagation::Wave,
                         .dt = a->dt,
                         .steps = a->steps,
@@ -125,8 +132,8 @@ void add_propagation_command(CLI::App& app, Propagation eq) {
     Progress progress(a->steps, heat ? "heat" : "wave", !a->json);
     const auto t0 = std::chrono::steady_clock::now();
     const PropagationResult r =
-        propagate(mesh, ops, p, [&](int k, const Eigen::VectorXd& u, const Eigen::VectorXd& ut) {
-          if (!heat) energy.push_back(wave_energy(mesh, ops, u, ut, a->c));
+        propagate(mo.mesh, ops, p, [&](int k, const Eigen::VectorXd& u, const Eigen::VectorXd& ut) {
+          if (!heat) energy.push_back(wave_energy(mo.mesh, ops, u, ut, a->c));
           if (!a->frames.empty() && (k % std::max(1, a->every) == 0 || k == a->steps))
             write_values_csv(std::filesystem::path(a->frames) / fmt::format("frame_{:05d}.csv", k), u);
           progress.update(k);
@@ -155,7 +162,9 @@ void add_propagation_command(CLI::App& app, Propagation eq) {
                        {"max_free_vertices", r.max_free_vertices},
                        {"min", r.values.minCoeff()},
                        {"max", r.values.maxCoeff()},
-                       {"mass_weighted_total", total}};
+                       {"mass_weighted_total", total},
+                       {"laplacian", to_string(mo.kind)},
+                       {"laplacian_reason", mo.reason}};
       if (!heat) j["energy"] = energy;
       print_json(j);
     } else {

@@ -218,6 +218,33 @@ check "heat picture" [ -s "$T/h.png" ]
 "$M" heat "$T/ico.off" --source 99999:1 2>"$T/err" >/dev/null
 check "bad source vertex exits 1" [ $? -eq 1 ]
 check "bad source named" grep -q "99999" "$T/err"
+# --laplacian on heat, wave, fair and interpolate: auto keeps the cotangent operator on a
+# well-shaped sphere and takes the intrinsic one on the aorta's slivers, where it equals
+# asking for it; the maximum principle holds with it (an M-matrix).
+"$M" heat "$T/ico.off" --source 0:1 --steps 3 --json >"$T/hl.json" || bad "heat on a sphere"
+check "heat on a sphere: cotan" [ "$(json "$T/hl.json" "d['laplacian']")" = cotan ]
+if [ -f "$DATA/aorta-closed-6k.vtp" ]; then
+  for L in auto intrinsic cotan; do
+    "$M" heat "$DATA/aorta-closed-6k.vtp" --source 500:1 --source 3000:0 --dt 1 --steps 5 --laplacian $L --json \
+      >"$T/h_$L.json" 2>/dev/null || bad "heat --laplacian $L"
+  done
+  check "heat on the aorta: auto is intrinsic" [ "$(json "$T/h_auto.json" "d['laplacian']")" = intrinsic ]
+  check "heat on the aorta: cotan asked, cotan used" [ "$(json "$T/h_cotan.json" "d['laplacian']")" = cotan ]
+  check "heat: auto equals intrinsic" [ "$(json "$T/h_auto.json" "d['mass_weighted_total']")" = \
+                                        "$(json "$T/h_intrinsic.json" "d['mass_weighted_total']")" ]
+  check "heat, intrinsic: maximum principle" \
+    [ "$(json "$T/h_intrinsic.json" "d['min'] >= -1e-12 and d['max'] <= 1 + 1e-12")" = True ]
+  "$M" wave "$DATA/aorta-closed-6k.vtp" --impulse 500:1 --steps 3 --laplacian cotan --json >"$T/wl.json" 2>/dev/null ||
+    bad "wave --laplacian cotan"
+  check "wave reports its operator" [ "$(json "$T/wl.json" "d['laplacian']")" = cotan ]
+  printf '500,1\n3000,-1\n5000,2\n' >"$T/cons.csv"
+  "$M" interpolate "$DATA/aorta-closed-6k.vtp" --constraints "$T/cons.csv" -o "$T/il.ply" --json >"$T/il.json" 2>/dev/null ||
+    bad "interpolate on the aorta"
+  check "interpolate on the aorta: auto is intrinsic" [ "$(json "$T/il.json" "d['laplacian']")" = intrinsic ]
+  "$M" fair "$DATA/aorta-closed-6k.vtp" --fixed "radius:500:30" --order 1 --laplacian cotan -o "$T/fl.ply" --json \
+    >"$T/fl.json" 2>/dev/null || bad "fair --laplacian cotan"
+  check "fair reports its operator" [ "$(json "$T/fl.json" "d['laplacian']")" = cotan ]
+fi
 
 # fair: a plate with a bump comes back flat; the fixed part never moves
 "$M" generate plane --nx 20 --ny 20 -o "$T/pl.off" >/dev/null

@@ -62,23 +62,25 @@ __all__ = [
 
 
 def heat(V, F, *, sources=None, flux=None, dt=1e-3, steps=100, diffusivity=1.0, initial=None, local=False,
-         callback=None):
+         laplacian="auto", callback=None):
     """Heat diffusion u_t = k lap(u) by backward Euler, as ``meshpde heat``.
 
     sources: {vertex: value} (or (vertex, value) pairs) held every step.
     flux: {vertex: rate}, a point load in value x area per second.
     dt (s), steps, diffusivity k (length^2/s); initial: (n,) start values (default 0).
     local: solve on a self-adjusting active domain instead of the whole mesh.
+    laplacian: "auto" (intrinsic Delaunay on badly shaped or non-manifold meshes),
+    "cotan" or "intrinsic", as ``--laplacian``.
     callback(step, u, u_t): called after each step (step = 1..steps).
 
     Returns a namespace with ``values`` (n,), ``velocity`` (n,), ``cg_iterations``
     and ``max_free_vertices``.
     """
-    return _meshpde._heat(V, F, sources, flux, dt, steps, diffusivity, initial, local, callback)
+    return _meshpde._heat(V, F, sources, flux, dt, steps, diffusivity, initial, local, laplacian, callback)
 
 
 def wave(V, F, *, sources=None, flux=None, impulses=None, dt=1e-3, steps=100, speed=1.0, damping=0.0, initial=None,
-         initial_velocity=None, local=False, callback=None):
+         initial_velocity=None, local=False, laplacian="auto", callback=None):
     """Wave propagation u_tt + b u_t = c^2 lap(u), as ``meshpde wave``.
 
     impulses: {vertex: velocity} added to the initial velocity; speed c (length/s),
@@ -87,7 +89,7 @@ def wave(V, F, *, sources=None, flux=None, impulses=None, dt=1e-3, steps=100, sp
     Returns the same namespace as :func:`heat`.
     """
     return _meshpde._wave(V, F, sources, flux, impulses, dt, steps, speed, damping, initial, initial_velocity, local,
-                          callback)
+                          laplacian, callback)
 
 
 def fair(V, F, fixed, *, order=2, regularize=False, dt=1.0, steps=15, damping=0.0, solver="direct",

@@ -81,12 +81,12 @@ def curvature(V: ArrayLike, F: ArrayLike, scale: str = "area") -> np.ndarray:
 # --- applications ---------------------------------------------------------------------
 def heat(V: ArrayLike, F: ArrayLike, *, sources: Mapping[int, float] | None = None,
          flux: Mapping[int, float] | None = None, dt: float = 1e-3, steps: int = 100, diffusivity: float = 1.0,
-         initial: ArrayLike | None = None, local: bool = False,
+         initial: ArrayLike | None = None, local: bool = False, laplacian: str = "auto",
          callback: Callable[[int, np.ndarray, np.ndarray], None] | None = None) -> SimpleNamespace: ...
 def wave(V: ArrayLike, F: ArrayLike, *, sources: Mapping[int, float] | None = None,
          flux: Mapping[int, float] | None = None, impulses: Mapping[int, float] | None = None, dt: float = 1e-3,
          steps: int = 100, speed: float = 1.0, damping: float = 0.0, initial: ArrayLike | None = None,
-         initial_velocity: ArrayLike | None = None, local: bool = False,
+         initial_velocity: ArrayLike | None = None, local: bool = False, laplacian: str = "auto",
          callback: Callable[[int, np.ndarray, np.ndarray], None] | None = None) -> SimpleNamespace: ...
 def wave_energy(V: ArrayLike, F: ArrayLike, u: ArrayLike, ut: ArrayLike, speed: float = 1.0) -> float: ...
 def fair(V: ArrayLike, F: ArrayLike, fixed: Union[ArrayLike, str, Sequence[str]], *, order: int = 2,

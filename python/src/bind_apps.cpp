@@ -15,9 +15,9 @@
 #include "meshpde/apps/vessel_correction.h"
 #include "meshpde/core/errors.h"
 #include "meshpde/mesh/topology.h"
+#include "meshpde/operators/laplacian.h"
 #ifdef MESHPDE_HAVE_MEDICAL
 #include "meshpde/io/medical_io.h"
-#include "meshpde/operators/laplacian.h"
 #endif
 
 namespace meshpde::python {
@@ -84,8 +84,9 @@ py::object propagation_result(const PropagationResult& r) {
 py::object run_propagation(Propagation eq, const py::handle& V, const py::handle& F, const py::handle& sources,
                            const py::handle& flux, const py::handle& impulses, double dt, int steps, double diffusivity,
                            double speed, double damping, const py::handle& initial, const py::handle& initial_velocity,
-                           bool local, const py::object& callback) {
+                           bool local, const std::string& laplacian, const py::object& callback) {
   const Mesh mesh = mesh_arg(V, F);
+  const LaplacianKind kind = parse_laplacian_kind(laplacian);
   const Eigen::Index nv = mesh.num_vertices();
   PropagationParams p{.equation = eq,
                       .dt = dt,
@@ -106,8 +107,8 @@ py::object run_propagation(Propagation eq, const py::handle& V, const py::handle
   PropagationResult r;
   {
     py::gil_scoped_release release;
-    const FemOperators ops = build_operators(mesh);
-    r = propagate(mesh, ops, p, [&](int step, const Eigen::VectorXd& u, const Eigen::VectorXd& ut) {
+    const MeshOperators mo = build_mesh_operators(mesh, kind);
+    r = propagate(mo.mesh, mo.ops, p, [&](int step, const Eigen::VectorXd& u, const Eigen::VectorXd& ut) {
       py::gil_scoped_acquire gil;
       if (PyErr_CheckSignals() != 0) throw py::error_already_set();
       if (!callback.is_none()) callback(step, to_numpy(u), to_numpy(ut));
@@ -293,23 +294,24 @@ void bind_apps(py::module_& m) {
   m.def(
       "_heat",
       [](const py::handle& V, const py::handle& F, const py::handle& sources, const py::handle& flux, double dt,
-         int steps, double diffusivity, const py::handle& initial, bool local, const py::object& callback) {
+         int steps, double diffusivity, const py::handle& initial, bool local, const std::string& laplacian,
+         const py::object& callback) {
         return run_propagation(Propagation::Heat, V, F, sources, flux, py::none(), dt, steps, diffusivity, 1.0, 0.0,
-                               initial, py::none(), local, callback);
+                               initial, py::none(), local, laplacian, callback);
       },
       py::arg("V"), py::arg("F"), py::arg("sources"), py::arg("flux"), py::arg("dt"), py::arg("steps"),
-      py::arg("diffusivity"), py::arg("initial"), py::arg("local"), py::arg("callback"));
+      py::arg("diffusivity"), py::arg("initial"), py::arg("local"), py::arg("laplacian"), py::arg("callback"));
   m.def(
       "_wave",
       [](const py::handle& V, const py::handle& F, const py::handle& sources, const py::handle& flux,
          const py::handle& impulses, double dt, int steps, double speed, double damping, const py::handle& initial,
-         const py::handle& initial_velocity, bool local, const py::object& callback) {
+         const py::handle& initial_velocity, bool local, const std::string& laplacian, const py::object& callback) {
         return run_propagation(Propagation::Wave, V, F, sources, flux, impulses, dt, steps, 1.0, speed, damping,
-                               initial, initial_velocity, local, callback);
+                               initial, initial_velocity, local, laplacian, callback);
       },
       py::arg("V"), py::arg("F"), py::arg("sources"), py::arg("flux"), py::arg("impulses"), py::arg("dt"),
       py::arg("steps"), py::arg("speed"), py::arg("damping"), py::arg("initial"), py::arg("initial_velocity"),
-      py::arg("local"), py::arg("callback"));
+      py::arg("local"), py::arg("laplacian"), py::arg("callback"));
   m.def(
       "wave_energy",
       [](const py::handle& V, const py::handle& F, const py::handle& u, const py::handle& ut, double speed) {

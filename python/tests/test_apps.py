@@ -27,6 +27,19 @@ def test_heat_equals_the_cli(cli, ico, tmp_path):
     assert r.cg_iterations == report["cg_iterations"]
 
 
+@pytest.mark.parametrize("laplacian", ["cotan", "intrinsic"])
+def test_heat_with_either_laplacian_equals_the_cli(cli, ico, tmp_path, laplacian):
+    path, V, F = ico
+    out = tmp_path / "h.ply"
+    report = cli("heat", path, "--source", "0:1", "--dt", 0.01, "--steps", 10, "--laplacian", laplacian, "-o", out,
+                 "--json", json_out=True)
+    r = meshpde.heat(V, F, sources={0: 1.0}, dt=0.01, steps=10, laplacian=laplacian)
+    assert report["laplacian"] == laplacian
+    assert rel_diff(r.values, meshpde.read_mesh(out)[2]["u"]) <= 1e-12
+    with pytest.raises(meshpde.InputError, match="laplacian|cotan"):
+        meshpde.heat(V, F, sources={0: 1.0}, steps=1, laplacian="spectral")
+
+
 def test_heat_decays_a_spherical_harmonic(ico):
     # P2(z) on the unit sphere is an eigenfunction of lap with eigenvalue -6.
     _, V, F = ico
