@@ -6,6 +6,16 @@
 // its values, plus a small JSON stats message. The haptic probe runs at 1 kHz on
 // its own thread inside the session.
 //
+// Threads: the I/O thread only parses, queues and sends. Each page has a worker
+// thread of its own (PageWorker) that runs everything touching its session, in order:
+// its requests, its uploads and saves, and its frames (one frame queued at a time, so
+// a slow page skips frames instead of piling them up). A correction of several hundred
+// milliseconds on one page therefore delays only that page. Limits per connection
+// (docs/editor.md): messages of at most 1 MiB (a larger one closes the connection with
+// status 1009), kMessagesPerSecond messages a second (more are dropped with an error to
+// that page), kMaxQueued requests waiting, and an HTTP request or handshake must be
+// complete within 10 s.
+//
 // Wire format (little-endian): every binary frame starts with a four-byte tag.
 //   "MESH" u32 nv, u32 nf, f32 positions[3 nv], u32 triangles[3 nf]
 //   "POS " u32 n, u32 ids[n], f32 positions[3 n]
@@ -13,15 +23,22 @@
 //   "VEC " u32 n, u32 ids[n], f32 vectors[3 n]   (arrows; n = 0 clears them)
 // Text frames are JSON objects with a "type" (see docs/editor.md).
 #include <fmt/format.h>
+#include <malloc.h>
 
+#include <atomic>
 #include <chrono>
+#include <condition_variable>
 #include <cstring>
+#include <deque>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <map>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <sstream>
+#include <thread>
 
 #include "commands.h"
 #include "meshpde/apps/editor_session.h"
@@ -178,6 +195,80 @@ void put(std::string& s, T v) {
   s.append(reinterpret_cast<const char*>(&v), sizeof(T));
 }
 
+// A page's own thread: runs its tasks one after another, in the order queued.
+class PageWorker {
+ public:
+  PageWorker() : thread_([this] { loop(); }) {}
+  ~PageWorker() {
+    close();
+    thread_.join();
+  }
+  PageWorker(const PageWorker&) = delete;
+  PageWorker& operator=(const PageWorker&) = delete;
+
+  /// Queues a task; false when closed or when `limit` tasks are already waiting.
+  bool post(std::function<void()> task, std::size_t limit) {
+    {
+      std::lock_guard lock(m_);
+      if (closed_ || q_.size() >= limit) return false;
+      q_.push_back(std::move(task));
+    }
+    cv_.notify_one();
+    return true;
+  }
+  /// No more tasks: the running one finishes, the waiting ones are dropped.
+  void close() {
+    {
+      std::lock_guard lock(m_);
+      closed_ = true;
+      q_.clear();
+    }
+    cv_.notify_one();
+  }
+  bool finished() const { return finished_; }
+
+ private:
+  void loop() {
+    for (;;) {
+      std::function<void()> task;
+      {
+        std::unique_lock lock(m_);
+        cv_.wait(lock, [&] { return closed_ || !q_.empty(); });
+        if (closed_) break;
+        task = std::move(q_.front());
+        q_.pop_front();
+      }
+      task();  // tasks catch their own errors
+    }
+    finished_ = true;
+  }
+
+  std::mutex m_;
+  std::condition_variable cv_;
+  std::deque<std::function<void()>> q_;
+  bool closed_ = false;
+  std::atomic<bool> finished_{false};
+  std::thread thread_;  // last: starts once the rest is built
+};
+
+// Messages a second one connection may send (a token bucket of this many, refilled
+// at this rate); requests waiting on one page's worker.
+constexpr double kMessagesPerSecond = 500;
+constexpr std::size_t kMaxQueued = 256;
+
+// The I/O thread's record of a page: its worker, its rate limit and whether a frame
+// is already queued. The Client itself is touched only by the worker.
+struct Client;
+struct Page {
+  std::shared_ptr<Client> client;
+  std::unique_ptr<PageWorker> worker;
+  std::shared_ptr<std::atomic<bool>> frame_queued = std::make_shared<std::atomic<bool>>(false);
+  double tokens = kMessagesPerSecond;
+  std::chrono::steady_clock::time_point refilled = std::chrono::steady_clock::now();
+  long long dropped = 0;
+  std::chrono::steady_clock::time_point last_drop_report{};
+};
+
 struct Client {
   int id = 0;
   Loaded source;
@@ -197,10 +288,11 @@ class EditorServer {
   EditorServer(const ServeArgs& a)
       : args_(a),
         server_(net::WebHandlers{.on_open = [this](int h) { on_open(h); },
-                                 .on_close = [this](int h) { clients_.erase(h); },
+                                 .on_close = [this](int h) { on_close(h); },
                                  .on_message = [this](int h, const std::string& payload,
                                                       bool binary) { on_message(h, payload, binary); },
-                                 .on_http = [this](const net::HttpRequest& r) { return on_http(r); },
+                                 .on_http = [this](const net::HttpRequest& r,
+                                                   net::HttpRespond respond) { on_http(r, std::move(respond)); },
                                  .on_tick = [this] { on_tick(); }},
                 static_cast<std::size_t>(a.max_upload_mb * 1024 * 1024), 1 << 20, 16) {
     web_root_ = a.web_root;
@@ -234,8 +326,15 @@ class EditorServer {
       throw InputError(e.what());
     }
     fmt::print("meshpde editor: http://{}:{}/  (Ctrl-C to stop)\n", args_.host, port);
+    if (args_.host != "127.0.0.1" && args_.host != "::1" && args_.host != "localhost")
+      fmt::print(stderr,
+                 "warning: the editor has no authentication: anyone who can reach {}:{} can open, edit and "
+                 "download meshes. Serve on loopback or a trusted network only.\n",
+                 args_.host, port);
     std::fflush(stdout);
     server_.run();
+    pages_.clear();  // joins the workers before the server goes
+    retired_.clear();
     fmt::print("meshpde editor: stopped\n");
   }
 
@@ -279,24 +378,54 @@ class EditorServer {
   }
 
   void on_open(Hdl h) {
-    Client c;
-    c.id = h;
-    auto [it, ok] = clients_.emplace(h, std::move(c));
-    send_json(h, {{"type", "hello"}, {"client", it->second.id}});
-    try {
-      load(h, it->second, initial_);
-    } catch (const Error& e) {
-      send_json(h, {{"type", "error"}, {"message", e.what()}});
-    }
+    Page page;
+    page.client = std::make_shared<Client>();
+    page.client->id = h;
+    page.worker = std::make_unique<PageWorker>();
+    send_json(h, {{"type", "hello"}, {"client", h}});
+    Client* c = page.client.get();
+    page.worker->post(
+        [this, h, c] {
+          try {
+            load(h, *c, initial_);
+          } catch (const std::exception& e) {
+            send_json(h, {{"type", "error"}, {"message", e.what()}});
+          }
+        },
+        kMaxQueued);
+    pages_.emplace(h, std::move(page));
   }
 
-  Client* find_client(int id, Hdl* out = nullptr) {
-    for (auto& [h, c] : clients_)
-      if (c.id == id) {
-        if (out) *out = h;
-        return &c;
-      }
-    return nullptr;
+  // The page's worker finishes what it is doing on its own; it is joined from a
+  // later tick, so a closing page never holds up the I/O thread.
+  void on_close(Hdl h) {
+    const auto it = pages_.find(h);
+    if (it == pages_.end()) return;
+    it->second.worker->close();
+    retired_.push_back(std::move(it->second));
+    pages_.erase(it);
+  }
+
+  // Whether one more message from this page fits its rate; tells the page (at most
+  // once a second) how many were dropped.
+  bool within_rate(Hdl h, Page& p) {
+    const auto now = std::chrono::steady_clock::now();
+    p.tokens = std::min(kMessagesPerSecond,
+                        p.tokens + kMessagesPerSecond * std::chrono::duration<double>(now - p.refilled).count());
+    p.refilled = now;
+    if (p.tokens >= 1) {
+      p.tokens -= 1;
+      return true;
+    }
+    ++p.dropped;
+    if (now - p.last_drop_report >= std::chrono::seconds(1)) {
+      p.last_drop_report = now;
+      send_json(h, {{"type", "error"},
+                    {"request", "?"},
+                    {"message", fmt::format("rate limit: more than {} messages a second; {} dropped",
+                                            kMessagesPerSecond, p.dropped)}});
+    }
+    return false;
   }
 
   static Eigen::Vector3d vec3(const nlohmann::json& j, const char* key) {
@@ -321,9 +450,20 @@ class EditorServer {
   }
 
   void on_message(Hdl h, const std::string& payload, bool binary) {
-    auto it = clients_.find(h);
-    if (it == clients_.end()) return;
-    Client& c = it->second;
+    const auto it = pages_.find(h);
+    if (it == pages_.end()) return;
+    Page& p = it->second;
+    if (!within_rate(h, p)) return;
+    Client* c = p.client.get();
+    if (!p.worker->post([this, h, c, payload, binary] { handle(h, *c, payload, binary); }, kMaxQueued))
+      send_json(h,
+                {{"type", "error"},
+                 {"request", "?"},
+                 {"message", fmt::format("busy: {} requests are already waiting; this one was dropped", kMaxQueued)}});
+  }
+
+  // One request of a page, on its worker.
+  void handle(Hdl h, Client& c, const std::string& payload, bool binary) {
     std::string type = "?";
     try {
       if (binary) throw InputError("expected a JSON text message");
@@ -485,54 +625,91 @@ class EditorServer {
   }
 
   void on_tick() {
-    for (auto& [h, c] : clients_) {
-      try {
-        frame(h, c);
-      } catch (const std::exception& e) {
-        send_json(h, {{"type", "error"}, {"message", e.what()}});
-        if (c.session) c.session->pause();
-      }
+    for (auto& [h, p] : pages_) {
+      if (p.frame_queued->exchange(true)) continue;  // the last one has not run yet
+      Client* c = p.client.get();
+      auto queued = p.frame_queued;
+      const Hdl hh = h;
+      const bool ok = p.worker->post(
+          [this, hh, c, queued] {
+            queued->store(false);
+            try {
+              frame(hh, *c);
+            } catch (const std::exception& e) {
+              send_json(hh, {{"type", "error"}, {"message", e.what()}});
+              if (c->session) c->session->pause();
+            }
+          },
+          kMaxQueued + 1);
+      if (!ok) p.frame_queued->store(false);
     }
+    // Closed pages whose worker has finished: joined now, without waiting. Their
+    // sessions were allocated on the worker threads, in glibc arenas of their own;
+    // trimming hands the freed pages back, so the server's memory returns to where it
+    // was after pages come and go.
+    if (std::erase_if(retired_, [](const Page& p) { return p.worker->finished(); }) > 0) malloc_trim(0);
   }
 
   static net::HttpResponse json_response(int status, const nlohmann::json& j) {
     return net::HttpResponse{status, j.dump(), "application/json", {}};
   }
 
-  net::HttpResponse on_http(const net::HttpRequest& req) {
+  // The page's record for a ?client= id, or null.
+  Page* find_page(const std::map<std::string, std::string>& query, Hdl& h) {
+    if (!query.count("client")) return nullptr;
+    h = std::atoi(query.at("client").c_str());
+    const auto it = pages_.find(h);
+    return it == pages_.end() ? nullptr : &it->second;
+  }
+
+  void on_http(const net::HttpRequest& req, net::HttpRespond respond) {
     const auto qpos = req.resource.find('?');
     const std::string path = req.resource.substr(0, qpos);
     const auto query = query_params(qpos == std::string::npos ? "" : req.resource.substr(qpos + 1));
     try {
-      if (path == "/api/upload") {
-        if (req.method != "POST") return json_response(405, {{"error", "POST the file"}});
-        Hdl ch = 0;
-        Client* c = query.count("client") ? find_client(std::atoi(query.at("client").c_str()), &ch) : nullptr;
-        if (!c) return json_response(400, {{"error", "unknown client"}});
-        const std::string name = query.count("name") ? query.at("name") : "upload.ply";
-        Loaded l = parse_mesh_bytes(req.body, name);
-        const Mesh check(l.data.V, l.data.F);  // validates before the page's mesh is replaced
-        load(ch, *c, std::move(l));
-        return json_response(200, {{"ok", true}, {"vertices", c->session->mesh().num_vertices()}});
+      if (path == "/api/upload" || path == "/api/save") {
+        const bool upload = path == "/api/upload";
+        if (upload && req.method != "POST") return respond(json_response(405, {{"error", "POST the file"}}));
+        Hdl h = 0;
+        Page* p = find_page(query, h);
+        if (!p) return respond(json_response(400, {{"error", "unknown client"}}));
+        // Parsing, loading and saving run on the page's worker, in order with its
+        // requests; the answer is sent from there.
+        Client* c = p->client.get();
+        auto task = [this, h, c, upload, respond, body = req.body,
+                     name = query.count("name") ? query.at("name") : std::string("upload.ply")] {
+          try {
+            if (upload) {
+              Loaded l = parse_mesh_bytes(body, name);
+              const Mesh check(l.data.V, l.data.F);  // validates before the page's mesh is replaced
+              load(h, *c, std::move(l));
+              respond(json_response(200, {{"ok", true}, {"vertices", c->session->mesh().num_vertices()}}));
+            } else {
+              if (!c->session) return respond(json_response(400, {{"error", "no mesh loaded"}}));
+              const fs::path n(c->source.name);
+              net::HttpResponse r{
+                  200, mesh_bytes(c->session->snapshot(), c->source.name), "application/octet-stream", {}};
+              r.headers.emplace_back("Content-Disposition", fmt::format("attachment; filename=\"{}-edited{}\"",
+                                                                        n.stem().string(), n.extension().string()));
+              respond(std::move(r));
+            }
+          } catch (const std::exception& e) {
+            respond(json_response(400, {{"error", e.what()}}));
+          }
+        };
+        if (!p->worker->post(std::move(task), kMaxQueued))
+          respond(json_response(503, {{"error", "busy: too many requests waiting"}}));
+        return;
       }
-      if (path == "/api/save") {
-        Client* c = query.count("client") ? find_client(std::atoi(query.at("client").c_str())) : nullptr;
-        if (!c || !c->session) return json_response(400, {{"error", "unknown client"}});
-        const fs::path n(c->source.name);
-        net::HttpResponse r{200, mesh_bytes(c->session->snapshot(), c->source.name), "application/octet-stream", {}};
-        r.headers.emplace_back("Content-Disposition", fmt::format("attachment; filename=\"{}-edited{}\"",
-                                                                  n.stem().string(), n.extension().string()));
-        return r;
-      }
-      if (req.method != "GET" && req.method != "HEAD") return json_response(405, {{"error", "GET only"}});
+      if (req.method != "GET" && req.method != "HEAD") return respond(json_response(405, {{"error", "GET only"}}));
       const auto file = static_file(web_root_, path);
-      if (!file) return net::HttpResponse{404, "not found", "text/plain; charset=utf-8", {}};
+      if (!file) return respond(net::HttpResponse{404, "not found", "text/plain; charset=utf-8", {}});
       std::ifstream in(*file, std::ios::binary);
       std::ostringstream ss;
       ss << in.rdbuf();
-      return net::HttpResponse{200, ss.str(), content_type(*file), {}};
+      respond(net::HttpResponse{200, ss.str(), content_type(*file), {}});
     } catch (const std::exception& e) {
-      return json_response(400, {{"error", e.what()}});
+      respond(json_response(400, {{"error", e.what()}}));
     }
   }
 
@@ -542,7 +719,8 @@ class EditorServer {
   Loaded initial_;
   Space space_ = Space::LPS;
   std::shared_ptr<const Volume> edges_;
-  std::map<Hdl, Client> clients_;
+  std::map<Hdl, Page> pages_;  // the I/O thread's
+  std::vector<Page> retired_;  // closed, their workers finishing
 };
 
 // The built page: installed beside the tool (found from the executable's own path),

@@ -3,7 +3,9 @@
 #include "web_server.h"
 
 #include <algorithm>
+#include <asio/post.hpp>
 #include <asio/signal_set.hpp>
+#include <atomic>
 #include <chrono>
 #include <csignal>
 #include <map>
@@ -44,15 +46,18 @@ struct WebServer::Impl {
     });
   }
 
+  // On the I/O thread only (hdls is the I/O thread's).
   void send(int client, const std::string& data, websocketpp::frame::opcode::value op) {
     const auto it = hdls.find(client);
     if (it == hdls.end()) return;
     websocketpp::lib::error_code ec;
     server.send(it->second, data, op, ec);  // a closing connection just drops the frame
   }
+  void post(std::function<void()> fn) { asio::post(server.get_io_service(), std::move(fn)); }
 };
 
-WebServer::WebServer(WebHandlers handlers, std::size_t max_body, std::size_t max_message, int tick_ms)
+WebServer::WebServer(WebHandlers handlers, std::size_t max_body, std::size_t max_message, int tick_ms,
+                     long request_timeout_ms)
     : impl_(std::make_unique<Impl>()) {
   Impl& m = *impl_;
   m.handlers = std::move(handlers);
@@ -63,6 +68,15 @@ WebServer::WebServer(WebHandlers handlers, std::size_t max_body, std::size_t max
   m.server.set_reuse_addr(true);
   m.server.set_max_http_body_size(max_body);
   m.server.set_max_message_size(max_message);
+  // A request that never finishes (a half-sent header or body) is dropped, not kept.
+  m.server.set_open_handshake_timeout(request_timeout_ms);
+  // Updates are small frames sent 60 times a second: without TCP_NODELAY, Nagle's
+  // algorithm holds one back until the page's delayed ACK (up to 40 ms) and they
+  // arrive in pairs.
+  m.server.set_socket_init_handler([](Hdl, asio::ip::tcp::socket& socket) {
+    asio::error_code ec;
+    socket.set_option(asio::ip::tcp::no_delay(true), ec);
+  });
   m.server.set_open_handler([this](Hdl h) {
     Impl& s = *impl_;
     const int id = ++s.next_id;
@@ -89,21 +103,31 @@ WebServer::WebServer(WebHandlers handlers, std::size_t max_body, std::size_t max
     Impl& s = *impl_;
     auto con = s.server.get_con_from_hdl(h);
     HttpRequest req{con->get_request().get_method(), con->get_resource(), con->get_request_body()};
-    HttpResponse res;
-    if (s.handlers.on_http) {
-      try {
-        res = s.handlers.on_http(req);
-      } catch (const std::exception& e) {
-        res = HttpResponse{500, e.what(), "text/plain; charset=utf-8", {}};
-      }
-    } else {
-      res.status = 404;
+    if (!s.handlers.on_http) {
+      con->set_status(websocketpp::http::status_code::not_found);
+      return;
     }
-    con->set_status(static_cast<websocketpp::http::status_code::value>(res.status));
-    con->replace_header("Content-Type", res.content_type);
-    con->replace_header("Cache-Control", "no-store");
-    for (const auto& [k, v] : res.headers) con->replace_header(k, v);
-    con->set_body(res.body);
+    // The answer may come later from another thread: it is handed to the I/O thread,
+    // which fills in the deferred response and sends it.
+    con->defer_http_response();
+    auto answered = std::make_shared<std::atomic<bool>>(false);
+    HttpRespond respond = [this, con, answered](HttpResponse res) {
+      if (answered->exchange(true)) return;
+      impl_->post([con, res = std::move(res)] {
+        con->set_status(static_cast<websocketpp::http::status_code::value>(res.status));
+        con->replace_header("Content-Type", res.content_type);
+        con->replace_header("Cache-Control", "no-store");
+        for (const auto& [k, v] : res.headers) con->replace_header(k, v);
+        con->set_body(res.body);
+        websocketpp::lib::error_code ec;
+        con->send_http_response(ec);  // a connection closed meanwhile just drops it
+      });
+    };
+    try {
+      s.handlers.on_http(req, respond);
+    } catch (const std::exception& e) {
+      respond(HttpResponse{500, e.what(), "text/plain; charset=utf-8", {}});
+    }
   });
 }
 
@@ -144,11 +168,15 @@ void WebServer::stop() {
   m.server.set_timer(500, [this](const websocketpp::lib::error_code&) { impl_->server.stop(); });
 }
 
-void WebServer::send_text(int client, const std::string& text) {
-  impl_->send(client, text, websocketpp::frame::opcode::text);
+void WebServer::send_text(int client, std::string text) {
+  impl_->post([this, client, text = std::move(text)] { impl_->send(client, text, websocketpp::frame::opcode::text); });
 }
-void WebServer::send_binary(int client, const std::string& bytes) {
-  impl_->send(client, bytes, websocketpp::frame::opcode::binary);
+void WebServer::send_binary(int client, std::string bytes) {
+  impl_->post(
+      [this, client, bytes = std::move(bytes)] { impl_->send(client, bytes, websocketpp::frame::opcode::binary); });
+}
+void WebServer::post(std::function<void()> fn) {
+  impl_->post(std::move(fn));
 }
 
 }  // namespace meshpde::net
