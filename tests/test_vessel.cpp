@@ -243,3 +243,23 @@ TEST(Vessel, BadRequestsAreRefusedClearly) {
   EXPECT_THROW(correct_vessel(m, p), InputError);
   EXPECT_THROW(parse_correction_method("magic"), InputError);
 }
+
+TEST(Vessel, ARadiusBelowOneEdgeMovesOnlyTheHandleWithEverySolver) {
+  // Found by fuzzing the editor's requests: a region holding no free vertex gave the
+  // direct solve an empty system, whose error measure read past it (a segfault).
+  const Mesh m = make(icosphere(2, 10.0));
+  for (const SteadySolver solver : {SteadySolver::Direct, SteadySolver::Global, SteadySolver::Iterative})
+    for (const bool dynamic : {false, true}) {
+      if (dynamic && solver != SteadySolver::Direct) continue;
+      CorrectionParams p;
+      p.handles = {{6, Eigen::Vector3d(0, 0, 2)}};
+      p.radius = 1.0;  // the edges are about 4.4 long
+      p.solver = solver;
+      p.dynamic = dynamic;
+      const CorrectionResult r = correct_vessel(m, p);
+      EXPECT_EQ(r.moved_vertices, 1);
+      EXPECT_EQ(r.V.row(6), m.positions().row(6) + Eigen::RowVector3d(0, 0, 2));
+      EXPECT_EQ((r.V - m.positions()).rowwise().norm().maxCoeff(), 2.0);
+      EXPECT_TRUE(r.V.allFinite());
+    }
+}

@@ -35,6 +35,7 @@ RefinedSolve refined_solve(const Eigen::MatrixXd& b, Solve&& solve, Multiply&& m
                            double tolerance, int max_steps) {
   auto measure = [&](RefinedSolve& s) {
     s.relative_residual = s.backward_error = 0;
+    if (b.rows() == 0) return;  // no unknowns (a correction whose region is its handles): nothing to measure
     for (Eigen::Index c = 0; c < b.cols(); ++c) {
       if (const double bn = b.col(c).norm(); bn > 0)
         s.relative_residual = std::max(s.relative_residual, s.residual.col(c).norm() / bn);
