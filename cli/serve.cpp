@@ -15,13 +15,8 @@
 // status 1009), kMessagesPerSecond messages a second (more are dropped with an error to
 // that page), kMaxQueued requests waiting, and an HTTP request or handshake must be
 // complete within 10 s.
-//
-// Wire format (little-endian): every binary frame starts with a four-byte tag.
-//   "MESH" u32 nv, u32 nf, f32 positions[3 nv], u32 triangles[3 nf]
-//   "POS " u32 n, u32 ids[n], f32 positions[3 n]
-//   "FLD " u32 nv, f32 values[nv]
-//   "VEC " u32 n, u32 ids[n], f32 vectors[3 n]   (arrows; n = 0 clears them)
-// Text frames are JSON objects with a "type" (see docs/editor.md).
+// A page's protocol (its requests, frames, uploads and saves; the wire format) is
+// editor_page.h's EditorPage.
 #include <fmt/format.h>
 #include <malloc.h>
 
@@ -41,6 +36,7 @@
 #include <thread>
 
 #include "commands.h"
+#include "editor_page.h"
 #include "meshpde/apps/editor_session.h"
 #include "meshpde/apps/local_drag.h"
 #include "meshpde/core/errors.h"
@@ -62,68 +58,6 @@ struct ServeArgs {
   int port = 8080;
   double max_upload_mb = 64;
 };
-
-// A mesh with the name and format it came in, so saving writes the same format.
-struct Loaded {
-  MeshData data;
-  std::string name = "mesh.ply";
-};
-
-std::string lower_ext(const std::string& name) {
-  std::string ext = fs::path(name).extension().string();
-  for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  return ext;
-}
-
-Loaded parse_mesh_bytes(const std::string& bytes, const std::string& name) {
-  Loaded l;
-  l.name = fs::path(name).filename().string();
-  const std::string ext = lower_ext(l.name);
-  if (ext == ".vtp" || ext == ".vtk") {
-#ifdef MESHPDE_HAVE_MEDICAL
-    l.data = read_vtk_mesh_from_memory(bytes, ext.substr(1), l.name);
-#else
-    throw InputError(fmt::format("{}: .vtp/.vtk need meshpde built with meshpde::medical", l.name));
-#endif
-  } else {
-    l.data = read_mesh_from_memory(bytes, format_from_path(l.name), l.name);
-  }
-  return l;
-}
-
-std::string mesh_bytes(const MeshData& d, const std::string& name) {
-  const std::string ext = lower_ext(name);
-  if (ext == ".vtp" || ext == ".vtk") {
-#ifdef MESHPDE_HAVE_MEDICAL
-    return write_vtk_mesh_to_memory(d, ext.substr(1));
-#else
-    throw InputError("saving .vtp/.vtk needs meshpde::medical");
-#endif
-  }
-  return write_mesh_to_memory(d, format_from_path(name));
-}
-
-// The editor's "open" menu: the library's generator table (mesh/generators.h) with
-// presets sized for a vessel-scale view, plus "dented" (the bifurcation with its dent).
-Loaded generated(const std::string& requested) {
-  Loaded l;
-  const std::string kind = requested == "dented" ? "bifurcation" : requested == "sphere" ? "icosphere" : requested;
-  GeneratorParams p;
-  p.bifurcation = BifurcationParams{};
-  p.bifurcation.dent = requested == "dented";
-  p.level = 4;  // icosphere: 2,562 vertices
-  p.radius = kind == "tube" ? 4.0 : 10.0;
-  p.length = 40.0;
-  p.rings = 60;
-  p.segments = 40;
-  p.nx = p.ny = 60;
-  p.size = 30.0;
-  const GeneratedMesh g = generate(kind, p);
-  l.name = (requested == "dented" ? "dented-" : "") + kind + ".ply";
-  l.data.V = g.V;
-  l.data.F = g.F;
-  return l;
-}
 
 // Percent-decodes a URL path; nullopt for malformed escapes or a NUL byte.
 std::optional<std::string> url_decode(const std::string& s) {
@@ -190,11 +124,6 @@ std::string content_type(const fs::path& p) {
   return "application/octet-stream";
 }
 
-template <class T>
-void put(std::string& s, T v) {
-  s.append(reinterpret_cast<const char*>(&v), sizeof(T));
-}
-
 // A page's own thread: runs its tasks one after another, in the order queued.
 class PageWorker {
  public:
@@ -238,7 +167,11 @@ class PageWorker {
         task = std::move(q_.front());
         q_.pop_front();
       }
-      task();  // tasks catch their own errors
+      try {
+        task();  // tasks catch and report their own errors; this is the last guard
+      } catch (const std::exception& e) {
+        fmt::print(stderr, "meshpde serve: a page's task failed: {}\n", e.what());
+      }
     }
     finished_ = true;
   }
@@ -257,30 +190,15 @@ constexpr double kMessagesPerSecond = 500;
 constexpr std::size_t kMaxQueued = 256;
 
 // The I/O thread's record of a page: its worker, its rate limit and whether a frame
-// is already queued. The Client itself is touched only by the worker.
-struct Client;
+// is already queued. The EditorPage itself is touched only by the worker.
 struct Page {
-  std::shared_ptr<Client> client;
+  std::shared_ptr<EditorPage> page;
   std::unique_ptr<PageWorker> worker;
   std::shared_ptr<std::atomic<bool>> frame_queued = std::make_shared<std::atomic<bool>>(false);
   double tokens = kMessagesPerSecond;
   std::chrono::steady_clock::time_point refilled = std::chrono::steady_clock::now();
   long long dropped = 0;
   std::chrono::steady_clock::time_point last_drop_report{};
-};
-
-struct Client {
-  int id = 0;
-  Loaded source;
-  std::unique_ptr<EditorSession> session;
-  Positions sent;                 // positions as the page has them
-  Eigen::VectorXd sent_field;     // field as the page has it
-  Eigen::MatrixX3d sent_vectors;  // vector field as the page has it
-  std::string sent_field_name;
-  Eigen::VectorXd stiffness;  // the page's stiffness brush (empty: uniform)
-  int intersections = 0;
-  double frame_ms = 0;  // time to build the last frame
-  std::chrono::steady_clock::time_point last_stats{};
 };
 
 class EditorServer {
@@ -339,55 +257,28 @@ class EditorServer {
   }
 
  private:
+  // User text (file names, error messages quoting them) need not be UTF-8: bad bytes
+  // are sent as U+FFFD instead of making dump() throw.
+  static std::string dump(const nlohmann::json& j) {
+    return j.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
+  }
   void send_json(Hdl h, const nlohmann::json& j) {
-    server_.send_text(h, j.dump());
-  }
-  void send_binary(Hdl h, const std::string& bytes) {
-    server_.send_binary(h, bytes);
-  }
-
-  void load(Hdl h, Client& c, Loaded l) {
-    c.session = std::make_unique<EditorSession>(l.data, edges_, space_);
-    c.source = std::move(l);
-    c.stiffness.resize(0);
-    c.intersections = 0;
-    const Mesh& m = c.session->mesh();
-    send_json(h, {{"type", "mesh"},
-                  {"name", c.source.name},
-                  {"vertices", m.num_vertices()},
-                  {"faces", m.num_faces()},
-                  {"mean_edge", c.session->mean_edge_length()},
-                  {"has_image", c.session->has_image()},
-                  {"fields", [&] {
-                     std::vector<std::string> names;
-                     for (const auto& [k, v] : c.source.data.vertex_scalars) names.push_back(k);
-                     return names;
-                   }()}});
-    std::string b = "MESH";
-    put<std::uint32_t>(b, static_cast<std::uint32_t>(m.num_vertices()));
-    put<std::uint32_t>(b, static_cast<std::uint32_t>(m.num_faces()));
-    for (int i = 0; i < m.num_vertices(); ++i)
-      for (int k = 0; k < 3; ++k) put<float>(b, static_cast<float>(m.positions()(i, k)));
-    for (int f = 0; f < m.num_faces(); ++f)
-      for (int k = 0; k < 3; ++k) put<std::uint32_t>(b, static_cast<std::uint32_t>(m.triangles()(f, k)));
-    send_binary(h, b);
-    c.sent = m.positions();
-    c.sent_vectors.resize(0, 3);
-    c.sent_field.resize(0);
-    c.sent_field_name.clear();
+    server_.send_text(h, dump(j));
   }
 
   void on_open(Hdl h) {
     Page page;
-    page.client = std::make_shared<Client>();
-    page.client->id = h;
+    page.page = std::make_shared<EditorPage>(
+        PageSink{.text = [this, h](std::string s) { server_.send_text(h, std::move(s)); },
+                 .binary = [this, h](std::string s) { server_.send_binary(h, std::move(s)); }},
+        edges_, space_);
     page.worker = std::make_unique<PageWorker>();
     send_json(h, {{"type", "hello"}, {"client", h}});
-    Client* c = page.client.get();
+    EditorPage* c = page.page.get();
     page.worker->post(
         [this, h, c] {
           try {
-            load(h, *c, initial_);
+            c->load(initial_);
           } catch (const std::exception& e) {
             send_json(h, {{"type", "error"}, {"message", e.what()}});
           }
@@ -428,216 +319,32 @@ class EditorServer {
     return false;
   }
 
-  static Eigen::Vector3d vec3(const nlohmann::json& j, const char* key) {
-    if (!j.contains(key) || !j[key].is_array() || j[key].size() != 3)
-      throw InputError(fmt::format("'{}' must be an array of three numbers", key));
-    Eigen::Vector3d v;
-    for (int k = 0; k < 3; ++k) {
-      if (!j[key][k].is_number()) throw InputError(fmt::format("'{}' must hold numbers", key));
-      v[k] = j[key][k].get<double>();
-    }
-    if (!v.allFinite()) throw InputError(fmt::format("'{}' is not finite", key));
-    return v;
-  }
-  static int vertex_of(const nlohmann::json& j) {
-    if (!j.contains("vertex") || !j["vertex"].is_number_integer()) throw InputError("'vertex' must be an integer");
-    return j["vertex"].get<int>();
-  }
-  static double number(const nlohmann::json& j, const char* key, double fallback) {
-    if (!j.contains(key)) return fallback;
-    if (!j[key].is_number()) throw InputError(fmt::format("'{}' must be a number", key));
-    return j[key].get<double>();
-  }
-
   void on_message(Hdl h, const std::string& payload, bool binary) {
     const auto it = pages_.find(h);
     if (it == pages_.end()) return;
     Page& p = it->second;
     if (!within_rate(h, p)) return;
-    Client* c = p.client.get();
-    if (!p.worker->post([this, h, c, payload, binary] { handle(h, *c, payload, binary); }, kMaxQueued))
+    EditorPage* c = p.page.get();
+    if (!p.worker->post([c, payload, binary] { c->handle(payload, binary); }, kMaxQueued))
       send_json(h,
                 {{"type", "error"},
                  {"request", "?"},
                  {"message", fmt::format("busy: {} requests are already waiting; this one was dropped", kMaxQueued)}});
   }
 
-  // One request of a page, on its worker.
-  void handle(Hdl h, Client& c, const std::string& payload, bool binary) {
-    std::string type = "?";
-    try {
-      if (binary) throw InputError("expected a JSON text message");
-      const auto j = nlohmann::json::parse(payload, nullptr, false);
-      if (j.is_discarded() || !j.is_object()) throw InputError("malformed message: not a JSON object");
-      if (!j.contains("type") || !j["type"].is_string()) throw InputError("malformed message: no \"type\"");
-      type = j["type"].get<std::string>();
-      if (!c.session && type != "generate") throw InputError("no mesh loaded");
-      nlohmann::json reply = {{"type", "ok"}, {"request", type}};
-      EditorSession& s = *c.session;
-      if (type == "generate") {
-        const std::string kind = j.value("kind", std::string("dented"));
-        load(h, c, generated(kind));
-      } else if (type == "poke_begin") {
-        s.poke_begin(vertex_of(j), number(j, "influence", 0));
-      } else if (type == "poke_move") {
-        s.poke_move(vec3(j, "offset"));
-        return;  // many a second: no acknowledgement
-      } else if (type == "poke_end") {
-        s.poke_end();
-      } else if (type == "brush") {
-        apply_brush(s.mesh(), c.stiffness, Brush{vertex_of(j), number(j, "radius", 3), number(j, "value", 5)});
-        reply["brushed"] = true;
-      } else if (type == "drag_begin") {
-        const double radius = number(j, "radius", 8);
-        reply["setup_ms"] = s.drag_begin(vertex_of(j), radius, c.stiffness);
-        reply["region_vertices"] = s.drag_region_vertices();
-      } else if (type == "drag_move") {
-        // Moves after a refused drag_begin (a region too large to preview) are dropped
-        // quietly: the page already showed why, and releasing still corrects.
-        const Eigen::Vector3d offset = vec3(j, "offset");
-        if (s.dragging()) s.drag_move(offset);
-        return;  // many a second: no acknowledgement
-      } else if (type == "drag_end") {
-        s.drag_end();
-      } else if (type == "correct") {
-        CorrectionParams p;
-        p.handles = {{vertex_of(j), vec3(j, "move")}};
-        p.radius = number(j, "radius", 8);
-        if (!(p.radius > 0)) throw InputError("radius must be > 0");
-        p.method = parse_correction_method(j.value("method", std::string("fem")));
-        if (p.method == CorrectionMethod::Springs) {
-          p.rings = rings_for_radius(s.mesh(), p.radius);
-          p.radius = 0;
-        }
-        p.stiffness = c.stiffness;
-        if (!j.value("image", true) || p.method == CorrectionMethod::Springs) p.image.weight = 0;
-        const CorrectionResult r = s.correct(p);
-        c.intersections = s.self_intersections();
-        reply.update({{"moved_vertices", r.moved_vertices},
-                      {"new_self_intersections", r.new_self_intersections},
-                      {"intersection_action", r.intersection_action},
-                      {"time_ms", r.time_ms}});
-      } else if (type == "undo" || type == "redo") {
-        type == "undo" ? s.undo() : s.redo();
-        c.intersections = s.self_intersections();
-      } else if (type == "paint") {
-        s.paint(vertex_of(j), number(j, "value", 1), number(j, "g1", 0), number(j, "g2", 1));
-      } else if (type == "paint_vector") {
-        s.paint_vector(vertex_of(j), vec3(j, "vector"), number(j, "g1", 0), number(j, "g2", 1));
-      } else if (type == "clear_paint") {
-        s.clear_paint();
-      } else if (type == "source") {
-        s.add_source(vertex_of(j));
-      } else if (type == "clear_sources") {
-        s.clear_sources();
-      } else if (type == "play") {
-        s.play(j.value("kind", std::string("heat")));
-      } else if (type == "pause") {
-        s.pause();
-      } else if (type == "ping") {
-      } else {
-        throw InputError(fmt::format("unknown request '{}'", type));
-      }
-      send_json(h, reply);
-      send_stats(h, c, true);
-    } catch (const std::exception& e) {
-      // The session stays usable: a bad request changes nothing.
-      send_json(h, {{"type", "error"}, {"request", type}, {"message", e.what()}});
-    }
-  }
-
-  void send_stats(Hdl h, Client& c, bool now) {
-    const auto t = std::chrono::steady_clock::now();
-    if (!now && t - c.last_stats < std::chrono::milliseconds(100)) return;
-    c.last_stats = t;
-    const EditorSession& s = *c.session;
-    const Eigen::Vector3d f = s.poke_force();
-    send_json(h, {{"type", "stats"},
-                  {"force", {f.x(), f.y(), f.z()}},
-                  {"contact", s.poke_contact()},
-                  {"poking", s.poking()},
-                  {"active", s.poking() || !s.playing() ? s.poke_active_vertices() : s.simulation_active_vertices()},
-                  {"p99_us", s.poke_p99_us()},
-                  {"misses", s.poke_misses()},
-                  {"intersections", c.intersections},
-                  {"can_undo", s.can_undo()},
-                  {"can_redo", s.can_redo()},
-                  {"playing", s.playing()},
-                  {"solve_ms", s.last_solve_ms()},
-                  {"frame_ms", c.frame_ms},
-                  {"info", s.last_solve_info()}});
-  }
-
-  // One frame for one page: the vertices that moved and the field if it changed.
-  void frame(Hdl h, Client& c) {
-    if (!c.session) return;
-    const auto t0 = std::chrono::steady_clock::now();
-    EditorSession& s = *c.session;
-    if (s.playing()) s.advance(2);
-    const Positions V = s.display_positions();
-    const double tol = 1e-6 * s.mean_edge_length();
-    std::vector<int> moved;
-    if (c.sent.rows() == V.rows())
-      for (Eigen::Index i = 0; i < V.rows(); ++i)
-        if ((V.row(i) - c.sent.row(i)).cwiseAbs().maxCoeff() > tol) moved.push_back(static_cast<int>(i));
-    if (!moved.empty()) {
-      std::string b = "POS ";
-      put<std::uint32_t>(b, static_cast<std::uint32_t>(moved.size()));
-      for (int i : moved) put<std::uint32_t>(b, static_cast<std::uint32_t>(i));
-      for (int i : moved) {
-        for (int k = 0; k < 3; ++k) put<float>(b, static_cast<float>(V(i, k)));
-        c.sent.row(i) = V.row(i);
-      }
-      send_binary(h, b);
-    }
-    const Eigen::VectorXd& field = s.field();
-    if (field.size() == V.rows() &&
-        (field.size() != c.sent_field.size() || s.field_name() != c.sent_field_name || field != c.sent_field)) {
-      send_json(h, {{"type", "field"}, {"name", s.field_name()}, {"min", field.minCoeff()}, {"max", field.maxCoeff()}});
-      std::string b = "FLD ";
-      put<std::uint32_t>(b, static_cast<std::uint32_t>(field.size()));
-      for (Eigen::Index i = 0; i < field.size(); ++i) put<float>(b, static_cast<float>(field[i]));
-      send_binary(h, b);
-      c.sent_field = field;
-      c.sent_field_name = s.field_name();
-    } else if (field.size() == 0 && c.sent_field.size() != 0) {
-      send_json(h, {{"type", "field"}, {"name", ""}});
-      c.sent_field.resize(0);
-      c.sent_field_name.clear();
-    }
-    // Vectors as arrows: at most about 600 of them, evenly spread over the vertex ids.
-    const Eigen::MatrixX3d& vec = s.vectors();
-    if (vec.rows() != c.sent_vectors.rows() || (vec.rows() && vec != c.sent_vectors)) {
-      std::string b = "VEC ";
-      const int n = static_cast<int>(vec.rows()), stride = std::max(1, n / 600);
-      std::vector<int> ids;
-      for (int i = 0; i < n; i += stride)
-        if (vec.row(i).squaredNorm() > 0) ids.push_back(i);
-      put<std::uint32_t>(b, static_cast<std::uint32_t>(ids.size()));
-      for (int i : ids) put<std::uint32_t>(b, static_cast<std::uint32_t>(i));
-      for (int i : ids)
-        for (int k = 0; k < 3; ++k) put<float>(b, static_cast<float>(vec(i, k)));
-      send_binary(h, b);
-      c.sent_vectors = vec;
-    }
-    c.frame_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-    send_stats(h, c, false);
-  }
-
   void on_tick() {
     for (auto& [h, p] : pages_) {
       if (p.frame_queued->exchange(true)) continue;  // the last one has not run yet
-      Client* c = p.client.get();
+      EditorPage* c = p.page.get();
       auto queued = p.frame_queued;
       const Hdl hh = h;
       const bool ok = p.worker->post(
           [this, hh, c, queued] {
             queued->store(false);
             try {
-              frame(hh, *c);
+              c->frame();
             } catch (const std::exception& e) {
               send_json(hh, {{"type", "error"}, {"message", e.what()}});
-              if (c->session) c->session->pause();
             }
           },
           kMaxQueued + 1);
@@ -651,7 +358,7 @@ class EditorServer {
   }
 
   static net::HttpResponse json_response(int status, const nlohmann::json& j) {
-    return net::HttpResponse{status, j.dump(), "application/json", {}};
+    return net::HttpResponse{status, dump(j), "application/json", {}};
   }
 
   // The page's record for a ?client= id, or null.
@@ -675,22 +382,17 @@ class EditorServer {
         if (!p) return respond(json_response(400, {{"error", "unknown client"}}));
         // Parsing, loading and saving run on the page's worker, in order with its
         // requests; the answer is sent from there.
-        Client* c = p->client.get();
-        auto task = [this, h, c, upload, respond, body = req.body,
+        EditorPage* c = p->page.get();
+        auto task = [c, upload, respond, body = req.body,
                      name = query.count("name") ? query.at("name") : std::string("upload.ply")] {
           try {
             if (upload) {
-              Loaded l = parse_mesh_bytes(body, name);
-              const Mesh check(l.data.V, l.data.F);  // validates before the page's mesh is replaced
-              load(h, *c, std::move(l));
-              respond(json_response(200, {{"ok", true}, {"vertices", c->session->mesh().num_vertices()}}));
+              const int vertices = c->upload(body, name);
+              respond(json_response(200, {{"ok", true}, {"vertices", vertices}}));
             } else {
-              if (!c->session) return respond(json_response(400, {{"error", "no mesh loaded"}}));
-              const fs::path n(c->source.name);
-              net::HttpResponse r{
-                  200, mesh_bytes(c->session->snapshot(), c->source.name), "application/octet-stream", {}};
-              r.headers.emplace_back("Content-Disposition", fmt::format("attachment; filename=\"{}-edited{}\"",
-                                                                        n.stem().string(), n.extension().string()));
+              auto [bytes, filename] = c->save();
+              net::HttpResponse r{200, std::move(bytes), "application/octet-stream", {}};
+              r.headers.emplace_back("Content-Disposition", fmt::format("attachment; filename=\"{}\"", filename));
               respond(std::move(r));
             }
           } catch (const std::exception& e) {

@@ -12,6 +12,11 @@
 #include "meshpde/apps/haptics.h"
 #include "meshpde/apps/interpolation.h"
 #include "meshpde/apps/selection.h"
+#ifdef MESHPDE_FUZZ_EDITOR
+#include <nlohmann/json.hpp>
+
+#include "editor_page.h"
+#endif
 #include "meshpde/core/errors.h"
 #include "meshpde/io/mesh_io.h"
 #include "meshpde/mesh/generators.h"
@@ -163,6 +168,72 @@ int volume(const std::uint8_t* data, std::size_t size, const std::string& suffix
 }
 #endif
 
+#ifdef MESHPDE_FUZZ_EDITOR
+// A page's sink that checks every frame: text frames are JSON objects with a "type",
+// errors carry a message and none is an internal error (an exception that is not
+// meshpde's, which the page reports instead of crashing); binary frames have a tag.
+cli::PageSink checking_sink() {
+  return {.text =
+              [](std::string s) {
+                const auto j = nlohmann::json::parse(s, nullptr, false);
+                if (j.is_discarded() || !j.is_object() || !j.contains("type")) broken("a reply that is not a message");
+                if (j["type"] == "error") {
+                  const std::string m = j.value("message", std::string());
+                  if (m.empty()) broken("an error reply without a message");
+                  if (m.rfind("internal error", 0) == 0) broken(m);
+                }
+              },
+          .binary =
+              [](std::string s) {
+                if (s.size() < 8) broken("a binary frame without a tag and a count");
+              }};
+}
+
+// A small sphere, the page's mesh at the start of every input.
+const cli::Loaded& small_sphere() {
+  static const cli::Loaded l = [] {
+    cli::Loaded out;
+    const GeneratedMesh g = icosphere(2, 10.0);
+    out.data.V = g.V;
+    out.data.F = g.F;
+    out.name = "sphere.ply";
+    return out;
+  }();
+  return l;
+}
+
+// The editor's WebSocket requests, in process: up to eight messages, one a line, to a
+// fresh page on a small sphere, a frame after each.
+int editor_message(const std::uint8_t* data, std::size_t size) {
+  return guarded([&] {
+    cli::EditorPage page(checking_sink(), nullptr, Space::LPS);
+    page.load(small_sphere());
+    const std::string text = bytes(data, size);
+    std::size_t at = 0;
+    for (int k = 0; k < 8 && at <= text.size(); ++k) {
+      const std::size_t end = std::min(text.find('\n', at), text.size());
+      page.handle(text.substr(at, end - at), false);
+      page.frame();
+      at = end + 1;
+    }
+    page.handle("{\"type\": \"pause\"}", false);  // stops a playing simulation
+  });
+}
+
+// The editor's upload handler: the first byte picks the file's extension, the rest is
+// the file, opened by a page as an upload is.
+int editor_upload(const std::uint8_t* data, std::size_t size) {
+  return guarded([&] {
+    if (size == 0) return;
+    static const char* kNames[] = {"up.obj", "up.off", "up.ply", "up.stl", "up.vtp", "up.vtk"};
+    cli::EditorPage page(checking_sink(), nullptr, Space::LPS);
+    const int n = page.upload(bytes(data + 1, size - 1), kNames[data[0] % 6]);
+    if (n <= 0) broken("an upload opened with no vertices");
+    page.frame();
+  });
+}
+#endif
+
 }  // namespace
 
 const std::vector<Target>& targets() {
@@ -180,6 +251,11 @@ const std::vector<Target>& targets() {
         {"probe_path", "haptic probe paths (CSV)", ".csv", probe_path},
         {"selection", "vertex lists and selection specs", ".txt", selection},
     };
+#ifdef MESHPDE_FUZZ_EDITOR
+    t.push_back({"editor_message", "the editor's WebSocket requests (JSON, one a line)", ".txt", editor_message});
+    t.push_back({"editor_upload", "the editor's upload handler (a format byte, then the file)", ".bin",
+                 editor_upload});
+#endif
 #ifdef MESHPDE_FUZZ_MEDICAL
     t.push_back({"vtp", "VTK XML PolyData", ".vtp",
                  [](const std::uint8_t* d, std::size_t n) { return vtk_mesh(d, n, "vtp"); }});

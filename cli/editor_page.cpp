@@ -1,0 +1,330 @@
+#include "editor_page.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cstdint>
+#include <filesystem>
+#include <nlohmann/json.hpp>
+#include <vector>
+
+#include "meshpde/apps/vessel_correction.h"
+#include "meshpde/core/errors.h"
+#include "meshpde/mesh/generators.h"
+#include "meshpde/mesh/regions.h"
+#ifdef MESHPDE_HAVE_MEDICAL
+#include "meshpde/io/medical_io.h"
+#endif
+
+namespace meshpde::cli {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+std::string lower_ext(const std::string& name) {
+  std::string ext = fs::path(name).extension().string();
+  for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return ext;
+}
+
+template <class T>
+void put(std::string& s, T v) {
+  s.append(reinterpret_cast<const char*>(&v), sizeof(T));
+}
+
+Eigen::Vector3d vec3(const nlohmann::json& j, const char* key) {
+  if (!j.contains(key) || !j[key].is_array() || j[key].size() != 3)
+    throw InputError(fmt::format("'{}' must be an array of three numbers", key));
+  Eigen::Vector3d v;
+  for (int k = 0; k < 3; ++k) {
+    if (!j[key][k].is_number()) throw InputError(fmt::format("'{}' must hold numbers", key));
+    v[k] = j[key][k].get<double>();
+  }
+  if (!v.allFinite()) throw InputError(fmt::format("'{}' is not finite", key));
+  return v;
+}
+int vertex_of(const nlohmann::json& j) {
+  if (!j.contains("vertex") || !j["vertex"].is_number_integer()) throw InputError("'vertex' must be an integer");
+  return j["vertex"].get<int>();
+}
+double number(const nlohmann::json& j, const char* key, double fallback) {
+  if (!j.contains(key)) return fallback;
+  if (!j[key].is_number()) throw InputError(fmt::format("'{}' must be a number", key));
+  return j[key].get<double>();
+}
+
+}  // namespace
+
+Loaded parse_mesh_bytes(const std::string& bytes, const std::string& name) {
+  Loaded l;
+  l.name = fs::path(name).filename().string();
+  const std::string ext = lower_ext(l.name);
+  if (ext == ".vtp" || ext == ".vtk") {
+#ifdef MESHPDE_HAVE_MEDICAL
+    l.data = read_vtk_mesh_from_memory(bytes, ext.substr(1), l.name);
+#else
+    throw InputError(fmt::format("{}: .vtp/.vtk need meshpde built with meshpde::medical", l.name));
+#endif
+  } else {
+    l.data = read_mesh_from_memory(bytes, format_from_path(l.name), l.name);
+  }
+  return l;
+}
+
+std::string mesh_bytes(const MeshData& d, const std::string& name) {
+  const std::string ext = lower_ext(name);
+  if (ext == ".vtp" || ext == ".vtk") {
+#ifdef MESHPDE_HAVE_MEDICAL
+    return write_vtk_mesh_to_memory(d, ext.substr(1));
+#else
+    throw InputError("saving .vtp/.vtk needs meshpde::medical");
+#endif
+  }
+  return write_mesh_to_memory(d, format_from_path(name));
+}
+
+Loaded generated(const std::string& requested) {
+  Loaded l;
+  const std::string kind = requested == "dented" ? "bifurcation" : requested == "sphere" ? "icosphere" : requested;
+  GeneratorParams p;
+  p.bifurcation = BifurcationParams{};
+  p.bifurcation.dent = requested == "dented";
+  p.level = 4;  // icosphere: 2,562 vertices
+  p.radius = kind == "tube" ? 4.0 : 10.0;
+  p.length = 40.0;
+  p.rings = 60;
+  p.segments = 40;
+  p.nx = p.ny = 60;
+  p.size = 30.0;
+  const GeneratedMesh g = generate(kind, p);
+  l.name = (requested == "dented" ? "dented-" : "") + kind + ".ply";
+  l.data.V = g.V;
+  l.data.F = g.F;
+  return l;
+}
+
+EditorPage::EditorPage(PageSink sink, std::shared_ptr<const Volume> edges, Space space)
+    : sink_(std::move(sink)), edges_(std::move(edges)), space_(space) {}
+
+// Names in messages come from the user's files (field and file names) and need not be
+// UTF-8; they are sent with U+FFFD in place of the bad bytes rather than thrown on.
+void EditorPage::send_json(const nlohmann::json& j) {
+  sink_.text(j.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace));
+}
+void EditorPage::send_binary(std::string bytes) {
+  sink_.binary(std::move(bytes));
+}
+
+void EditorPage::load(Loaded l) {
+  session_ = std::make_unique<EditorSession>(l.data, edges_, space_);
+  source_ = std::move(l);
+  stiffness_.resize(0);
+  intersections_ = 0;
+  const Mesh& m = session_->mesh();
+  send_json({{"type", "mesh"},
+             {"name", source_.name},
+             {"vertices", m.num_vertices()},
+             {"faces", m.num_faces()},
+             {"mean_edge", session_->mean_edge_length()},
+             {"has_image", session_->has_image()},
+             {"fields", [&] {
+                std::vector<std::string> names;
+                for (const auto& [k, v] : source_.data.vertex_scalars) names.push_back(k);
+                return names;
+              }()}});
+  std::string b = "MESH";
+  put<std::uint32_t>(b, static_cast<std::uint32_t>(m.num_vertices()));
+  put<std::uint32_t>(b, static_cast<std::uint32_t>(m.num_faces()));
+  for (int i = 0; i < m.num_vertices(); ++i)
+    for (int k = 0; k < 3; ++k) put<float>(b, static_cast<float>(m.positions()(i, k)));
+  for (int f = 0; f < m.num_faces(); ++f)
+    for (int k = 0; k < 3; ++k) put<std::uint32_t>(b, static_cast<std::uint32_t>(m.triangles()(f, k)));
+  send_binary(b);
+  sent_ = m.positions();
+  sent_vectors_.resize(0, 3);
+  sent_field_.resize(0);
+  sent_field_name_.clear();
+}
+
+int EditorPage::upload(const std::string& bytes, const std::string& name) {
+  Loaded l = parse_mesh_bytes(bytes, name);
+  const Mesh check(l.data.V, l.data.F);  // validates before the page's mesh is replaced
+  load(std::move(l));
+  return session_->mesh().num_vertices();
+}
+
+std::pair<std::string, std::string> EditorPage::save() const {
+  if (!session_) throw InputError("no mesh loaded");
+  const fs::path n(source_.name);
+  return {mesh_bytes(session_->snapshot(), source_.name), n.stem().string() + "-edited" + n.extension().string()};
+}
+
+void EditorPage::handle(const std::string& payload, bool binary) {
+  std::string type = "?";
+  try {
+    if (binary) throw InputError("expected a JSON text message");
+    const auto j = nlohmann::json::parse(payload, nullptr, false);
+    if (j.is_discarded() || !j.is_object()) throw InputError("malformed message: not a JSON object");
+    if (!j.contains("type") || !j["type"].is_string()) throw InputError("malformed message: no \"type\"");
+    type = j["type"].get<std::string>();
+    if (!session_ && type != "generate") throw InputError("no mesh loaded");
+    nlohmann::json reply = {{"type", "ok"}, {"request", type}};
+    EditorSession& s = *session_;
+    if (type == "generate") {
+      const std::string kind = j.value("kind", std::string("dented"));
+      load(generated(kind));
+    } else if (type == "poke_begin") {
+      s.poke_begin(vertex_of(j), number(j, "influence", 0));
+    } else if (type == "poke_move") {
+      s.poke_move(vec3(j, "offset"));
+      return;  // many a second: no acknowledgement
+    } else if (type == "poke_end") {
+      s.poke_end();
+    } else if (type == "brush") {
+      apply_brush(s.mesh(), stiffness_, Brush{vertex_of(j), number(j, "radius", 3), number(j, "value", 5)});
+      reply["brushed"] = true;
+    } else if (type == "drag_begin") {
+      const double radius = number(j, "radius", 8);
+      reply["setup_ms"] = s.drag_begin(vertex_of(j), radius, stiffness_);
+      reply["region_vertices"] = s.drag_region_vertices();
+    } else if (type == "drag_move") {
+      // Moves after a refused drag_begin (a region too large to preview) are dropped
+      // quietly: the page already showed why, and releasing still corrects.
+      const Eigen::Vector3d offset = vec3(j, "offset");
+      if (s.dragging()) s.drag_move(offset);
+      return;  // many a second: no acknowledgement
+    } else if (type == "drag_end") {
+      s.drag_end();
+    } else if (type == "correct") {
+      CorrectionParams p;
+      p.handles = {{vertex_of(j), vec3(j, "move")}};
+      p.radius = number(j, "radius", 8);
+      if (!(p.radius > 0)) throw InputError("radius must be > 0");
+      p.method = parse_correction_method(j.value("method", std::string("fem")));
+      if (p.method == CorrectionMethod::Springs) {
+        p.rings = rings_for_radius(s.mesh(), p.radius);
+        p.radius = 0;
+      }
+      p.stiffness = stiffness_;
+      if (!j.value("image", true) || p.method == CorrectionMethod::Springs) p.image.weight = 0;
+      const CorrectionResult r = s.correct(p);
+      intersections_ = s.self_intersections();
+      reply.update({{"moved_vertices", r.moved_vertices},
+                    {"new_self_intersections", r.new_self_intersections},
+                    {"intersection_action", r.intersection_action},
+                    {"time_ms", r.time_ms}});
+    } else if (type == "undo" || type == "redo") {
+      type == "undo" ? s.undo() : s.redo();
+      intersections_ = s.self_intersections();
+    } else if (type == "paint") {
+      s.paint(vertex_of(j), number(j, "value", 1), number(j, "g1", 0), number(j, "g2", 1));
+    } else if (type == "paint_vector") {
+      s.paint_vector(vertex_of(j), vec3(j, "vector"), number(j, "g1", 0), number(j, "g2", 1));
+    } else if (type == "clear_paint") {
+      s.clear_paint();
+    } else if (type == "source") {
+      s.add_source(vertex_of(j));
+    } else if (type == "clear_sources") {
+      s.clear_sources();
+    } else if (type == "play") {
+      s.play(j.value("kind", std::string("heat")));
+    } else if (type == "pause") {
+      s.pause();
+    } else if (type == "ping") {
+    } else {
+      throw InputError(fmt::format("unknown request '{}'", type));
+    }
+    send_json(reply);
+    send_stats(true);
+  } catch (const Error& e) {
+    // The session stays usable: a bad request changes nothing.
+    send_json({{"type", "error"}, {"request", type}, {"message", e.what()}});
+  } catch (const nlohmann::json::exception& e) {  // a field of the wrong JSON type
+    send_json({{"type", "error"}, {"request", type}, {"message", std::string("malformed request: ") + e.what()}});
+  } catch (const std::exception& e) {
+    // Not a refusal in words but a bug: said so (the fuzz target editor_message looks
+    // for it), and the page goes on.
+    send_json({{"type", "error"}, {"request", type}, {"message", std::string("internal error: ") + e.what()}});
+  }
+}
+
+void EditorPage::send_stats(bool now) {
+  const auto t = std::chrono::steady_clock::now();
+  if (!now && t - last_stats_ < std::chrono::milliseconds(100)) return;
+  last_stats_ = t;
+  const EditorSession& s = *session_;
+  const Eigen::Vector3d f = s.poke_force();
+  send_json({{"type", "stats"},
+             {"force", {f.x(), f.y(), f.z()}},
+             {"contact", s.poke_contact()},
+             {"poking", s.poking()},
+             {"active", s.poking() || !s.playing() ? s.poke_active_vertices() : s.simulation_active_vertices()},
+             {"p99_us", s.poke_p99_us()},
+             {"misses", s.poke_misses()},
+             {"intersections", intersections_},
+             {"can_undo", s.can_undo()},
+             {"can_redo", s.can_redo()},
+             {"playing", s.playing()},
+             {"solve_ms", s.last_solve_ms()},
+             {"frame_ms", frame_ms_},
+             {"info", s.last_solve_info()}});
+}
+
+// One frame for one page: the vertices that moved and the field if it changed.
+void EditorPage::frame() {
+  if (!session_) return;
+  const auto t0 = std::chrono::steady_clock::now();
+  EditorSession& s = *session_;
+  if (s.playing()) s.advance(2);
+  const Positions V = s.display_positions();
+  const double tol = 1e-6 * s.mean_edge_length();
+  std::vector<int> moved;
+  if (sent_.rows() == V.rows())
+    for (Eigen::Index i = 0; i < V.rows(); ++i)
+      if ((V.row(i) - sent_.row(i)).cwiseAbs().maxCoeff() > tol) moved.push_back(static_cast<int>(i));
+  if (!moved.empty()) {
+    std::string b = "POS ";
+    put<std::uint32_t>(b, static_cast<std::uint32_t>(moved.size()));
+    for (int i : moved) put<std::uint32_t>(b, static_cast<std::uint32_t>(i));
+    for (int i : moved) {
+      for (int k = 0; k < 3; ++k) put<float>(b, static_cast<float>(V(i, k)));
+      sent_.row(i) = V.row(i);
+    }
+    send_binary(b);
+  }
+  const Eigen::VectorXd& field = s.field();
+  if (field.size() == V.rows() &&
+      (field.size() != sent_field_.size() || s.field_name() != sent_field_name_ || field != sent_field_)) {
+    send_json({{"type", "field"}, {"name", s.field_name()}, {"min", field.minCoeff()}, {"max", field.maxCoeff()}});
+    std::string b = "FLD ";
+    put<std::uint32_t>(b, static_cast<std::uint32_t>(field.size()));
+    for (Eigen::Index i = 0; i < field.size(); ++i) put<float>(b, static_cast<float>(field[i]));
+    send_binary(b);
+    sent_field_ = field;
+    sent_field_name_ = s.field_name();
+  } else if (field.size() == 0 && sent_field_.size() != 0) {
+    send_json({{"type", "field"}, {"name", ""}});
+    sent_field_.resize(0);
+    sent_field_name_.clear();
+  }
+  // Vectors as arrows: at most about 600 of them, evenly spread over the vertex ids.
+  const Eigen::MatrixX3d& vec = s.vectors();
+  if (vec.rows() != sent_vectors_.rows() || (vec.rows() && vec != sent_vectors_)) {
+    std::string b = "VEC ";
+    const int n = static_cast<int>(vec.rows()), stride = std::max(1, n / 600);
+    std::vector<int> ids;
+    for (int i = 0; i < n; i += stride)
+      if (vec.row(i).squaredNorm() > 0) ids.push_back(i);
+    put<std::uint32_t>(b, static_cast<std::uint32_t>(ids.size()));
+    for (int i : ids) put<std::uint32_t>(b, static_cast<std::uint32_t>(i));
+    for (int i : ids)
+      for (int k = 0; k < 3; ++k) put<float>(b, static_cast<float>(vec(i, k)));
+    send_binary(b);
+    sent_vectors_ = vec;
+  }
+  frame_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  send_stats(false);
+}
+
+}  // namespace meshpde::cli

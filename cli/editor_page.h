@@ -1,0 +1,92 @@
+// One page of the browser editor, without sockets: the JSON requests of docs/editor.md
+// turned into EditorSession calls (apps/editor_session.h), the 60 Hz update frames,
+// uploads and saves, with every reply handed to a PageSink. meshpde serve
+// (serve.cpp) gives each page a worker thread and a sink that queues frames for the
+// I/O thread; the fuzz targets editor_message and editor_upload call it in process.
+// Not thread-safe: one thread at a time (the page's worker).
+//
+// Wire format (little-endian): every binary frame starts with a four-byte tag.
+//   "MESH" u32 nv, u32 nf, f32 positions[3 nv], u32 triangles[3 nf]
+//   "POS " u32 n, u32 ids[n], f32 positions[3 n]
+//   "FLD " u32 nv, f32 values[nv]
+//   "VEC " u32 n, u32 ids[n], f32 vectors[3 n]   (arrows; n = 0 clears them)
+// Text frames are JSON objects with a "type" (see docs/editor.md).
+#pragma once
+
+#include <Eigen/Core>
+#include <chrono>
+#include <functional>
+#include <memory>
+#include <nlohmann/json_fwd.hpp>
+#include <string>
+
+#include "meshpde/apps/editor_session.h"
+#include "meshpde/image/volume.h"
+#include "meshpde/io/mesh_io.h"
+
+namespace meshpde::cli {
+
+/// A mesh with the name and format it came in, so saving writes the same format.
+struct Loaded {
+  MeshData data;
+  std::string name = "mesh.ply";
+};
+
+/// A mesh file's bytes, read by the format its name's extension says (.vtp/.vtk need
+/// meshpde::medical). \throw InputError naming the file.
+Loaded parse_mesh_bytes(const std::string& bytes, const std::string& name);
+/// A mesh written in the format of `name`'s extension.
+std::string mesh_bytes(const MeshData& d, const std::string& name);
+/// The editor's "open" menu: the library's generator table (mesh/generators.h) with
+/// presets sized for a vessel-scale view, plus "dented" (the bifurcation with its dent).
+/// \throw InputError for an unknown kind.
+Loaded generated(const std::string& requested);
+
+/// Where a page's frames go: JSON text and binary.
+struct PageSink {
+  std::function<void(std::string)> text;
+  std::function<void(std::string)> binary;
+};
+
+class EditorPage {
+ public:
+  /// A page with no mesh yet; `edges` (may be null) guides corrections, `space` is
+  /// the frame of the meshes' coordinates.
+  EditorPage(PageSink sink, std::shared_ptr<const Volume> edges, Space space);
+
+  /// Opens `l` (a new session) and sends it: a "mesh" message and a MESH frame.
+  /// \throw InputError (the page keeps its mesh).
+  void load(Loaded l);
+  /// One request (a WebSocket message); every error goes back to the page as an
+  /// {"type": "error"} message and changes nothing.
+  void handle(const std::string& payload, bool binary);
+  /// One update: advances a playing simulation and sends what changed.
+  void frame();
+  /// Parses, checks and opens an uploaded file; returns its vertex count.
+  /// \throw InputError naming the file (the page keeps its mesh).
+  int upload(const std::string& bytes, const std::string& name);
+  /// The current mesh in its own format, and the name to download it as.
+  /// \throw InputError with no mesh loaded.
+  std::pair<std::string, std::string> save() const;
+
+ private:
+  void send_json(const nlohmann::json& j);
+  void send_binary(std::string bytes);
+  void send_stats(bool now);
+
+  PageSink sink_;
+  std::shared_ptr<const Volume> edges_;
+  Space space_;
+  Loaded source_;
+  std::unique_ptr<EditorSession> session_;
+  Positions sent_;                 // positions as the page has them
+  Eigen::VectorXd sent_field_;     // field as the page has it
+  Eigen::MatrixX3d sent_vectors_;  // vector field as the page has it
+  std::string sent_field_name_;
+  Eigen::VectorXd stiffness_;  // the page's stiffness brush (empty: uniform)
+  int intersections_ = 0;
+  double frame_ms_ = 0;  // time to build the last frame
+  std::chrono::steady_clock::time_point last_stats_{};
+};
+
+}  // namespace meshpde::cli
