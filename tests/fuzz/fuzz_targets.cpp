@@ -253,8 +253,7 @@ const std::vector<Target>& targets() {
     };
 #ifdef MESHPDE_FUZZ_EDITOR
     t.push_back({"editor_message", "the editor's WebSocket requests (JSON, one a line)", ".txt", editor_message});
-    t.push_back({"editor_upload", "the editor's upload handler (a format byte, then the file)", ".bin",
-                 editor_upload});
+    t.push_back({"editor_upload", "the editor's upload handler (a format byte, then the file)", ".bin", editor_upload});
 #endif
 #ifdef MESHPDE_FUZZ_MEDICAL
     t.push_back({"vtp", "VTK XML PolyData", ".vtp",
