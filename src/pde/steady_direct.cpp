@@ -257,6 +257,7 @@ SteadyDirectSolver::Conditioning SteadyDirectSolver::conditioning(double accurac
   // cond(B), not cond(A), is what bounds the error; cond(A) also counts the spread of
   // the vertex areas, which costs no accuracy.
   const Eigen::Index n = A_.rows();
+  if (n == 0) return Conditioning{};  // no unknowns (a region that is its handles): exact
   const Eigen::VectorXd s = A_.diagonal().cwiseSqrt().cwiseInverse();
   if (inverse_norm_1_ < 0) {
     // Hager's estimator (Higham's refinement, LAPACK dlacon) of ||B^-1||_1: maximize
