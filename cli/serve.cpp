@@ -15,6 +15,7 @@
 // status 1009), kMessagesPerSecond messages a second (more are dropped with an error to
 // that page), kMaxQueued requests waiting, and an HTTP request or handshake must be
 // complete within 10 s.
+//
 // A page's protocol (its requests, frames, uploads and saves; the wire format) is
 // editor_page.h's EditorPage.
 #include <fmt/format.h>
@@ -37,11 +38,8 @@
 
 #include "commands.h"
 #include "editor_page.h"
-#include "meshpde/apps/editor_session.h"
-#include "meshpde/apps/local_drag.h"
 #include "meshpde/core/errors.h"
 #include "meshpde/image/volume.h"
-#include "meshpde/mesh/generators.h"
 #include "web_server.h"
 #ifdef MESHPDE_HAVE_MEDICAL
 #include "meshpde/io/medical_io.h"
