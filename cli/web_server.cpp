@@ -71,11 +71,12 @@ WebServer::WebServer(WebHandlers handlers, std::size_t max_body, std::size_t max
   // A request that never finishes (a half-sent header or body) is dropped, not kept.
   m.server.set_open_handshake_timeout(request_timeout_ms);
   // Updates are small frames sent 60 times a second: without TCP_NODELAY, Nagle's
-  // algorithm holds one back until the page's delayed ACK (up to 40 ms) and they
-  // arrive in pairs.
-  m.server.set_socket_init_handler([](Hdl, asio::ip::tcp::socket& socket) {
+  // algorithm holds the second frame of an update back until the page's delayed ACK,
+  // and updates arrive in pairs 32 ms apart. Set once the connection is accepted (the
+  // socket does not exist yet when websocketpp's socket-init handler runs).
+  m.server.set_tcp_post_init_handler([this](Hdl h) {
     asio::error_code ec;
-    socket.set_option(asio::ip::tcp::no_delay(true), ec);
+    impl_->server.get_con_from_hdl(h)->get_socket().set_option(asio::ip::tcp::no_delay(true), ec);
   });
   m.server.set_open_handler([this](Hdl h) {
     Impl& s = *impl_;
