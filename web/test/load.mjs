@@ -2,7 +2,7 @@
 // loop bounded in count and time. Bare WebSocket clients (no browser), as in
 // throughput.mjs.
 //
-//   node web/test/load.mjs MESHPDE_BINARY DATA_DIR [--seconds S] [--cycles N] [--sanitized]
+//   node web/test/load.mjs MESHPDE_BINARY DATA_DIR [--seconds S] [--cycles N] [--sanitized] [--load-only]
 //
 // 1. Baseline: one page plays heat alone; the gaps between its field updates.
 // 2. Load: seven pages play heat while an eighth uploads aorta-103k.vtp and corrects it
@@ -39,7 +39,7 @@ const sanitized = rest.includes('--sanitized');
 // --load-only: phases 1 and 2 only (to compare two builds of the server).
 const loadOnly = rest.includes('--load-only');
 if (!binary || !dataDir) {
-  console.error('usage: node web/test/load.mjs MESHPDE_BINARY DATA_DIR [--seconds S] [--cycles N]');
+  console.error('usage: node web/test/load.mjs MESHPDE_BINARY DATA_DIR [--seconds S] [--cycles N] [--sanitized] [--load-only]');
   process.exit(2);
 }
 const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
