@@ -28,6 +28,10 @@ void add_app_commands(CLI::App& app);    // heat, wave, fair, interpolate, poke
 void add_view_options(CLI::App* cmd, RenderOptions& r, std::string& view, std::string& up, std::string& size);
 void apply_view_options(RenderOptions& r, const std::string& view, const std::string& up, const std::string& size);
 
+/// The shared --laplacian auto|cotan|intrinsic option (default auto); `note` is added
+/// to its help when the command treats some case its own way.
+void add_laplacian_option(CLI::App* cmd, std::string& value, const std::string& note = "");
+
 /// A vertex given as an index or as @X,Y,Z (the nearest vertex). \throw InputError
 int parse_vertex(const Mesh& mesh, const std::string& spec, const char* what);
 /// VERTEX:VALUE. \throw InputError

@@ -43,6 +43,15 @@ std::pair<int, double> parse_vertex_value(const Mesh& mesh, const std::string& s
   return {v, x};
 }
 
+void add_laplacian_option(CLI::App* cmd, std::string& value, const std::string& note) {
+  value = "auto";
+  cmd->add_option("--laplacian", value,
+                  "auto (intrinsic Delaunay on badly shaped or non-manifold meshes) | cotan | intrinsic" +
+                      (note.empty() ? "" : "; " + note))
+      ->check(CLI::IsMember({"auto", "cotan", "intrinsic"}))
+      ->capture_default_str();
+}
+
 namespace {
 
 // --solver's names (checked by CLI11 before this runs).
@@ -84,10 +93,7 @@ void add_propagation_command(CLI::App& app, Propagation eq) {
     cmd->add_option("--damping", a->b, "Mass-proportional damping b (1/s)")->capture_default_str();
   }
   cmd->add_flag("--local", a->local, "Solve on a self-adjusting active domain instead of the whole mesh");
-  cmd->add_option("--laplacian", a->laplacian,
-                  "auto (intrinsic Delaunay on badly shaped or non-manifold meshes) | cotan | intrinsic")
-      ->check(CLI::IsMember({"auto", "cotan", "intrinsic"}))
-      ->capture_default_str();
+  add_laplacian_option(cmd, a->laplacian);
   cmd->add_option("--frames", a->frames, "Directory for frame_NNNNN.csv files (one value per vertex)");
   cmd->add_option("--every", a->every, "Write a frame every N steps")->capture_default_str();
   cmd->add_option("-o,--output", a->out, "Final mesh with the field 'u' (.ply)");
@@ -218,11 +224,7 @@ void add_fair_command(CLI::App& app) {
                   "--order 2) | iterative (Jacobi-CG)")
       ->check(CLI::IsMember({"direct", "global", "iterative"}))
       ->capture_default_str();
-  cmd->add_option("--laplacian", a->laplacian,
-                  "auto (intrinsic Delaunay on badly shaped or non-manifold meshes) | cotan | intrinsic; "
-                  "--regularize always re-assembles area-weighted cotangent operators")
-      ->check(CLI::IsMember({"auto", "cotan", "intrinsic"}))
-      ->capture_default_str();
+  add_laplacian_option(cmd, a->laplacian, "--regularize always re-assembles area-weighted cotangent operators");
   cmd->add_option("--dt", a->p.dt, "Regularization step (unit-free)")->capture_default_str();
   cmd->add_option("--steps", a->p.steps, "Regularization steps")->capture_default_str();
   cmd->add_option("--damping", a->p.damping, "Regularization damping relative to the mean area (0: quasi-static)")
@@ -312,11 +314,7 @@ void add_interpolate_command(CLI::App& app) {
                   "iterative (Jacobi-CG)")
       ->check(CLI::IsMember({"direct", "global", "iterative"}))
       ->capture_default_str();
-  cmd->add_option("--laplacian", a->laplacian,
-                  "auto (intrinsic Delaunay on badly shaped or non-manifold meshes; tangent fields: cotan) | cotan | "
-                  "intrinsic")
-      ->check(CLI::IsMember({"auto", "cotan", "intrinsic"}))
-      ->capture_default_str();
+  add_laplacian_option(cmd, a->laplacian, "tangent fields always use cotan");
   cmd->add_option("--method", a->method, "tangent fields: componentwise (seed) | connection | both")
       ->check(CLI::IsMember({"componentwise", "connection", "both"}))
       ->capture_default_str();

@@ -265,10 +265,7 @@ void add_solve_commands(CLI::App& app) {
                     "repeatable");
     cmd->add_option("--g1", a->g1, "Membrane (Laplacian) stiffness")->capture_default_str();
     cmd->add_option("--g2", a->g2, "Plate (bi-Laplacian) stiffness")->capture_default_str();
-    cmd->add_option("--laplacian", a->laplacian,
-                    "auto (intrinsic Delaunay on badly shaped or non-manifold meshes) | cotan | intrinsic")
-        ->check(CLI::IsMember({"auto", "cotan", "intrinsic"}))
-        ->capture_default_str();
+    add_laplacian_option(cmd, a->laplacian);
     cmd->add_flag("--allow-intersections", a->allow_intersections,
                   "Do not split or limit a correction that would make the surface intersect itself");
     cmd->add_option("--image", a->image, "Volume (.mha .mhd .nii .nii.gz .nrrd .nhdr): pull the wall onto image edges");

@@ -190,7 +190,7 @@ constexpr std::size_t kMaxQueued = 256;
 // The I/O thread's record of a page: its worker, its rate limit and whether a frame
 // is already queued. The EditorPage itself is touched only by the worker.
 struct Page {
-  std::shared_ptr<EditorPage> page;
+  std::shared_ptr<EditorPage> editor;
   std::unique_ptr<PageWorker> worker;
   std::shared_ptr<std::atomic<bool>> frame_queued = std::make_shared<std::atomic<bool>>(false);
   double tokens = kMessagesPerSecond;
@@ -266,13 +266,13 @@ class EditorServer {
 
   void on_open(Hdl h) {
     Page page;
-    page.page = std::make_shared<EditorPage>(
+    page.editor = std::make_shared<EditorPage>(
         PageSink{.text = [this, h](std::string s) { server_.send_text(h, std::move(s)); },
                  .binary = [this, h](std::string s) { server_.send_binary(h, std::move(s)); }},
         edges_, space_);
     page.worker = std::make_unique<PageWorker>();
     send_json(h, {{"type", "hello"}, {"client", h}});
-    EditorPage* c = page.page.get();
+    EditorPage* c = page.editor.get();
     page.worker->post(
         [this, h, c] {
           try {
@@ -322,7 +322,7 @@ class EditorServer {
     if (it == pages_.end()) return;
     Page& p = it->second;
     if (!within_rate(h, p)) return;
-    EditorPage* c = p.page.get();
+    EditorPage* c = p.editor.get();
     if (!p.worker->post([c, payload, binary] { c->handle(payload, binary); }, kMaxQueued))
       send_json(h,
                 {{"type", "error"},
@@ -333,7 +333,7 @@ class EditorServer {
   void on_tick() {
     for (auto& [h, p] : pages_) {
       if (p.frame_queued->exchange(true)) continue;  // the last one has not run yet
-      EditorPage* c = p.page.get();
+      EditorPage* c = p.editor.get();
       auto queued = p.frame_queued;
       const Hdl hh = h;
       const bool ok = p.worker->post(
@@ -380,7 +380,7 @@ class EditorServer {
         if (!p) return respond(json_response(400, {{"error", "unknown client"}}));
         // Parsing, loading and saving run on the page's worker, in order with its
         // requests; the answer is sent from there.
-        EditorPage* c = p->page.get();
+        EditorPage* c = p->editor.get();
         auto task = [c, upload, respond, body = req.body,
                      name = query.count("name") ? query.at("name") : std::string("upload.ply")] {
           try {

@@ -27,10 +27,8 @@ def cli_path():
 
 @pytest.fixture(scope="session")
 def cli(cli_path):
-    path = cli_path
-
     def run(*args, json_out=False):
-        out = subprocess.run([path, *map(str, args)], capture_output=True, text=True, timeout=300)
+        out = subprocess.run([cli_path, *map(str, args)], capture_output=True, text=True, timeout=300)
         if out.returncode != 0:
             raise AssertionError(f"meshpde {' '.join(map(str, args))} failed:\n{out.stderr}")
         return json.loads(out.stdout) if json_out else out.stdout

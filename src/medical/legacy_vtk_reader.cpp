@@ -52,9 +52,7 @@ class LegacyReader {
       while (!ver.empty() && ver.front() == ' ') ver.remove_prefix(1);
       std::from_chars(ver.data(), ver.data() + ver.size(), major_);
     }
-    const std::string title(line());
-    if (title.find("SPACE=LPS") != std::string::npos) pd_.space = "LPS";
-    if (title.find("SPACE=RAS") != std::string::npos) pd_.space = "RAS";
+    pd_.space = detect_space(line());  // the title line
     const std::string mode = lower(trim(std::string(line())));
     if (mode == "binary")
       binary_ = true;
@@ -107,10 +105,7 @@ class LegacyReader {
  private:
   enum class Section { None, Point, Cell };
 
-  [[noreturn]] void fail(const std::string& what) const {
-    if (binary_) throw InputError(fmt::format("{}: byte {}: {}", name_, pos_, what));
-    throw InputError(fmt::format("{}:{}: {}", name_, line_, what));
-  }
+  [[noreturn]] void fail(const std::string& what) const { throw InputError(fmt::format("{}: {}", where(), what)); }
   static std::string clip(std::string_view s) {
     std::string out;
     for (const char c : s.substr(0, 32)) out += std::isprint(static_cast<unsigned char>(c)) ? c : '?';
@@ -190,14 +185,12 @@ class LegacyReader {
     return out;
   }
 
+  // Where the reader is, as fail() says it: the line, or in binary data the byte.
+  std::string where() const {
+    return binary_ ? fmt::format("{}: byte {}", name_, pos_) : fmt::format("{}:{}", name_, line_);
+  }
   std::vector<std::int64_t> ids(const std::vector<double>& v, const std::string& what) {
-    std::vector<std::int64_t> out(v.size());
-    for (std::size_t i = 0; i < v.size(); ++i) {
-      if (!(v[i] >= -9.0e18 && v[i] <= 9.0e18) || v[i] != std::floor(v[i]))
-        fail(fmt::format("{}: value {} ({}) is not an integer", what, i, v[i]));
-      out[i] = static_cast<std::int64_t>(v[i]);
-    }
-    return out;
+    return integer_ids(v, fmt::format("{}: {}", where(), what));
   }
 
   CellList cells(const char* kind) {

@@ -22,6 +22,22 @@ Eigen::MatrixXd rows_of(const NamedArray& a, const std::vector<std::size_t>& row
 
 }  // namespace
 
+std::string detect_space(std::string_view text) {
+  if (text.find("SPACE=LPS") != std::string_view::npos) return "LPS";
+  if (text.find("SPACE=RAS") != std::string_view::npos) return "RAS";
+  return {};
+}
+
+std::vector<std::int64_t> integer_ids(const std::vector<double>& v, const std::string& what) {
+  std::vector<std::int64_t> out(v.size());
+  for (std::size_t i = 0; i < v.size(); ++i) {
+    if (!(v[i] >= -9.0e18 && v[i] <= 9.0e18) || v[i] != std::floor(v[i]))
+      throw InputError(fmt::format("{}: value {} ({}) is not an integer id", what, i, v[i]));
+    out[i] = static_cast<std::int64_t>(v[i]);
+  }
+  return out;
+}
+
 MeshData mesh_from_polydata(PolyData&& pd, const std::string& name) {
   MeshData d;
   d.space = pd.space;

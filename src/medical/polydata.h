@@ -9,6 +9,7 @@
 
 #include <cstdint>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "meshpde/io/mesh_io.h"
@@ -52,6 +53,15 @@ PolyData read_vtp_polydata(const std::string& bytes, const std::string& name);
 /// lists of both the old "n size" and the new OFFSETS/CONNECTIVITY layout).
 /// \throw InputError naming `name` and the line on any malformed or unsupported input.
 PolyData read_legacy_vtk_polydata(const std::string& bytes, const std::string& name);
+
+/// "LPS" or "RAS" when `text` carries 3D Slicer's SPACE= tag, else empty (the title of a
+/// legacy file, the start of an XML one).
+std::string detect_space(std::string_view text);
+
+/// Point ids read as numbers (both formats store them in numeric arrays of any type).
+/// \throw InputError "`what`: value I (X) is not an integer id" for a value that is not
+/// an integer of int64's range.
+std::vector<std::int64_t> integer_ids(const std::vector<double>& values, const std::string& what);
 
 /// The triangle mesh of a PolyData: polygons fanned and strips unrolled into triangles
 /// (cell data repeated per triangle), vertex and line cells dropped with a warning,

@@ -461,16 +461,6 @@ std::vector<NamedArray> data_arrays(const XmlNode* parent, const char* kind, std
   return out;
 }
 
-std::vector<std::int64_t> to_ids(const std::vector<double>& v, const std::string& what) {
-  std::vector<std::int64_t> out(v.size());
-  for (std::size_t i = 0; i < v.size(); ++i) {
-    if (!(v[i] >= -9.0e18 && v[i] <= 9.0e18) || v[i] != std::floor(v[i]))
-      throw InputError(fmt::format("{}: value {} ({}) is not an integer id", what, i, v[i]));
-    out[i] = static_cast<std::int64_t>(v[i]);
-  }
-  return out;
-}
-
 CellList cell_list(const XmlNode* cells, const char* kind, std::size_t count, const FileSettings& f,
                    const std::string& where) {
   CellList out;
@@ -489,11 +479,11 @@ CellList cell_list(const XmlNode* cells, const char* kind, std::size_t count, co
   std::vector<double> values;
   if (const auto why = array_values(*conn, f, what + " connectivity", type, values); !why.empty())
     throw InputError(fmt::format("{} connectivity: {}", what, why));
-  out.connectivity = to_ids(values, what + " connectivity");
+  out.connectivity = integer_ids(values, what + " connectivity");
   if (const auto why = array_values(*offs, f, what + " offsets", type, values); !why.empty())
     throw InputError(fmt::format("{} offsets: {}", what, why));
   if (values.size() != count) throw InputError(fmt::format("{}: {} offsets for {} cells", what, values.size(), count));
-  const std::vector<std::int64_t> ends = to_ids(values, what + " offsets");
+  const std::vector<std::int64_t> ends = integer_ids(values, what + " offsets");
   std::int64_t previous = 0;
   for (std::size_t c = 0; c < ends.size(); ++c) {
     if (ends[c] < previous || ends[c] > static_cast<std::int64_t>(out.connectivity.size()))
@@ -595,12 +585,6 @@ PolyData merge(std::vector<Piece>& pieces, const std::string& name) {
       }
   }
   return out;
-}
-
-std::string detect_space(std::string_view text) {
-  if (text.find("SPACE=LPS") != std::string_view::npos) return "LPS";
-  if (text.find("SPACE=RAS") != std::string_view::npos) return "RAS";
-  return {};
 }
 
 }  // namespace

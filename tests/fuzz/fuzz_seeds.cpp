@@ -4,6 +4,8 @@
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "meshpde/io/mesh_io.h"
 #include "meshpde/mesh/generators.h"
@@ -99,56 +101,31 @@ int write_seeds(const fs::path& root) {
     put(root / "selection", std::string(spec).substr(0, std::string(spec).find(':')) + ".txt", std::string(spec) + "\n",
         count);
   // The editor: message sequences (one a line) and uploads (a format byte, the file).
-  put(root / "editor_message", "correct.txt",
-      R"({"type": "correct", "vertex": 5, "move": [0, 0, 1], "radius": 4})"
-      "\n"
-      R"({"type": "undo"})"
-      "\n"
-      R"({"type": "redo"})"
-      "\n",
-      count);
-  put(root / "editor_message", "poke.txt",
-      R"({"type": "poke_begin", "vertex": 3, "influence": 2})"
-      "\n"
-      R"({"type": "poke_move", "offset": [0, 0, -0.5]})"
-      "\n"
-      R"({"type": "poke_end"})"
-      "\n",
-      count);
-  put(root / "editor_message", "drag.txt",
-      R"({"type": "brush", "vertex": 1, "radius": 3, "value": 5})"
-      "\n"
-      R"({"type": "drag_begin", "vertex": 1, "radius": 5})"
-      "\n"
-      R"({"type": "drag_move", "offset": [0.5, 0, 0]})"
-      "\n"
-      R"({"type": "drag_end"})"
-      "\n",
-      count);
-  put(root / "editor_message", "paint.txt",
-      R"({"type": "paint", "vertex": 7, "value": 2, "g1": 0, "g2": 1})"
-      "\n"
-      R"({"type": "paint_vector", "vertex": 9, "vector": [1, 0, 0]})"
-      "\n"
-      R"({"type": "clear_paint"})"
-      "\n",
-      count);
-  put(root / "editor_message", "heat.txt",
-      R"({"type": "source", "vertex": 0})"
-      "\n"
-      R"({"type": "play", "kind": "heat"})"
-      "\n"
-      R"({"type": "play", "kind": "wave"})"
-      "\n"
-      R"({"type": "clear_sources"})"
-      "\n"
-      R"({"type": "ping"})"
-      "\n",
-      count);
-  put(root / "editor_message", "springs.txt",
-      R"({"type": "correct", "vertex": 2, "move": [1, 1, 0], "radius": 3, "method": "springs", "image": false})"
-      "\n",
-      count);
+  const std::vector<std::pair<std::string, std::vector<std::string>>> sequences{
+      {"correct.txt",
+       {R"({"type": "correct", "vertex": 5, "move": [0, 0, 1], "radius": 4})", R"({"type": "undo"})",
+        R"({"type": "redo"})"}},
+      {"poke.txt",
+       {R"({"type": "poke_begin", "vertex": 3, "influence": 2})", R"({"type": "poke_move", "offset": [0, 0, -0.5]})",
+        R"({"type": "poke_end"})"}},
+      {"drag.txt",
+       {R"({"type": "brush", "vertex": 1, "radius": 3, "value": 5})",
+        R"({"type": "drag_begin", "vertex": 1, "radius": 5})", R"({"type": "drag_move", "offset": [0.5, 0, 0]})",
+        R"({"type": "drag_end"})"}},
+      {"paint.txt",
+       {R"({"type": "paint", "vertex": 7, "value": 2, "g1": 0, "g2": 1})",
+        R"({"type": "paint_vector", "vertex": 9, "vector": [1, 0, 0]})", R"({"type": "clear_paint"})"}},
+      {"heat.txt",
+       {R"({"type": "source", "vertex": 0})", R"({"type": "play", "kind": "heat"})",
+        R"({"type": "play", "kind": "wave"})", R"({"type": "clear_sources"})", R"({"type": "ping"})"}},
+      {"springs.txt",
+       {R"({"type": "correct", "vertex": 2, "move": [1, 1, 0], "radius": 3, "method": "springs", "image": false})"}},
+  };
+  for (const auto& [name, messages] : sequences) {
+    std::string text;
+    for (const std::string& message : messages) text += message + "\n";
+    put(root / "editor_message", name, text, count);
+  }
   {
     const char* formats[] = {"obj", "off", "ply", "stl"};
     const MeshFormat f[] = {MeshFormat::Obj, MeshFormat::Off, MeshFormat::Ply, MeshFormat::Stl};

@@ -216,7 +216,6 @@ int editor_message(const std::uint8_t* data, std::size_t size) {
       page.frame();
       at = end + 1;
     }
-    page.handle("{\"type\": \"pause\"}", false);  // stops a playing simulation
   });
 }
 
