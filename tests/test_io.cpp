@@ -113,6 +113,24 @@ TEST(Io, PlyBigEndianAndFloatAndQuads) {
   EXPECT_NE(d.warnings[0].find("triangulated 1 polygons"), std::string::npos);
 }
 
+TEST(Io, PlyElementWithoutPropertiesReadsNothingWhateverItsCount) {
+  // Found by the fuzzer: an element with no properties holds no bytes, so its count
+  // (here 10^15) is not checked against the data; the reader looped that often.
+  std::string h =
+      "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+      "property float z\nelement junk 1000000000000000\nelement face 1\n"
+      "property list uchar int vertex_indices\nend_header\n";
+  const float pts[9] = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+  h.append(reinterpret_cast<const char*>(pts), sizeof(pts));
+  h.push_back(3);
+  for (const int32_t k : {0, 1, 2}) h.append(reinterpret_cast<const char*>(&k), 4);
+  const MeshData d = read_mesh_from_memory(h, MeshFormat::Ply, "junk.ply");
+  ASSERT_EQ(d.V.rows(), 3);
+  ASSERT_EQ(d.F.rows(), 1);
+  EXPECT_EQ(d.V(1, 0), 1.0);
+  EXPECT_EQ(d.F(0, 2), 2);
+}
+
 TEST(Io, ObjNegativeIndicesSlashesAndPolygons) {
   const std::string obj =
       "# comment\nmtllib x.mtl\no thing\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvn 0 0 1\nvt 0 0\n"

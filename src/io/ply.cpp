@@ -252,6 +252,9 @@ MeshData read_ply(std::string_view bytes, const std::string& name) {
       if (!have_vertices) fail(name, fmt::format("line {}", e.header_line), "faces come before vertices");
       tris.reserve(static_cast<std::size_t>(3 * e.count));
     }
+    // An element without properties holds no bytes, whatever its count: nothing to
+    // read (a count of 10^15 would otherwise loop that often over nothing).
+    if (e.props.empty()) continue;
     for (long long i = 0; i < e.count; ++i) {
       const std::string where = fmt::format("{} {}", e.name, i);
       if (enc == Encoding::Ascii && !text.has_token() && !text.next_content_line('\0'))
