@@ -5,6 +5,7 @@
 #include <random>
 
 #include "meshpde/apps/local_drag.h"
+#include "meshpde/core/errors.h"
 #include "meshpde/mesh/generators.h"
 #include "meshpde/mesh/topology.h"
 #include "meshpde/operators/fem_operators.h"
@@ -114,6 +115,93 @@ TEST(Pde, SelfAdjustingDomainGrowsUnderAPokeAndShrinksAfterRelease) {
   }
   EXPECT_EQ(s.domain().num_free(), 0) << "domain did not shrink back after " << steps << " steps";
   EXPECT_LE(s.values().cwiseAbs().maxCoeff(), 1e-4);
+}
+
+// pde/step_factor.h: a step on exactly the factor's free set is the factor's solve, and
+// gives what a tight CG gives; on any other free set, or another dt, the step is CG.
+TEST(Pde, StepFactorGivesTheCgStepAndIsUsedOnlyOnItsFreeSetAndStep) {
+  const Mesh m = unit_edge_icosphere(4);
+  const FemOperators ops = build_operators(m);
+  const PdeCoefficients c{.alpha = 0.01, .b1 = 0.2, .b2 = 1e-3, .g0 = 1, .g1 = 0, .g2 = 81};
+  PdeSession direct(m, ops, 3, c), cg(m, ops, 3, c);
+  cg.cg_options.tolerance = 1e-13;
+  cg.cg_options.max_iterations = 10000;
+  const int handle = 3;
+  const Eigen::Vector3d n = m.positions().row(handle).normalized();
+  const Eigen::Vector3d rest = Eigen::Vector3d::Zero();
+  for (PdeSession* s : {&direct, &cg}) {
+    s->constrain(handle, std::span<const double>(rest.data(), 3));
+    s->activate_rings(handle, 6);
+  }
+  const std::vector<int> free(direct.domain().free_vertices().begin(), direct.domain().free_vertices().end());
+  std::vector<int> reversed(free.rbegin(), free.rend());  // any row order
+  auto factor = std::make_shared<StepFactor>(m, ops, c, reversed, 1e-3);
+  EXPECT_GT(factor->factor_nonzeros(), 0.0);
+  direct.set_step_factor(factor);
+  for (int k = 1; k <= 40; ++k) {
+    const Eigen::Vector3d target = -0.02 * std::min(k, 20) * n;
+    for (PdeSession* s : {&direct, &cg}) s->constrain(handle, std::span<const double>(target.data(), 3));
+    const StepResult a = direct.step(1e-3), b = cg.step(1e-3);
+    ASSERT_TRUE(a.factored) << "step " << k;
+    EXPECT_FALSE(b.factored);
+    EXPECT_EQ(a.cg.iterations, 0);
+    EXPECT_LE((direct.values() - cg.values()).cwiseAbs().maxCoeff(), 1e-9 * 0.4) << "step " << k;
+    EXPECT_LE((direct.reaction_forces() - cg.reaction_forces()).norm(), 1e-8 * cg.reaction_forces().norm());
+  }
+  EXPECT_FALSE(direct.step(2e-3).factored) << "another dt";
+  direct.activate_rings(handle, 7);
+  EXPECT_FALSE(direct.step_factor_applies(1e-3)) << "another free set";
+  EXPECT_FALSE(direct.step(1e-3).factored);
+  direct.set_free_set(free);
+  EXPECT_TRUE(direct.step_factor_applies(1e-3)) << "the factor's free set again";
+  direct.set_step_factor(nullptr);
+  EXPECT_FALSE(direct.step(1e-3).factored);
+  EXPECT_THROW(StepFactor(m, ops, c, {1, 2, 1}, 1e-3), InputError);
+  EXPECT_THROW(StepFactor(m, ops, c, {1, 2}, 0.0), InputError);
+  EXPECT_THROW(StepFactor(m, ops, c, {1, m.num_vertices()}, 1e-3), InputError);
+}
+
+// propose_domain_change() records what the self-adjusting rule would do; applying it
+// with set_free_set() after every step reproduces a self-adjusting session exactly.
+TEST(Pde, ProposedDomainChangesAppliedLaterReproduceTheSelfAdjustingDomain) {
+  const Mesh m = unit_edge_icosphere(5);
+  const FemOperators ops = build_operators(m);
+  const PdeCoefficients c{.alpha = 1, .b1 = 1, .b2 = 0.01, .g0 = 1, .g1 = 0, .g2 = 100};
+  const DomainOptions d{.self_adjusting = true, .rest_value = 1e-4, .rest_rate = 1e-3};
+  DomainOptions manual_options = d;
+  manual_options.self_adjusting = false;
+  PdeSession automatic(m, ops, 3, c, d), manual(m, ops, 3, c, manual_options);
+  for (PdeSession* s : {&automatic, &manual}) s->cg_options.tolerance = 1e-12;
+  const int handle = 0;
+  const Eigen::Vector3d n = m.positions().row(handle).normalized();
+  int grown = 0, shrunk = 0;
+  for (int k = 1; k <= 400; ++k) {
+    const bool pressing = k <= 100;
+    const Eigen::Vector3d target = -0.005 * std::min(k, 100) * n;
+    if (pressing)
+      for (PdeSession* s : {&automatic, &manual}) s->constrain(handle, std::span<const double>(target.data(), 3));
+    if (k == 101)
+      for (PdeSession* s : {&automatic, &manual}) s->release(handle);
+    const double dt = pressing ? 1e-3 : 2e-2;
+    automatic.step(dt);
+    manual.step(dt);
+    const DomainChange change = manual.propose_domain_change();
+    grown += static_cast<int>(change.grow.size());
+    shrunk += static_cast<int>(change.shrink.size());
+    std::vector<int> next;
+    for (int v : manual.domain().free_vertices())
+      if (std::find(change.shrink.begin(), change.shrink.end(), v) == change.shrink.end()) next.push_back(v);
+    next.insert(next.end(), change.grow.begin(), change.grow.end());
+    manual.set_free_set(next, change.shrink);
+    std::vector<int> a(automatic.domain().free_vertices().begin(), automatic.domain().free_vertices().end());
+    std::vector<int> b(manual.domain().free_vertices().begin(), manual.domain().free_vertices().end());
+    std::sort(a.begin(), a.end());
+    std::sort(b.begin(), b.end());
+    ASSERT_EQ(a, b) << "step " << k;
+    ASSERT_LE((automatic.values() - manual.values()).cwiseAbs().maxCoeff(), 1e-9) << "step " << k;
+  }
+  EXPECT_GT(grown, 30);
+  EXPECT_GT(shrunk, 30);
 }
 
 // A real-time loop on a machine too slow for its deadlines (every solve starts

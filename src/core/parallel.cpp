@@ -7,8 +7,9 @@
 namespace meshpde {
 
 namespace {
-std::atomic<int> g_limit{0};  // 0: every core
-}
+std::atomic<int> g_limit{0};   // 0: every core
+thread_local int t_limit = 0;  // 0: no cap on this thread (ThreadLimit)
+}  // namespace
 
 void set_max_threads(int n) {
   g_limit.store(std::max(0, n));
@@ -16,7 +17,16 @@ void set_max_threads(int n) {
 
 int max_threads() {
   const int limit = g_limit.load();
-  return limit > 0 ? limit : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  const int all = limit > 0 ? limit : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  return t_limit > 0 ? std::min(all, t_limit) : all;
+}
+
+ThreadLimit::ThreadLimit(int n) : saved_(t_limit) {
+  t_limit = std::max(1, n);
+}
+
+ThreadLimit::~ThreadLimit() {
+  t_limit = saved_;
 }
 
 bool openmp_available() {

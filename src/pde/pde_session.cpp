@@ -30,6 +30,7 @@ PdeSession::PdeSession(const Mesh& mesh, const FemOperators& ops, int components
   reaction_.resize(0, m_);
   kdk_diag_ = Eigen::VectorXd::Constant(nv, std::numeric_limits<double>::quiet_NaN());
   local_id_.assign(nv, -1);
+  factor_row_.assign(nv, -1);
   visit_mark_.assign(nv, 0u);
   rest_count_.assign(nv, 0);
 }
@@ -347,17 +348,30 @@ StepResult PdeSession::solve(Mode mode, double dt, const Field* f) {
     }
   }
 
-  Eigen::VectorXd& inv_diag = inv_diag_;
-  inv_diag.resize(n);
-  for (int k = 0; k < n; ++k) {
-    const double d = jacobi(A[k], cM, cK);
-    inv_diag[k] = d > 0 ? 1.0 / d : 1.0;
-  }
-  build_local_system();
-  auto apply = [&](const Block& P, Block& Y) { apply_local(P.data(), Y.data(), cM, cK); };
   StepResult r;
   r.free_vertices = n;
-  r.cg = pcg(apply, inv_diag, b, x, cg_options, ws_);
+  if (mode == Mode::Step && step_factor_applies(dt)) {
+    // Two triangular sweeps in the factor's row order: no iteration, a fixed cost.
+    factor_rhs_.resize(n, m_);
+    for (int k = 0; k < n; ++k) factor_rhs_.row(factor_row_[A[k]]) = b.row(k);
+    const Eigen::MatrixXd X = factor_->solve(factor_rhs_);
+    if (!X.allFinite()) {
+      for (int k = 0; k < nc; ++k) v_.row(cons_[k]) = v_old_c.row(k);
+      throw SolverError("step: the factored solve gave a non-finite value");
+    }
+    for (int k = 0; k < n; ++k) x.row(k) = X.row(factor_row_[A[k]]);
+    r.factored = true;
+  } else {
+    Eigen::VectorXd& inv_diag = inv_diag_;
+    inv_diag.resize(n);
+    for (int k = 0; k < n; ++k) {
+      const double d = jacobi(A[k], cM, cK);
+      inv_diag[k] = d > 0 ? 1.0 / d : 1.0;
+    }
+    build_local_system();
+    auto apply = [&](const Block& P, Block& Y) { apply_local(P.data(), Y.data(), cM, cK); };
+    r.cg = pcg(apply, inv_diag, b, x, cg_options, ws_);
+  }
 
   if (r.cg.status == CgStatus::Breakdown) {
     for (int k = 0; k < nc; ++k) v_.row(cons_[k]) = v_old_c.row(k);
@@ -394,7 +408,76 @@ StepResult PdeSession::solve(Mode mode, double dt, const Field* f) {
   return r;
 }
 
+void PdeSession::set_step_factor(std::shared_ptr<const StepFactor> factor) {
+  if (factor_)
+    for (int v : factor_->vertices()) factor_row_[v] = -1;
+  factor_ = std::move(factor);
+  if (!factor_) return;
+  for (int v : factor_->vertices())
+    if (v < 0 || v >= mesh_.num_vertices()) {
+      factor_.reset();
+      std::fill(factor_row_.begin(), factor_row_.end(), -1);
+      throw InputError(fmt::format("step factor: vertex {} does not exist in this mesh", v));
+    }
+  for (std::size_t k = 0; k < factor_->vertices().size(); ++k)
+    factor_row_[factor_->vertices()[k]] = static_cast<int>(k);
+}
+
+bool PdeSession::step_factor_applies(double dt) const {
+  if (!factor_ || factor_->dt() != dt) return false;
+  const PdeCoefficients& c = factor_->coefficients();
+  if (c.alpha != coef_.alpha || c.b1 != coef_.b1 || c.b2 != coef_.b2 || c.g0 != coef_.g0 || c.g1 != coef_.g1 ||
+      c.g2 != coef_.g2)
+    return false;
+  const auto A = domain_.free_vertices();
+  if (A.empty() || A.size() != factor_->vertices().size()) return false;
+  for (int v : A)
+    if (factor_row_[v] < 0) return false;
+  return true;  // as many free vertices as factor rows, each one of them: the same set
+}
+
+void PdeSession::set_free_set(std::span<const int> free, std::span<const int> to_rest) {
+  const int nv = mesh_.num_vertices();
+  for (int v : free)
+    if (v < 0 || v >= nv) throw InputError(fmt::format("vertex {} does not exist", v));
+  for (int v : to_rest)
+    if (v < 0 || v >= nv) throw InputError(fmt::format("vertex {} does not exist", v));
+  if (++visit_stamp_ == 0) {
+    std::fill(visit_mark_.begin(), visit_mark_.end(), 0u);
+    visit_stamp_ = 1;
+  }
+  for (int v : free) visit_mark_[v] = visit_stamp_;
+  const std::vector<int> current(domain_.free_vertices().begin(), domain_.free_vertices().end());
+  for (int v : current)
+    if (visit_mark_[v] != visit_stamp_) {
+      domain_.make_frozen(v);
+      v_.row(v).setZero();  // a frozen vertex does not move; freed again, it starts at rest
+    }
+  for (int v : free) free_vertex(v);
+  for (int v : to_rest)
+    if (domain_.state(v) == VertexState::Frozen) {
+      u_.row(v) = rest_.row(v);
+      v_.row(v).setZero();
+    }
+}
+
 void PdeSession::adjust_domain(StepResult& r) {
+  // Decided on the domain as it was after the step, then applied: the outcome does not
+  // depend on the order of the free list, and a caller can apply the same proposal
+  // later (propose_domain_change, set_free_set).
+  const DomainChange change = propose_domain_change();
+  for (int i : change.shrink) {
+    u_.row(i) = rest_.row(i);
+    v_.row(i).setZero();
+    domain_.make_frozen(i);
+  }
+  for (int w : change.grow) free_vertex(w);
+  r.grown = static_cast<int>(change.grow.size());
+  r.shrunk = static_cast<int>(change.shrink.size());
+}
+
+DomainChange PdeSession::propose_domain_change() {
+  DomainChange change;
   double v_ref = 0, u_ref = 0;
   auto rate = [&](int i) { return v_.row(i).norm(); };
   auto offset = [&](int i) { return (u_.row(i) - rest_.row(i)).norm(); };
@@ -408,9 +491,11 @@ void PdeSession::adjust_domain(StepResult& r) {
   }
   const double grow_rate = std::max(dopt_.grow_fraction * v_ref, dopt_.rest_rate);
   const double grow_value = std::max(dopt_.grow_fraction * u_ref, dopt_.rest_value);
-  snapshot_.assign(domain_.free_vertices().begin(), domain_.free_vertices().end());
-  for (int i : snapshot_) {
-    if (domain_.state(i) != VertexState::Free) continue;
+  if (++visit_stamp_ == 0) {  // marks the proposed growth: each vertex once
+    std::fill(visit_mark_.begin(), visit_mark_.end(), 0u);
+    visit_stamp_ = 1;
+  }
+  for (int i : domain_.free_vertices()) {
     // Growth follows a disturbance that spreads: a border vertex heading back towards
     // rest (v . (u - rest) < 0, as everywhere after a release) recruits nobody.
     const bool receding = v_.row(i).dot(u_.row(i) - rest_.row(i)) < 0;
@@ -419,23 +504,19 @@ void PdeSession::adjust_domain(StepResult& r) {
       rest_count_[i] = 0;
       if (!domain_.on_border(i)) continue;
       for (int w : mesh_.neighbors(i)) {
-        if (dopt_.max_free > 0 && domain_.num_free() >= dopt_.max_free) break;
-        if (domain_.state(w) == VertexState::Frozen && ops_.mass[w] > 0) {
-          free_vertex(w);
-          ++r.grown;
+        if (dopt_.max_free > 0 && domain_.num_free() + static_cast<int>(change.grow.size()) >= dopt_.max_free) break;
+        if (domain_.state(w) == VertexState::Frozen && ops_.mass[w] > 0 && visit_mark_[w] != visit_stamp_) {
+          visit_mark_[w] = visit_stamp_;
+          change.grow.push_back(w);
         }
       }
     } else if (offset(i) <= dopt_.rest_value && rate(i) <= dopt_.rest_rate) {
-      if (++rest_count_[i] >= dopt_.rest_steps) {
-        u_.row(i) = rest_.row(i);
-        v_.row(i).setZero();
-        domain_.make_frozen(i);
-        ++r.shrunk;
-      }
+      if (++rest_count_[i] >= dopt_.rest_steps) change.shrink.push_back(i);
     } else {
       rest_count_[i] = 0;
     }
   }
+  return change;
 }
 
 }  // namespace meshpde

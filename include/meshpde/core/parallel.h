@@ -17,4 +17,18 @@ int max_threads();
 /// Whether meshpde was built with OpenMP (else its loops run on one thread).
 bool openmp_available();
 
+/// Caps max_threads() for the calling thread only, while it lives: a background worker
+/// that must leave the other cores to a real-time thread (the haptic servo's factor
+/// builder, apps/haptics.h) runs meshpde's parallel loops on itself alone.
+class ThreadLimit {
+ public:
+  explicit ThreadLimit(int n);
+  ~ThreadLimit();
+  ThreadLimit(const ThreadLimit&) = delete;
+  ThreadLimit& operator=(const ThreadLimit&) = delete;
+
+ private:
+  int saved_;
+};
+
 }  // namespace meshpde

@@ -17,8 +17,9 @@
 //     At v^{n+1} = alpha M v^n - dt Kt u^n + dt f,   At = (alpha + b1 dt) M + (b2 + dt) dt Kt
 //
 // solved by Jacobi-PCG on the free vertices only, reading constrained and frozen
-// values outside them. Kt is applied as g0 M u + g1 K u + g2 K (D (K u)); K D K is never
-// assembled. Heat: b1 = 1, g1 = k. Wave: alpha = 1, g1 = c^2.
+// values outside them, or, while the free set is one a StepFactor was built for
+// (pde/step_factor.h), by that factor's two triangular sweeps. Kt is applied as g0 M u + g1 K u + g2 K (D (K u)); K D K
+// is never assembled. Heat: b1 = 1, g1 = k. Wave: alpha = 1, g1 = c^2.
 //
 // Constraints are added, moved and removed between steps without rebuilding
 // anything. The reaction force at a constrained vertex i is
@@ -33,6 +34,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <memory>
 #include <span>
 #include <vector>
 
@@ -40,6 +42,7 @@
 #include "meshpde/operators/fem_operators.h"
 #include "meshpde/pde/active_domain.h"
 #include "meshpde/pde/coefficients.h"
+#include "meshpde/pde/step_factor.h"
 #include "meshpde/solvers/cg.h"
 
 namespace meshpde {
@@ -66,6 +69,14 @@ struct StepResult {
   int free_vertices = 0;  ///< |A| during the solve
   int grown = 0;          ///< vertices that joined A after the step
   int shrunk = 0;         ///< vertices that left A after the step
+  bool factored = false;  ///< solved with the step factor (cg.iterations is then 0)
+};
+
+/// What the self-adjusting rule would change after a step (PdeSession::propose_domain_change).
+struct DomainChange {
+  std::vector<int> grow;    ///< frozen vertices to free
+  std::vector<int> shrink;  ///< free vertices at rest to freeze (back to their rest values)
+  bool empty() const { return grow.empty() && shrink.empty(); }
 };
 
 class PdeSession {
@@ -100,6 +111,16 @@ class PdeSession {
   void activate_rings(int v, int k);
   /// Freezes every free vertex.
   void deactivate_all();
+  /// What the self-adjusting rule (DomainOptions) would change after the last step,
+  /// without changing the domain; advances the rest counters as a self-adjusting step
+  /// does (which applies exactly this change, decided on the domain as it was). For a caller that applies the change
+  /// later, with set_free_set (apps/haptics.h does, once a step factor for the new free set is ready).
+  DomainChange propose_domain_change();
+  /// Makes the free set exactly `free` (constrained vertices and vertices without area
+  /// in it are skipped). Vertices that leave keep their values (their velocities become 0),
+  /// except those listed in `to_rest`, which go back to their rest values.
+  /// \throw InputError for a vertex that does not exist.
+  void set_free_set(std::span<const int> free, std::span<const int> to_rest = {});
 
   // --- constraints --------------------------------------------------------------
   /// Prescribes u(v) = value (m entries) from the next step on; frees the seed rings
@@ -120,6 +141,14 @@ class PdeSession {
 
   CgOptions cg_options;  ///< tolerance and cap of every solve
 
+  /// Steps use `factor` instead of CG while the free set is exactly factor->vertices()
+  /// (in any order) and dt and the coefficients are the factor's; other steps (and
+  /// steady solves) use CG as before. nullptr: CG only.
+  void set_step_factor(std::shared_ptr<const StepFactor> factor);
+  const std::shared_ptr<const StepFactor>& step_factor() const { return factor_; }
+  /// Whether a step of size dt now would use the step factor.
+  bool step_factor_applies(double dt) const;
+
   /// The solve's local system: A then its ring in local numbering, with CSR rows
   /// restricted to A + ring (exact for CG directions, which vanish outside A). Built
   /// once per solve so the CG iterations run on contiguous memory. (Public only so
@@ -135,7 +164,7 @@ class PdeSession {
   // y(rows) = Kt w(rows), reading w on rows and two rings beyond; uses scratch t_, k_.
   void apply_Kt_free(const double* w, double* y);
   StepResult solve(Mode mode, double dt, const Field* f);
-  void adjust_domain(StepResult& r);
+  void adjust_domain(StepResult& r);  // applies propose_domain_change(), counting into r
   double jacobi(int v, double cM, double cK);
   void free_vertex(int v);
 
@@ -160,11 +189,13 @@ class PdeSession {
   LocalSystem local_;
   Block rhs_, sol_;  // per-solve right-hand side and iterate, kept to avoid allocations
   Eigen::VectorXd inv_diag_;
-  std::vector<int> snapshot_;         // adjust_domain's copy of A
   std::vector<unsigned> visit_mark_;  // activate_rings' visit stamps, one per vertex
   unsigned visit_stamp_ = 0;
   std::vector<int> ring_seen_;  // activate_rings' breadth-first order
   std::vector<int> local_id_;   // vertex -> local index, -1 outside (kept -1 between solves)
+  std::shared_ptr<const StepFactor> factor_;
+  std::vector<int> factor_row_;  // vertex -> row of the step factor, -1 outside it
+  Eigen::MatrixXd factor_rhs_;
   void build_local_system();
   void apply_local(const double* P, double* Y, double cM, double cK);
 };
