@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <chrono>
 #include <fstream>
+#include <map>
 #include <memory>
 #include <sstream>
 #include <thread>
@@ -393,7 +394,7 @@ void add_interpolate_command(CLI::App& app) {
 void add_poke_command(CLI::App& app) {
   auto* cmd = app.add_subcommand("poke", "Replay a probe path on a haptic session: forces, latency, domain size");
   struct Args {
-    std::string mesh, vertex = "0", path, png, view = "30,20", up = "y", size = "960x720";
+    std::string mesh, vertex = "0", path, png, view = "30,20", up = "y", size = "960x720", solver = "factored";
     double settle = 0.3, depth = 0.5;
     bool json = false, realtime = true;
     HapticParams h;
@@ -414,7 +415,14 @@ void add_poke_command(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--stiffness", a->h.stiffness, "Foundation stiffness g0 (g2 = g0 influence^4)")
       ->capture_default_str();
-  cmd->add_flag("!--no-realtime", a->realtime, "Step as fast as possible instead of on the real-time servo thread");
+  cmd->add_option("--solver", a->solver,
+                  "Step solver: factored (a factor of the active domain, rebuilt on a second thread; bounded steps) "
+                  "or cg (Jacobi-CG every step)")
+      ->check(CLI::IsMember({"factored", "cg"}))
+      ->capture_default_str();
+  cmd->add_flag("!--no-realtime", a->realtime,
+                "Step as fast as possible instead of on the real-time servo thread (the factored solver then waits "
+                "for each factor: the same forces every run)");
   cmd->add_option("--png", a->png, "Picture at the end of the path: displacement and the force arrow");
   add_view_options(cmd, a->r, a->view, a->up, a->size);
   cmd->add_flag("--json", a->json, "Print a JSON report with every step");
@@ -432,6 +440,7 @@ void add_poke_command(CLI::App& app) {
     } else {
       path = press_path(mesh, v, a->depth);
     }
+    a->h.solver = a->solver == "cg" ? HapticSolver::Cg : HapticSolver::Factored;
     HapticSession s(mesh, ops, a->h);
     s.touch(v);
     const double period = 1.0 / a->h.rate_hz;
@@ -500,8 +509,11 @@ void add_poke_command(CLI::App& app) {
                            {"latency_us", x.latency_us},
                            {"free_vertices", x.free_vertices},
                            {"cg_iterations", x.cg_iterations},
+                           {"factored", x.factored},
                            {"missed", x.missed}});
       print_json({{"vertex", v},
+                  {"solver", a->h.solver == HapticSolver::Cg ? "cg" : "factored"},
+                  {"factorizations", s.factorizations()},
                   {"rate", a->h.rate_hz},
                   {"realtime", a->realtime},
                   {"steps", log.size()},
@@ -511,8 +523,9 @@ void add_poke_command(CLI::App& app) {
                   {"final_free_vertices", log.empty() ? 0 : log.back().free_vertices},
                   {"samples", samples}});
     } else {
-      fmt::print("{} steps at {} Hz: latency p50 {:.0f} us, p99 {:.0f} us, max {:.0f} us; {} deadline misses\n",
-                 log.size(), a->h.rate_hz, pct(0.5), pct(0.99), lat.empty() ? 0.0 : lat.back(), s.misses());
+      fmt::print("{} steps at {} Hz ({}): latency p50 {:.0f} us, p99 {:.0f} us, max {:.0f} us; {} deadline misses\n",
+                 log.size(), a->h.rate_hz, a->h.solver == HapticSolver::Cg ? "cg" : "factored", pct(0.5), pct(0.99),
+                 lat.empty() ? 0.0 : lat.back(), s.misses());
       fmt::print(
           "active domain: up to {} vertices, {} after the release settled; force at the end of the path {:.4g}\n",
           max_free, log.empty() ? 0 : log.back().free_vertices, picture_force.norm());

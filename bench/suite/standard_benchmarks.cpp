@@ -9,6 +9,7 @@
 #include <memory>
 #include <numeric>
 #include <span>
+#include <thread>
 
 #include "meshpde/apps/haptics.h"
 #include "meshpde/apps/local_drag.h"
@@ -16,6 +17,7 @@
 #include "meshpde/core/parallel.h"
 #include "meshpde/io/mesh_io.h"
 #include "meshpde/mesh/generators.h"
+#include "meshpde/mesh/regions.h"
 #include "meshpde/mesh/topology.h"
 #include "meshpde/operators/fem_operators.h"
 #include "meshpde/pde/global_bilaplacian.h"
@@ -163,6 +165,106 @@ PokeFigures poke(const Mesh& mesh, const FemOperators& ops, int steps, bool full
   return out;
 }
 
+// Haptic poke on a real scan and on the same scan subdivided twice (2.15M vertices):
+// haptic_* figures (BenchOptions::only = "haptic" runs these alone).
+void haptic_figures(const BenchOptions& options, nlohmann::json& j) {
+  const auto progress = [&](const std::string& what) {
+    if (options.progress) options.progress(what);
+  };
+  const auto warn = [&](const std::string& what) {
+    if (options.warning) options.warning(what);
+  };
+  // Haptic poke on a real scan and on the same scan subdivided twice (2.15M vertices):
+  // the default haptic session, pressed along the inward normal to half an edge over
+  // the first half of the steps and held, stepped by this thread at 1 kHz (dt = 1 ms;
+  // each step followed by a sleep to the next tick, as a device's servo loop does), once
+  // with the factored solver (the default: haptic_*) and once with CG (haptic_cg_*).
+  // The settled force is compared with a direct solve of the steady problem on the whole
+  // mesh (on the 2.15M mesh, on the 60-edge ball around the contact: the deformation
+  // decays like exp(-r / (sqrt 2 L)), L = 3 edges, so beyond it lies below 1e-6 of the
+  // contact's).
+  const auto igea = options.data_dir / "igea-134k.ply";
+  if (std::filesystem::exists(igea)) {
+    const int haptic_steps = options.quick ? 1000 : 10000;
+    auto haptic = [&](const Mesh& mesh, const std::string& tag) {
+      const FemOperators ops = build_operators(mesh);
+      const int v = mesh.num_vertices() / 3;
+      Eigen::Vector3d n = Eigen::Vector3d::Zero();
+      for (int w : mesh.neighbors(v)) n += (mesh.positions().row(w) - mesh.positions().row(v)).transpose();
+      n.normalize();
+      const double depth = 0.5 * mean_edge_length(mesh);
+      // The reference: Kt u = 0 with u held at the contact's final offset.
+      progress("haptic reference solve on " + tag);
+      const PdeCoefficients c = HapticSession(mesh, ops, {.solver = HapticSolver::Cg}).pde().coefficients();
+      std::vector<int> free;
+      if (mesh.num_vertices() <= 500000) {
+        for (int i = 0; i < mesh.num_vertices(); ++i)
+          if (i != v && ops.mass[i] > 0) free.push_back(i);
+      } else {
+        for (int i : region_around(mesh, v, {.radius = 60 * mean_edge_length(mesh)}))
+          if (i != v && ops.mass[i] > 0) free.push_back(i);
+      }
+      Field held = Field::Zero(mesh.num_vertices(), 3);
+      held.row(v) = depth * n.transpose();
+      const Field settled = SteadyDirectSolver(mesh, ops, c, free).solve(held);
+      Eigen::Vector3d reference = Eigen::Vector3d::Zero();  // the reaction -row_v(Kt) u, as the probe feels it
+      for (const auto& [i, coupling] : steady_coupling(mesh, ops, c, v))
+        reference += coupling * settled.row(i).transpose();
+      j["haptic_reference_vertices_" + tag] = static_cast<int>(free.size()) + 1;
+      j["haptic_vertices_" + tag] = mesh.num_vertices();
+      double p99 = 0;
+      for (const HapticSolver solver : {HapticSolver::Factored, HapticSolver::Cg}) {
+        const std::string key = solver == HapticSolver::Cg ? "haptic_cg_" : "haptic_";
+        progress(fmt::format("haptic poke on {} ({}, {} steps at 1 kHz)", tag,
+                             solver == HapticSolver::Cg ? "cg" : "factored", haptic_steps));
+        HapticSession h(mesh, ops, {.solver = solver});
+        h.touch(v);
+        std::vector<double> us;
+        us.reserve(haptic_steps);
+        int max_free = 0, misses = 0, factored = 0;
+        Eigen::Vector3d force = Eigen::Vector3d::Zero();
+        auto tick = clock_type::now();
+        for (int k = 1; k <= haptic_steps; ++k) {
+          h.move_probe(std::min(1.0, k / (0.5 * haptic_steps)) * depth * n);
+          const auto t = clock_type::now();
+          force = h.step(1e-3);
+          const double lat = seconds_since(t) * 1e6;
+          us.push_back(lat);
+          misses += lat > 1000;
+          max_free = std::max(max_free, h.pde().domain().num_free());
+          tick += std::chrono::microseconds(1000);
+          std::this_thread::sleep_until(tick);
+        }
+        for (const HapticSample& sample : h.log()) factored += sample.factored;
+        const Percentiles p = percentiles(us);
+        j[key + "p50_us_" + tag] = p.p50;
+        j[key + "p99_us_" + tag] = p.p99;
+        j[key + "max_us_" + tag] = p.max;
+        j[key + "over_1ms_" + tag] = misses;
+        j[key + "steps_" + tag] = haptic_steps;
+        j[key + "max_free_vertices_" + tag] = max_free;
+        j[key + "settled_force_error_" + tag] = (force - reference).norm() / reference.norm();
+        if (solver == HapticSolver::Factored) {
+          j["haptic_factorizations_" + tag] = h.factorizations();
+          j["haptic_last_factor_ms_" + tag] = 1e3 * h.last_factor_seconds();
+          j["haptic_factored_steps_" + tag] = factored;
+          p99 = p.p99;
+        }
+      }
+      return p99;
+    };
+    MeshData d = read_mesh(igea);
+    const Mesh scan(d.V, d.F);
+    const double p_scan = haptic(scan, "igea134k");
+    GeneratedMesh sub = subdivide_midpoint(d.V, d.F);
+    sub = subdivide_midpoint(sub.V, sub.F);
+    const double p_big = haptic(Mesh(sub.V, sub.F), "igea_subdivided_2m");
+    j["haptic_p99_ratio_2m_over_134k"] = p_big / p_scan;
+  } else {
+    warn(igea.string() + " not found; haptic figures skipped");
+  }
+}
+
 }  // namespace
 
 nlohmann::json run_standard_benchmarks(const BenchOptions& options) {
@@ -174,12 +276,18 @@ nlohmann::json run_standard_benchmarks(const BenchOptions& options) {
   };
   const bool quick = options.quick, large = options.large;
   nlohmann::json j;
+  if (!options.only.empty() && options.only != "haptic")
+    throw InputError(fmt::format("bench: no section '{}' (--only takes: haptic)", options.only));
   const int reps = quick ? 3 : 10;
   const int steps = quick ? 300 : 1000;
   j["quick"] = quick;
   if (options.threads > 0) set_max_threads(options.threads);
   j["threads"] = max_threads();
   j["openmp"] = openmp_available();
+  if (options.only == "haptic") {
+    haptic_figures(options, j);
+    return j;
+  }
 
   progress("icosphere level 8 (655k vertices): build");
   auto t0 = clock_type::now();
@@ -652,51 +760,7 @@ nlohmann::json run_standard_benchmarks(const BenchOptions& options) {
       "icospheres scaled to mean edge length 1; alpha 1, b1 1, b2 0.01, g0 1, g1 0, g2 100; dt 1 ms; "
       "handle moved along the inward normal to depth 0.5 and back; CG rel. tol 1e-6";
 
-  // Haptic poke on a real scan and on the same scan subdivided twice (2.15M vertices):
-  // the default haptic session, pressed along the inward normal to half an edge over
-  // 0.5 s and held, stepped at 1 kHz (dt = 1 ms) as fast as it goes.
-  const auto igea = options.data_dir / "igea-134k.ply";
-  if (std::filesystem::exists(igea)) {
-    auto haptic = [&](const Mesh& mesh, const std::string& tag) {
-      progress("haptic poke on " + tag);
-      const FemOperators ops = build_operators(mesh);
-      HapticSession h(mesh, ops);
-      const int v = mesh.num_vertices() / 3;
-      Eigen::Vector3d n = Eigen::Vector3d::Zero();
-      for (int w : mesh.neighbors(v)) n += (mesh.positions().row(w) - mesh.positions().row(v)).transpose();
-      n.normalize();
-      const double depth = 0.5 * mean_edge_length(mesh);
-      h.touch(v);
-      std::vector<double> us;
-      int max_free = 0, misses = 0;
-      for (int k = 1; k <= steps; ++k) {
-        h.move_probe(std::min(1.0, k / (0.5 * steps)) * depth * n);
-        const auto t = clock_type::now();
-        h.step(1e-3);
-        const double lat = seconds_since(t) * 1e6;
-        us.push_back(lat);
-        misses += lat > 1000;
-        max_free = std::max(max_free, h.pde().domain().num_free());
-      }
-      const Percentiles p = percentiles(us);
-      j["haptic_p50_us_" + tag] = p.p50;
-      j["haptic_p99_us_" + tag] = p.p99;
-      j["haptic_max_us_" + tag] = p.max;
-      j["haptic_over_1ms_" + tag] = misses;
-      j["haptic_max_free_vertices_" + tag] = max_free;
-      j["haptic_vertices_" + tag] = mesh.num_vertices();
-      return p.p99;
-    };
-    MeshData d = read_mesh(igea);
-    const Mesh scan(d.V, d.F);
-    const double p_scan = haptic(scan, "igea134k");
-    GeneratedMesh sub = subdivide_midpoint(d.V, d.F);
-    sub = subdivide_midpoint(sub.V, sub.F);
-    const double p_big = haptic(Mesh(sub.V, sub.F), "igea_subdivided_2m");
-    j["haptic_p99_ratio_2m_over_134k"] = p_big / p_scan;
-  } else {
-    warn(igea.string() + " not found; haptic figures skipped");
-  }
+  haptic_figures(options, j);
 
   const auto bunny = options.data_dir / "bunny-36k.obj";
   if (std::filesystem::exists(bunny)) {

@@ -16,6 +16,7 @@ struct BenchOptions {
   bool quick = false;  ///< fewer repetitions and steps (the same meshes)
   bool large = false;  ///< also the global solves on the 655k and 2.6M icospheres (minutes, several GB)
   int threads = 0;     ///< thread limit for the whole run; 0: every core
+  std::string only;    ///< one section alone: "haptic" (the haptic_* figures); empty: everything
   /// Where the real meshes are (igea-134k.ply, bunny-36k.obj, fertility-4k.off); a
   /// missing one leaves its figures out with a warning.
   std::filesystem::path data_dir;

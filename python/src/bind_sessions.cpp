@@ -197,16 +197,27 @@ constrained vertex (the force the constraint applies to hold it).)doc")
           py::arg("f") = py::none());
 
   const HapticParams h0;
-  py::class_<PyHapticSession>(m, "HapticSession",
-                              R"doc(HapticSession(V, F, influence=0, stiffness=1, mass=1e-2, damping=0.2, ...)
+  py::class_<PyHapticSession>(
+      m, "HapticSession",
+      R"doc(HapticSession(V, F, influence=0, stiffness=1, mass=1e-2, damping=0.2, ..., solver="factored")
 
 A probe holds a vertex (touch) and moves (move_probe, an offset in mesh units); each
 step(dt) returns the force felt by the probe (3,), pushing back out of a dent. start()
 runs the steps on a servo thread at rate_hz; log() returns every step. influence: the
-decay length of a poke (0: 3 mean edge lengths).)doc")
+decay length of a poke (0: 3 mean edge lengths). solver: "factored" (each step two
+triangular sweeps with a factor of the active domain, rebuilt on a second thread: a
+bounded step) or "cg" (Jacobi-CG every step). A loop that steps faster than real time
+waits for each factor, so its forces are the same in every run.)doc")
       .def(py::init([](const py::handle& V, const py::handle& F, double influence, double stiffness, double mass,
-                       double damping, double stiffness_damping, double domain_tolerance, double rate_hz) {
+                       double damping, double stiffness_damping, double domain_tolerance, double rate_hz,
+                       const std::string& solver) {
              HapticParams p;
+             if (solver == "factored")
+               p.solver = HapticSolver::Factored;
+             else if (solver == "cg")
+               p.solver = HapticSolver::Cg;
+             else
+               throw py::value_error(fmt::format("solver: expected 'factored' or 'cg', got '{}'", solver));
              p.influence = influence;
              p.stiffness = stiffness;
              p.mass = mass;
@@ -219,7 +230,7 @@ decay length of a poke (0: 3 mean edge lengths).)doc")
            py::arg("V"), py::arg("F"), py::arg("influence") = h0.influence, py::arg("stiffness") = h0.stiffness,
            py::arg("mass") = h0.mass, py::arg("damping") = h0.damping,
            py::arg("stiffness_damping") = h0.stiffness_damping, py::arg("domain_tolerance") = h0.domain_tolerance,
-           py::arg("rate_hz") = h0.rate_hz)
+           py::arg("rate_hz") = h0.rate_hz, py::arg("solver") = "factored")
       .def(
           "touch", [](PyHapticSession& p, long long v) { p.s->touch(vertex_arg(v, "vertex", p.mesh.num_vertices())); },
           py::arg("vertex"))
@@ -256,10 +267,11 @@ decay length of a poke (0: 3 mean edge lengths).)doc")
       .def_property_readonly("displacement", [](const PyHapticSession& p) { return to_numpy(p.s->displacement()); })
       .def_property_readonly("active_vertices", [](const PyHapticSession& p) { return p.s->active_vertices(); })
       .def_property_readonly("misses", [](const PyHapticSession& p) { return p.s->misses(); })
+      .def_property_readonly("factorizations", [](const PyHapticSession& p) { return p.s->factorizations(); })
       .def("log", [](const PyHapticSession& p) {
         const std::vector<HapticSample> log = p.s->log();
         const auto n = static_cast<Eigen::Index>(log.size());
-        Eigen::VectorXd t(n), latency(n), free(n), iters(n), missed(n);
+        Eigen::VectorXd t(n), latency(n), free(n), iters(n), missed(n), factored(n);
         Eigen::MatrixXd probe(n, 3), force(n, 3);
         for (Eigen::Index i = 0; i < n; ++i) {
           const HapticSample& s = log[static_cast<std::size_t>(i)];
@@ -270,6 +282,7 @@ decay length of a poke (0: 3 mean edge lengths).)doc")
           free[i] = s.free_vertices;
           iters[i] = s.cg_iterations;
           missed[i] = s.missed;
+          factored[i] = s.factored;
         }
         py::dict d;
         d["time"] = to_numpy(t);
@@ -279,6 +292,7 @@ decay length of a poke (0: 3 mean edge lengths).)doc")
         d["free_vertices"] = to_numpy(free);
         d["cg_iterations"] = to_numpy(iters);
         d["missed"] = to_numpy(missed);
+        d["factored"] = to_numpy(factored);
         return d;
       });
 

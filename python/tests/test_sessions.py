@@ -25,10 +25,11 @@ def dirichlet_solve(A, held, values):
     return x
 
 
-def test_haptic_settled_force_matches_a_full_matrix_solve():
+@pytest.mark.parametrize("solver", ["factored", "cg"])
+def test_haptic_settled_force_matches_a_full_matrix_solve(solver):
     # The C++ test Haptics.SettledForceMatchesAnIndependentFullMatrixSolve, from Python.
     V, F = unit_edge_icosphere(4)
-    h = meshpde.HapticSession(V, F)
+    h = meshpde.HapticSession(V, F, solver=solver)
     v, offset = 5, np.array([0.1, -0.25, 0.05])
     h.touch(v)
     h.move_probe(offset)
@@ -43,6 +44,16 @@ def test_haptic_settled_force_matches_a_full_matrix_solve():
     assert h.active_vertices < len(V) / 2
     log = h.log()
     assert log["force"].shape == (300, 3) and np.allclose(log["force"][-1], f)
+    if solver == "factored":  # steps back to back wait for each factor: all but the first few use one
+        assert h.factorizations > 1 and log["factored"][-100:].all()
+    else:
+        assert h.factorizations == 0 and not log["factored"].any()
+
+
+def test_haptic_session_names_a_bad_solver():
+    V, F = unit_edge_icosphere(2)
+    with pytest.raises(ValueError, match="solver"):
+        meshpde.HapticSession(V, F, solver="multigrid")
 
 
 def test_pde_session_steady_reaction_is_the_assembled_row():

@@ -8,7 +8,14 @@
 #include <cmath>
 #include <sstream>
 
+#ifdef __linux__
+#include <sys/resource.h>
+#include <sys/syscall.h>
+#include <unistd.h>
+#endif
+
 #include "meshpde/core/errors.h"
+#include "meshpde/core/parallel.h"
 #include "meshpde/mesh/topology.h"
 
 namespace meshpde {
@@ -32,17 +39,133 @@ HapticSession::HapticSession(const Mesh& mesh, const FemOperators& ops, const Ha
   // exp(-r / (sqrt 2 L)): a larger threshold clamps the plate too close and stiffens the
   // force (measured: 3e-3 of an edge, 7 % too stiff; 1e-2, 17 %), a smaller one grows the
   // domain. 1e-3 keeps the settled force within 1 % of a full-mesh solve (tested).
-  const DomainOptions d{.self_adjusting = true,
+  // Factored: the session only proposes domain changes; they take effect with the
+  // factor of the new domain (install_ready_factor).
+  const DomainOptions d{.self_adjusting = params.solver == HapticSolver::Cg,
                         .grow_fraction = params.domain_tolerance,
                         .rest_value = 1e-3 * h,
                         .rest_rate = 1e-2 * h,
                         .seed_rings = 2};
   session_ = std::make_unique<PdeSession>(mesh, ops, 3, c, d);
   session_->cg_options = params.cg;
+  // The published copy is allocated (and its pages touched) here, not in the first step:
+  // on a 2M-vertex mesh that first copy alone took 23 ms.
+  snapshot_ = Field::Zero(mesh.num_vertices(), 3);
+  log_.reserve(params.max_log);
+  if (params.solver == HapticSolver::Factored) builder_ = std::thread([this] { builder_loop(); });
 }
 
 HapticSession::~HapticSession() {
   stop();
+  {
+    std::lock_guard lock(builder_mutex_);
+    builder_stop_ = true;
+  }
+  builder_cv_.notify_all();
+  if (builder_.joinable()) builder_.join();
+}
+
+std::string HapticSession::factor_error() const {
+  std::lock_guard lock(builder_mutex_);
+  return factor_error_;
+}
+
+void HapticSession::install_ready_factor(int contact) {
+  std::optional<FactorReady> r;
+  {
+    std::lock_guard lock(builder_mutex_);
+    if (!ready_) return;
+    r.swap(ready_);
+  }
+  std::shared_ptr<const StepFactor> retired;
+  if (r->contact == contact) {  // else the probe touched elsewhere meanwhile: stale
+    retired = session_->step_factor();
+    session_->set_free_set(r->free, r->to_rest);
+    session_->set_step_factor(std::move(r->factor));
+  } else {
+    retired = std::move(r->factor);
+  }
+  // Freeing a factor (megabytes) is the builder's work, not the servo's.
+  if (retired) {
+    std::lock_guard lock(builder_mutex_);
+    retired_.push_back(std::move(retired));
+  }
+}
+
+void HapticSession::propose_factor(double dt, int contact) {
+  // Every step, so that the rest counters advance as in a self-adjusting session.
+  DomainChange change = session_->propose_domain_change();
+  {
+    std::lock_guard lock(builder_mutex_);
+    if (building_ || job_ || ready_ || !factor_error_.empty()) return;
+  }
+  const bool stale = !session_->step_factor_applies(dt);
+  if (change.empty() && (!stale || session_->domain().num_free() == 0)) return;
+  FactorJob job;
+  job.dt = dt;
+  job.contact = contact;
+  job.coefficients = session_->coefficients();
+  std::sort(change.shrink.begin(), change.shrink.end());
+  for (const int v : session_->domain().free_vertices())
+    if (!std::binary_search(change.shrink.begin(), change.shrink.end(), v)) job.free.push_back(v);
+  job.free.insert(job.free.end(), change.grow.begin(), change.grow.end());
+  job.to_rest = std::move(change.shrink);
+  if (job.free.empty()) {  // everything at rest: nothing to factor
+    session_->set_free_set({}, job.to_rest);
+    session_->set_step_factor(nullptr);
+    return;
+  }
+  {
+    std::lock_guard lock(builder_mutex_);
+    job_ = std::move(job);
+  }
+  builder_cv_.notify_one();
+}
+
+HapticSession::FactorReady HapticSession::build_factor(FactorJob job) {
+  FactorReady r;
+  r.factor = std::make_shared<StepFactor>(mesh_, ops_, job.coefficients, job.free, job.dt);
+  ++factorizations_;
+  last_factor_seconds_ = r.factor->build_seconds();
+  r.free = std::move(job.free);
+  r.to_rest = std::move(job.to_rest);
+  r.contact = job.contact;
+  return r;
+}
+
+void HapticSession::builder_loop() {
+  // One core at most, and below the servo's priority: the servo thread must never wait
+  // for this one.
+  const ThreadLimit one_thread(1);
+#ifdef __linux__
+  setpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid)), 10);
+#endif
+  std::unique_lock lock(builder_mutex_);
+  for (;;) {
+    builder_cv_.wait(lock, [&] { return builder_stop_ || job_.has_value(); });
+    if (builder_stop_) return;
+    std::vector<std::shared_ptr<const StepFactor>> retired;
+    retired.swap(retired_);
+    FactorJob job = std::move(*job_);
+    job_.reset();
+    building_ = true;
+    lock.unlock();
+    retired.clear();
+    std::optional<FactorReady> r;
+    std::string error;
+    try {
+      r = build_factor(std::move(job));
+    } catch (const std::exception& e) {
+      error = e.what();
+    }
+    lock.lock();
+    building_ = false;
+    if (r)
+      ready_ = std::move(r);
+    else
+      factor_error_ = "haptic step factor: " + error + "; stepping with CG from now on";
+    built_cv_.notify_all();
+  }
 }
 
 void HapticSession::touch(int vertex) {
@@ -92,6 +215,13 @@ int HapticSession::contact_vertex() const {
 
 Eigen::Vector3d HapticSession::step(double dt) {
   std::lock_guard lock(mutex_);
+  const auto now = std::chrono::steady_clock::now();
+  const bool ahead_of_real_time = last_step_ && std::chrono::duration<double>(now - *last_step_).count() < 0.5 * dt;
+  last_step_ = now;
+  if (ahead_of_real_time && params_.solver == HapticSolver::Factored) {
+    std::unique_lock wait(builder_mutex_);
+    built_cv_.wait(wait, [&] { return !building_ && !job_; });
+  }
   return step_locked(dt, {});
 }
 
@@ -103,9 +233,12 @@ Eigen::Vector3d HapticSession::step_locked(double dt, std::chrono::steady_clock:
     probe = probe_;
   }
   const int contact = contact_;  // changes only under mutex_, which this step holds
+  const bool factored = params_.solver == HapticSolver::Factored;
+  if (factored) install_ready_factor(contact);
   if (contact >= 0) session_->constrain(contact, std::span<const double>(probe.data(), 3));
   session_->cg_options.deadline = deadline;
   const StepResult r = session_->step(dt);
+  if (factored) propose_factor(dt, contact);
   const Eigen::Vector3d force =
       contact >= 0 ? Eigen::Vector3d(-session_->reaction_forces().row(0).transpose()) : Eigen::Vector3d::Zero();
   {
@@ -120,6 +253,7 @@ Eigen::Vector3d HapticSession::step_locked(double dt, std::chrono::steady_clock:
   s.latency_us = std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count();
   s.free_vertices = r.free_vertices;
   s.cg_iterations = r.cg.iterations;
+  s.factored = r.factored;
   s.missed = r.cg.status == CgStatus::Deadline || s.latency_us > 1e6 * dt;
   {
     std::lock_guard io(io_mutex_);
@@ -129,9 +263,14 @@ Eigen::Vector3d HapticSession::step_locked(double dt, std::chrono::steady_clock:
       recent_[recent_next_++ % recent_.size()] = static_cast<float>(s.latency_us);
   }
   if (s.missed) ++misses_;
-  if (log_.size() >= params_.max_log)
-    log_.erase(log_.begin(), log_.begin() + static_cast<std::ptrdiff_t>(log_.size() / 2));
-  log_.push_back(s);
+  // A ring of the last max_log samples, its room reserved up front: a step never copies
+  // the log (growing or halving a 200,000-sample vector moved 10-20 MB, milliseconds).
+  if (log_.size() < params_.max_log) {
+    log_.push_back(s);
+  } else if (!log_.empty()) {
+    log_[log_next_] = s;
+    log_next_ = (log_next_ + 1) % log_.size();
+  }
   publish();
   return force;
 }
@@ -213,7 +352,11 @@ double HapticSession::recent_p99_us() const {
 
 std::vector<HapticSample> HapticSession::log() const {
   std::lock_guard lock(mutex_);
-  return log_;
+  std::vector<HapticSample> out;
+  out.reserve(log_.size());
+  out.insert(out.end(), log_.begin() + static_cast<std::ptrdiff_t>(log_next_), log_.end());
+  out.insert(out.end(), log_.begin(), log_.begin() + static_cast<std::ptrdiff_t>(log_next_));
+  return out;
 }
 
 std::vector<ProbePathPoint> parse_probe_path(const std::string& text, const std::string& name) {

@@ -8,17 +8,32 @@
 // (g0 in force / length^3 x area, etc.); with the defaults below, a displacement in
 // mesh units gives a force in "mesh units" too: scale it to your device.
 //
+// Solver (HapticParams::solver). Factored, the default: each step is two triangular
+// sweeps with a sparse Cholesky factor of the step matrix on the active domain
+// (pde/step_factor.h), a cost that does not depend on the probe's motion. The domain
+// is adjusted by PdeSession's self-adjusting rule, but a change takes effect only when
+// the factor of the new domain is ready: a second thread builds it while the servo
+// keeps stepping on the last one (the domain then lags its growth by one build, a few
+// milliseconds). Before the first factor of a touch is ready, the step uses CG on the
+// few seed rings. A caller that steps faster than real time (an offline replay, a test:
+// less than dt / 2 of wall time since the previous step began) waits in step() for a
+// factor being built, so it sees every factor one step after asking for it, the same
+// forces in every run. Cg: Jacobi-CG every step on a domain that adjusts itself after every
+// step; fast on average, but its iteration count, hence its time, is not bounded.
+//
 // Threading: step() may be called directly (replay, tests), or start() runs a
 // fixed-rate servo loop on its own thread that steps at `rate_hz` with a per-step
-// deadline: if a solve cannot finish before the next tick, CG stops with its current
+// deadline: if a CG solve cannot finish before the next tick, CG stops with its current
 // iterate (the best available force is returned) and the miss is counted. Probe
 // commands (touch, move_probe, release) and force reads are thread-safe.
 #pragma once
 
 #include <Eigen/Core>
 #include <atomic>
+#include <condition_variable>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <thread>
 #include <vector>
@@ -28,6 +43,12 @@
 #include "meshpde/pde/pde_session.h"
 
 namespace meshpde {
+
+/// How a haptic step is solved (see the top of this file).
+enum class HapticSolver {
+  Factored,  ///< a factor of the step matrix on the domain, rebuilt on a second thread
+  Cg,        ///< Jacobi-CG every step
+};
 
 /// Defaults give a light, critically damped surface (settles in about 0.3 s)
 /// whose step system is well conditioned at 1 kHz: the inertia term (alpha + b1 dt) M
@@ -44,13 +65,14 @@ struct HapticParams {
   /// largest motion (DomainOptions::grow_fraction).
   double domain_tolerance = 5e-2;
   double rate_hz = 1000;  ///< servo rate of start()
+  HapticSolver solver = HapticSolver::Factored;
   /// Per step, relative to the step's right-hand side. 5e-4 keeps the force trajectory of a
   /// moving probe within 1 % of a 1e-10 solve (tested; measured 0.65 %; 1e-3 gives 1.2 %).
   /// Past its deadline a step still iterates to 1e-2 (late_tolerance): on a machine
   /// too slow for the rate the servo runs late (counted as misses) but stays stable.
   CgOptions cg{.tolerance = 5e-4, .max_iterations = 500, .deadline = {}, .min_iterations = 2, .late_tolerance = 1e-2};
-  /// The servo loop keeps at most this many samples in log() (the oldest half is
-  /// dropped when it fills), so a session can run for hours.
+  /// log() keeps the last this many samples (room reserved when the session is made,
+  /// about 100 bytes a sample), so a session can run for hours.
   std::size_t max_log = 200000;
 };
 
@@ -62,7 +84,8 @@ struct HapticSample {
   double latency_us = 0;                            ///< wall time of the step
   int free_vertices = 0;                            ///< active domain size
   int cg_iterations = 0;
-  bool missed = false;  ///< the step overran its period (or hit the deadline)
+  bool factored = false;  ///< solved with the domain's factor (HapticSolver::Factored), not CG
+  bool missed = false;    ///< the step overran its period (or hit the deadline)
 };
 
 class HapticSession {
@@ -84,7 +107,8 @@ class HapticSession {
   bool touching() const;
   int contact_vertex() const;
 
-  /// One step of length dt; returns the feedback force (zero when not touching).
+  /// One step of length dt; returns the feedback force (zero when not touching). Called
+  /// faster than real time, it first waits for a factor being built (see above).
   Eigen::Vector3d step(double dt);
 
   /// Servo loop on its own thread at params.rate_hz; log() fills as it runs.
@@ -104,6 +128,12 @@ class HapticSession {
   double recent_p99_us() const;
   std::vector<HapticSample> log() const;
   int misses() const { return misses_; }
+  /// Factors of the domain built so far (HapticSolver::Factored), and the wall time of
+  /// the last build (s).
+  int factorizations() const { return factorizations_; }
+  double last_factor_seconds() const { return last_factor_seconds_; }
+  /// Set when a factor could not be built (the session then steps with CG): the reason.
+  std::string factor_error() const;
   const PdeSession& pde() const { return *session_; }
 
  private:
@@ -111,6 +141,22 @@ class HapticSession {
   void publish();  // called under mutex_ after each step
   Eigen::Vector3d step_locked(double dt, std::chrono::steady_clock::time_point deadline);
 
+  // HapticSolver::Factored: the next domain and its factor, built by builder_loop().
+  struct FactorJob {
+    std::vector<int> free, to_rest;
+    double dt = 0;
+    int contact = -1;
+    PdeCoefficients coefficients;
+  };
+  struct FactorReady {
+    std::shared_ptr<const StepFactor> factor;  // null for an empty domain
+    std::vector<int> free, to_rest;
+    int contact = -1;
+  };
+  void install_ready_factor(int contact);
+  void propose_factor(double dt, int contact);
+  FactorReady build_factor(FactorJob job);
+  void builder_loop();
   const Mesh& mesh_;
   const FemOperators& ops_;
   HapticParams params_;
@@ -119,7 +165,8 @@ class HapticSession {
   std::atomic<int> contact_{-1};  // written under mutex_; read without it by touching()
   Eigen::Vector3d probe_ = Eigen::Vector3d::Zero();
   Eigen::Vector3d force_ = Eigen::Vector3d::Zero();
-  std::vector<HapticSample> log_;
+  std::vector<HapticSample> log_;  // a ring once full: log_next_ is the oldest sample
+  std::size_t log_next_ = 0;
   double time_ = 0;
   std::atomic<bool> running_{false};
   std::atomic<int> misses_{0};
@@ -131,6 +178,18 @@ class HapticSession {
   Field snapshot_;
   std::vector<int> published_;
   int snapshot_active_ = 0;
+  // Factor builder: job_ waits for the builder, ready_ for the stepping thread.
+  mutable std::mutex builder_mutex_;
+  std::condition_variable builder_cv_, built_cv_;
+  std::optional<std::chrono::steady_clock::time_point> last_step_;  // when step() last began
+  std::optional<FactorJob> job_;
+  std::optional<FactorReady> ready_;
+  std::vector<std::shared_ptr<const StepFactor>> retired_;  // freed by the builder
+  bool building_ = false, builder_stop_ = false;
+  std::string factor_error_;
+  std::thread builder_;
+  std::atomic<int> factorizations_{0};
+  std::atomic<double> last_factor_seconds_{0};
 };
 
 /// A point of a recorded probe path: at time `t` (seconds) the probe is `offset` (mesh
