@@ -441,6 +441,7 @@ void add_poke_command(CLI::App& app) {
       path = press_path(mesh, v, a->depth);
     }
     a->h.solver = a->solver == "cg" ? HapticSolver::Cg : HapticSolver::Factored;
+    a->h.wait_for_factors = !a->realtime;  // steps back to back: keep the domain up with them
     HapticSession s(mesh, ops, a->h);
     s.touch(v);
     const double period = 1.0 / a->h.rate_hz;

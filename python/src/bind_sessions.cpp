@@ -199,19 +199,21 @@ constrained vertex (the force the constraint applies to hold it).)doc")
   const HapticParams h0;
   py::class_<PyHapticSession>(
       m, "HapticSession",
-      R"doc(HapticSession(V, F, influence=0, stiffness=1, mass=1e-2, damping=0.2, ..., solver="factored")
+      R"doc(HapticSession(V, F, influence=0, stiffness=1, mass=1e-2, damping=0.2, ..., solver="factored", wait_for_factors=False)
 
 A probe holds a vertex (touch) and moves (move_probe, an offset in mesh units); each
 step(dt) returns the force felt by the probe (3,), pushing back out of a dent. start()
 runs the steps on a servo thread at rate_hz; log() returns every step. influence: the
 decay length of a poke (0: 3 mean edge lengths). solver: "factored" (each step two
 triangular sweeps with a factor of the active domain, rebuilt on a second thread: a
-bounded step) or "cg" (Jacobi-CG every step). A loop that steps faster than real time
-waits for each factor, so its forces are the same in every run.)doc")
+bounded step) or "cg" (Jacobi-CG every step). wait_for_factors=True: step() waits for a
+factor being built; set it when stepping faster than real time (a notebook loop, an
+offline replay): the domain then keeps up and the forces are the same in every run.)doc")
       .def(py::init([](const py::handle& V, const py::handle& F, double influence, double stiffness, double mass,
                        double damping, double stiffness_damping, double domain_tolerance, double rate_hz,
-                       const std::string& solver) {
+                       const std::string& solver, bool wait_for_factors) {
              HapticParams p;
+             p.wait_for_factors = wait_for_factors;
              if (solver == "factored")
                p.solver = HapticSolver::Factored;
              else if (solver == "cg")
@@ -230,7 +232,8 @@ waits for each factor, so its forces are the same in every run.)doc")
            py::arg("V"), py::arg("F"), py::arg("influence") = h0.influence, py::arg("stiffness") = h0.stiffness,
            py::arg("mass") = h0.mass, py::arg("damping") = h0.damping,
            py::arg("stiffness_damping") = h0.stiffness_damping, py::arg("domain_tolerance") = h0.domain_tolerance,
-           py::arg("rate_hz") = h0.rate_hz, py::arg("solver") = "factored")
+           py::arg("rate_hz") = h0.rate_hz, py::arg("solver") = "factored",
+           py::arg("wait_for_factors") = h0.wait_for_factors)
       .def(
           "touch", [](PyHapticSession& p, long long v) { p.s->touch(vertex_arg(v, "vertex", p.mesh.num_vertices())); },
           py::arg("vertex"))

@@ -29,7 +29,7 @@ def dirichlet_solve(A, held, values):
 def test_haptic_settled_force_matches_a_full_matrix_solve(solver):
     # The C++ test Haptics.SettledForceMatchesAnIndependentFullMatrixSolve, from Python.
     V, F = unit_edge_icosphere(4)
-    h = meshpde.HapticSession(V, F, solver=solver)
+    h = meshpde.HapticSession(V, F, solver=solver, wait_for_factors=True)  # steps far faster than real time
     v, offset = 5, np.array([0.1, -0.25, 0.05])
     h.touch(v)
     h.move_probe(offset)
@@ -44,7 +44,7 @@ def test_haptic_settled_force_matches_a_full_matrix_solve(solver):
     assert h.active_vertices < len(V) / 2
     log = h.log()
     assert log["force"].shape == (300, 3) and np.allclose(log["force"][-1], f)
-    if solver == "factored":  # steps back to back wait for each factor: all but the first few use one
+    if solver == "factored":  # waiting for each factor: all but the first few steps use one
         assert h.factorizations > 1 and log["factored"][-100:].all()
     else:
         assert h.factorizations == 0 and not log["factored"].any()

@@ -99,8 +99,9 @@ void HapticSession::propose_factor(double dt, int contact) {
     std::lock_guard lock(builder_mutex_);
     if (building_ || job_ || ready_ || !factor_error_.empty()) return;
   }
+  const int free_now = session_->domain().num_free();
   const bool stale = !session_->step_factor_applies(dt);
-  if (change.empty() && (!stale || session_->domain().num_free() == 0)) return;
+  if (change.empty() && (!stale || free_now == 0)) return;
   FactorJob job;
   job.dt = dt;
   job.contact = contact;
@@ -215,10 +216,7 @@ int HapticSession::contact_vertex() const {
 
 Eigen::Vector3d HapticSession::step(double dt) {
   std::lock_guard lock(mutex_);
-  const auto now = std::chrono::steady_clock::now();
-  const bool ahead_of_real_time = last_step_ && std::chrono::duration<double>(now - *last_step_).count() < 0.5 * dt;
-  last_step_ = now;
-  if (ahead_of_real_time && params_.solver == HapticSolver::Factored) {
+  if (params_.wait_for_factors && params_.solver == HapticSolver::Factored) {
     std::unique_lock wait(builder_mutex_);
     built_cv_.wait(wait, [&] { return !building_ && !job_; });
   }

@@ -15,11 +15,11 @@
 // the factor of the new domain is ready: a second thread builds it while the servo
 // keeps stepping on the last one (the domain then lags its growth by one build, a few
 // milliseconds). Before the first factor of a touch is ready, the step uses CG on the
-// few seed rings. A caller that steps faster than real time (an offline replay, a test:
-// less than dt / 2 of wall time since the previous step began) waits in step() for a
-// factor being built, so it sees every factor one step after asking for it, the same
-// forces in every run. Cg: Jacobi-CG every step on a domain that adjusts itself after every
-// step; fast on average, but its iteration count, hence its time, is not bounded.
+// few seed rings. A caller that steps faster than real time (an offline replay, a
+// notebook, a test) sets wait_for_factors: step() then waits for a factor being built,
+// so it sees every factor one step after asking for it (the domains a real-time servo
+// would see at its pace, up to a build's lag) and the same forces in every run. Cg: Jacobi-CG every step on a domain
+// that adjusts itself after every step; fast on average, but its iteration count, hence its time, is not bounded.
 //
 // Threading: step() may be called directly (replay, tests), or start() runs a
 // fixed-rate servo loop on its own thread that steps at `rate_hz` with a per-step
@@ -66,6 +66,10 @@ struct HapticParams {
   double domain_tolerance = 5e-2;
   double rate_hz = 1000;  ///< servo rate of start()
   HapticSolver solver = HapticSolver::Factored;
+  /// Factored only: step() waits for a factor being built (never the servo of start()).
+  /// For callers that step faster than real time: without it their domain falls behind
+  /// by as many steps as a build takes them, and the surface is too stiff meanwhile.
+  bool wait_for_factors = false;
   /// Per step, relative to the step's right-hand side. 5e-4 keeps the force trajectory of a
   /// moving probe within 1 % of a 1e-10 solve (tested; measured 0.65 %; 1e-3 gives 1.2 %).
   /// Past its deadline a step still iterates to 1e-2 (late_tolerance): on a machine
@@ -107,8 +111,8 @@ class HapticSession {
   bool touching() const;
   int contact_vertex() const;
 
-  /// One step of length dt; returns the feedback force (zero when not touching). Called
-  /// faster than real time, it first waits for a factor being built (see above).
+  /// One step of length dt; returns the feedback force (zero when not touching). With
+  /// wait_for_factors it first waits for a factor being built.
   Eigen::Vector3d step(double dt);
 
   /// Servo loop on its own thread at params.rate_hz; log() fills as it runs.
@@ -181,7 +185,6 @@ class HapticSession {
   // Factor builder: job_ waits for the builder, ready_ for the stepping thread.
   mutable std::mutex builder_mutex_;
   std::condition_variable builder_cv_, built_cv_;
-  std::optional<std::chrono::steady_clock::time_point> last_step_;  // when step() last began
   std::optional<FactorJob> job_;
   std::optional<FactorReady> ready_;
   std::vector<std::shared_ptr<const StepFactor>> retired_;  // freed by the builder
