@@ -394,7 +394,8 @@ void add_interpolate_command(CLI::App& app) {
 void add_poke_command(CLI::App& app) {
   auto* cmd = app.add_subcommand("poke", "Replay a probe path on a haptic session: forces, latency, domain size");
   struct Args {
-    std::string mesh, vertex = "0", path, png, view = "30,20", up = "y", size = "960x720", solver = "factored";
+    std::string mesh, vertex = "0", path, png, view = "30,20", up = "y", size = "960x720", solver = "factored",
+                      laplacian;
     double settle = 0.3, depth = 0.5;
     bool json = false, realtime = true;
     HapticParams h;
@@ -420,6 +421,7 @@ void add_poke_command(CLI::App& app) {
                   "or cg (Jacobi-CG every step)")
       ->check(CLI::IsMember({"factored", "cg"}))
       ->capture_default_str();
+  add_laplacian_option(cmd, a->laplacian);
   cmd->add_flag("!--no-realtime", a->realtime,
                 "Step as fast as possible instead of on the real-time servo thread (the factored solver then waits "
                 "for each factor: the same forces every run)");
@@ -429,7 +431,9 @@ void add_poke_command(CLI::App& app) {
   cmd->callback([=] {
     const Mesh mesh = load_mesh(a->mesh);
     const int v = parse_vertex(mesh, a->vertex, "--vertex");
-    const FemOperators ops = build_operators(mesh);
+    // The intrinsic operators live on their own connectivity (same vertices): the
+    // probe runs there, the path and the picture on the input triangles.
+    const MeshOperators mo = build_mesh_operators(mesh, parse_laplacian_kind(a->laplacian));
     std::vector<ProbePathPoint> path;
     if (!a->path.empty()) {
       std::ifstream in(a->path, std::ios::binary);
@@ -442,7 +446,7 @@ void add_poke_command(CLI::App& app) {
     }
     a->h.solver = a->solver == "cg" ? HapticSolver::Cg : HapticSolver::Factored;
     a->h.wait_for_factors = !a->realtime;  // steps back to back: keep the domain up with them
-    HapticSession s(mesh, ops, a->h);
+    HapticSession s(mo.mesh, mo.ops, a->h);
     s.touch(v);
     const double period = 1.0 / a->h.rate_hz;
     const double t_end = path.back().t;
@@ -514,6 +518,7 @@ void add_poke_command(CLI::App& app) {
                            {"missed", x.missed}});
       print_json({{"vertex", v},
                   {"solver", a->h.solver == HapticSolver::Cg ? "cg" : "factored"},
+                  {"laplacian", to_string(mo.kind)},
                   {"factorizations", s.factorizations()},
                   {"rate", a->h.rate_hz},
                   {"realtime", a->realtime},

@@ -13,6 +13,7 @@
 #include "convert.h"
 #include "meshpde/apps/haptics.h"
 #include "meshpde/apps/local_drag.h"
+#include "meshpde/operators/laplacian.h"
 #include "meshpde/pde/global_bilaplacian.h"
 #include "meshpde/pde/pde_session.h"
 
@@ -49,11 +50,10 @@ struct PyPdeSession {
 };
 
 struct PyHapticSession {
-  Mesh mesh;
-  FemOperators ops;
+  MeshOperators mo;  // on the intrinsic connectivity when asked for (same vertices)
   std::unique_ptr<HapticSession> s;
-  PyHapticSession(const py::handle& V, const py::handle& F, const HapticParams& p)
-      : mesh(mesh_arg(V, F)), ops(build_operators(mesh)), s(std::make_unique<HapticSession>(mesh, ops, p)) {}
+  PyHapticSession(const py::handle& V, const py::handle& F, const HapticParams& p, LaplacianKind kind)
+      : mo(build_mesh_operators(mesh_arg(V, F), kind)), s(std::make_unique<HapticSession>(mo.mesh, mo.ops, p)) {}
 };
 
 struct PyDragSession {
@@ -199,7 +199,7 @@ constrained vertex (the force the constraint applies to hold it).)doc")
   const HapticParams h0;
   py::class_<PyHapticSession>(
       m, "HapticSession",
-      R"doc(HapticSession(V, F, influence=0, stiffness=1, mass=1e-2, damping=0.2, ..., solver="factored", wait_for_factors=False)
+      R"doc(HapticSession(V, F, influence=0, stiffness=1, ..., solver="factored", wait_for_factors=False, laplacian="auto")
 
 A probe holds a vertex (touch) and moves (move_probe, an offset in mesh units); each
 step(dt) returns the force felt by the probe (3,), pushing back out of a dent. start()
@@ -208,10 +208,12 @@ decay length of a poke (0: 3 mean edge lengths). solver: "factored" (each step t
 triangular sweeps with a factor of the active domain, rebuilt on a second thread: a
 bounded step) or "cg" (Jacobi-CG every step). wait_for_factors=True: step() waits for a
 factor being built; set it when stepping faster than real time (a notebook loop, an
-offline replay): the domain then keeps up and the forces are the same in every run.)doc")
+offline replay): the domain then keeps up and the forces are the same in every run.
+laplacian: "auto" (intrinsic Delaunay on badly shaped or non-manifold meshes), "cotan"
+or "intrinsic".)doc")
       .def(py::init([](const py::handle& V, const py::handle& F, double influence, double stiffness, double mass,
                        double damping, double stiffness_damping, double domain_tolerance, double rate_hz,
-                       const std::string& solver, bool wait_for_factors) {
+                       const std::string& solver, bool wait_for_factors, const std::string& laplacian) {
              HapticParams p;
              p.wait_for_factors = wait_for_factors;
              if (solver == "factored")
@@ -227,15 +229,16 @@ offline replay): the domain then keeps up and the forces are the same in every r
              p.stiffness_damping = stiffness_damping;
              p.domain_tolerance = domain_tolerance;
              p.rate_hz = rate_hz;
-             return std::make_unique<PyHapticSession>(V, F, p);
+             return std::make_unique<PyHapticSession>(V, F, p, parse_laplacian_kind(laplacian));
            }),
            py::arg("V"), py::arg("F"), py::arg("influence") = h0.influence, py::arg("stiffness") = h0.stiffness,
            py::arg("mass") = h0.mass, py::arg("damping") = h0.damping,
            py::arg("stiffness_damping") = h0.stiffness_damping, py::arg("domain_tolerance") = h0.domain_tolerance,
            py::arg("rate_hz") = h0.rate_hz, py::arg("solver") = "factored",
-           py::arg("wait_for_factors") = h0.wait_for_factors)
+           py::arg("wait_for_factors") = h0.wait_for_factors, py::arg("laplacian") = "auto")
       .def(
-          "touch", [](PyHapticSession& p, long long v) { p.s->touch(vertex_arg(v, "vertex", p.mesh.num_vertices())); },
+          "touch",
+          [](PyHapticSession& p, long long v) { p.s->touch(vertex_arg(v, "vertex", p.mo.mesh.num_vertices())); },
           py::arg("vertex"))
       .def(
           "touch_point", [](PyHapticSession& p, const py::handle& x) { p.s->touch_point(vector_arg(x, "point", 3)); },

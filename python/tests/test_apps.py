@@ -197,3 +197,26 @@ def test_correct_solvers_agree_with_the_direct_one_and_the_cli(cli, ico, tmp_pat
     assert np.abs(meshpde.read_mesh(out)[0] - direct.V).max() <= 1e-7 * 0.1
     with pytest.raises(meshpde.InputError, match="static fem"):
         meshpde.correct(V, F, [0], [(0, 0, 0.1)], radius=0.6, solver=solver, dynamic=True)
+
+
+@pytest.mark.parametrize("laplacian", ["cotan", "intrinsic"])
+def test_poke_with_either_laplacian_equals_the_python_session(cli, ico, tmp_path, laplacian):
+    # On the icosphere (Delaunay already) both operators are the same: the same forces.
+    # Steps back to back wait for each factor, so the two runs see the same domains.
+    path, V, F = ico
+    probe = tmp_path / "probe.csv"
+    probe.write_text("0,0,0,0\n0.05,-0.02,0.01,-0.03\n0.08,-0.02,0.01,-0.03\n")
+    report = cli("poke", path, "--vertex", 5, "--path", probe, "--settle", 0, "--no-realtime", "--laplacian", laplacian,
+                 "--json", json_out=True)
+    assert report["laplacian"] == laplacian and report["solver"] == "factored"
+    h = meshpde.HapticSession(V, F, wait_for_factors=True, laplacian=laplacian)
+    h.touch(5)
+    forces = []
+    for k in range(1, len(report["samples"]) + 1):
+        t = k * 1e-3
+        h.move_probe(np.array([-0.02, 0.01, -0.03]) * min(1.0, t / 0.05))
+        forces.append(h.step(1e-3))
+    cli_forces = np.array([s["force"] for s in report["samples"]])
+    assert rel_diff(np.array(forces), cli_forces) <= 1e-9
+    with pytest.raises(meshpde.InputError, match="laplacian|cotan"):
+        meshpde.HapticSession(V, F, laplacian="spectral")
