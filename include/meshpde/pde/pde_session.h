@@ -143,7 +143,9 @@ class PdeSession {
 
   /// Steps use `factor` instead of CG while the free set is exactly factor->vertices()
   /// (in any order) and dt and the coefficients are the factor's; other steps (and
-  /// steady solves) use CG as before. nullptr: CG only.
+  /// steady solves) use CG as before. nullptr: CG only. The factor must have been built
+  /// on this session's mesh and operators (only its vertex numbers are checked).
+  /// \throw InputError for a vertex the mesh does not have.
   void set_step_factor(std::shared_ptr<const StepFactor> factor);
   const std::shared_ptr<const StepFactor>& step_factor() const { return factor_; }
   /// Whether a step of size dt now would use the step factor.
