@@ -165,8 +165,7 @@ PokeFigures poke(const Mesh& mesh, const FemOperators& ops, int steps, bool full
   return out;
 }
 
-// Haptic poke on a real scan and on the same scan subdivided twice (2.15M vertices):
-// haptic_* figures (BenchOptions::only = "haptic" runs these alone).
+// The haptic_* figures (BenchOptions::only = "haptic" runs these alone).
 void haptic_figures(const BenchOptions& options, nlohmann::json& j) {
   const auto progress = [&](const std::string& what) {
     if (options.progress) options.progress(what);

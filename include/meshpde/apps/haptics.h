@@ -13,13 +13,13 @@
 // (pde/step_factor.h), a cost that does not depend on the probe's motion. The domain
 // is adjusted by PdeSession's self-adjusting rule, but a change takes effect only when
 // the factor of the new domain is ready: a second thread builds it while the servo
-// keeps stepping on the last one (the domain then lags its growth by one build, a few
+// keeps stepping on the last one (the domain lags its growth by one build, a few
 // milliseconds). Before the first factor of a touch is ready, the step uses CG on the
 // few seed rings. A caller that steps faster than real time (an offline replay, a
 // notebook, a test) sets wait_for_factors: step() then waits for a factor being built,
-// so it sees every factor one step after asking for it (the domains a real-time servo
-// would see at its pace, up to a build's lag) and the same forces in every run. Cg: Jacobi-CG every step on a domain
-// that adjusts itself after every step; fast on average, but its iteration count, hence its time, is not bounded.
+// so its domain keeps up with its steps and every run gives the same forces.
+// Cg: Jacobi-CG every step on a domain that adjusts itself after every step; fast on
+// average, but its iteration count, hence its time, has no bound.
 //
 // Threading: step() may be called directly (replay, tests), or start() runs a
 // fixed-rate servo loop on its own thread that steps at `rate_hz` with a per-step
