@@ -193,9 +193,23 @@ void haptic_figures(const BenchOptions& options, nlohmann::json& j) {
       for (int w : mesh.neighbors(v)) n += (mesh.positions().row(w) - mesh.positions().row(v)).transpose();
       n.normalize();
       const double depth = 0.5 * mean_edge_length(mesh);
+      // The factored session, the CG session and the fixed work (below).
+      struct Run {
+        std::string key;
+        std::unique_ptr<HapticSession> session;  // null: the fixed work
+        std::vector<double> us;
+        int steps = 0, max_free = 0;
+        Eigen::Vector3d force = Eigen::Vector3d::Zero();
+      };
+      std::vector<Run> runs(3);
+      runs[0].key = "haptic_";
+      runs[0].session = std::make_unique<HapticSession>(mesh, ops, HapticParams{.solver = HapticSolver::Factored});
+      runs[1].key = "haptic_cg_";
+      runs[1].session = std::make_unique<HapticSession>(mesh, ops, HapticParams{.solver = HapticSolver::Cg});
+      runs[2].key = "haptic_fixed_work_";
       // The reference: Kt u = 0 with u held at the contact's final offset.
       progress("haptic reference solve on " + tag);
-      const PdeCoefficients c = HapticSession(mesh, ops, {.solver = HapticSolver::Cg}).pde().coefficients();
+      const PdeCoefficients c = runs[0].session->pde().coefficients();
       std::vector<int> free;
       if (mesh.num_vertices() <= 500000) {
         for (int i = 0; i < mesh.num_vertices(); ++i)
@@ -215,25 +229,11 @@ void haptic_figures(const BenchOptions& options, nlohmann::json& j) {
       // Three workloads, each stepped at 1 kHz (a step, then a sleep to the next tick) in
       // blocks of 500 steps that take turns, so that the machine's quiet and busy spells
       // fall on all three alike: the factored session, the CG session, and a fixed amount
-      // of arithmetic (the machine's own floor:
-      // every one of its steps does the same work, so a step of it over 1 ms is the
-      // machine, preemption or the hypervisor, not a solver). The fixed work is 400 us,
-      // more than either solver's median.
+      // of arithmetic (the machine's own floor: every one of its steps does the same work,
+      // so a step of it over 1 ms is the machine, preemption or the hypervisor, not a
+      // solver). The fixed work is 400 us, more than either solver's median.
       progress(
           fmt::format("haptic poke on {}: factored, CG and fixed work, {} steps each at 1 kHz", tag, haptic_steps));
-      struct Run {
-        std::string key;
-        std::unique_ptr<HapticSession> session;  // null: the fixed work
-        std::vector<double> us;
-        int steps = 0, max_free = 0;
-        Eigen::Vector3d force = Eigen::Vector3d::Zero();
-      };
-      std::vector<Run> runs(3);
-      runs[0].key = "haptic_";
-      runs[0].session = std::make_unique<HapticSession>(mesh, ops, HapticParams{.solver = HapticSolver::Factored});
-      runs[1].key = "haptic_cg_";
-      runs[1].session = std::make_unique<HapticSession>(mesh, ops, HapticParams{.solver = HapticSolver::Cg});
-      runs[2].key = "haptic_fixed_work_";
       for (int r = 0; r < 2; ++r) runs[static_cast<std::size_t>(r)].session->touch(v);
       std::vector<double> work(20000, 1.0);
       double sink = 0;

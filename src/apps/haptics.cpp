@@ -80,7 +80,7 @@ void HapticSession::install_ready_factor(int contact) {
   std::shared_ptr<const StepFactor> retired;
   if (r->contact == contact) {  // else the probe touched elsewhere meanwhile: stale
     retired = session_->step_factor();
-    session_->set_free_set(r->free, r->to_rest);
+    session_->set_free_set(r->factor->vertices(), r->to_rest);
     session_->set_step_factor(std::move(r->factor));
   } else {
     retired = std::move(r->factor);
@@ -125,10 +125,9 @@ void HapticSession::propose_factor(double dt, int contact) {
 
 HapticSession::FactorReady HapticSession::build_factor(FactorJob job) {
   FactorReady r;
-  r.factor = std::make_shared<StepFactor>(mesh_, ops_, job.coefficients, job.free, job.dt);
+  r.factor = std::make_shared<StepFactor>(mesh_, ops_, job.coefficients, std::move(job.free), job.dt);
   ++factorizations_;
   last_factor_seconds_ = r.factor->build_seconds();
-  r.free = std::move(job.free);
   r.to_rest = std::move(job.to_rest);
   r.contact = job.contact;
   return r;

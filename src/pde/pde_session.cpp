@@ -409,26 +409,20 @@ StepResult PdeSession::solve(Mode mode, double dt, const Field* f) {
 }
 
 void PdeSession::set_step_factor(std::shared_ptr<const StepFactor> factor) {
+  if (factor)
+    for (int v : factor->vertices())
+      if (v < 0 || v >= mesh_.num_vertices())
+        throw InputError(fmt::format("step factor: vertex {} does not exist in this mesh", v));
   if (factor_)
     for (int v : factor_->vertices()) factor_row_[v] = -1;
   factor_ = std::move(factor);
   if (!factor_) return;
-  for (int v : factor_->vertices())
-    if (v < 0 || v >= mesh_.num_vertices()) {
-      factor_.reset();
-      std::fill(factor_row_.begin(), factor_row_.end(), -1);
-      throw InputError(fmt::format("step factor: vertex {} does not exist in this mesh", v));
-    }
   for (std::size_t k = 0; k < factor_->vertices().size(); ++k)
     factor_row_[factor_->vertices()[k]] = static_cast<int>(k);
 }
 
 bool PdeSession::step_factor_applies(double dt) const {
-  if (!factor_ || factor_->dt() != dt) return false;
-  const PdeCoefficients& c = factor_->coefficients();
-  if (c.alpha != coef_.alpha || c.b1 != coef_.b1 || c.b2 != coef_.b2 || c.g0 != coef_.g0 || c.g1 != coef_.g1 ||
-      c.g2 != coef_.g2)
-    return false;
+  if (!factor_ || factor_->dt() != dt || !(factor_->coefficients() == coef_)) return false;
   const auto A = domain_.free_vertices();
   if (A.empty() || A.size() != factor_->vertices().size()) return false;
   for (int v : A)

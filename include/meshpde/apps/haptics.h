@@ -153,8 +153,8 @@ class HapticSession {
     PdeCoefficients coefficients;
   };
   struct FactorReady {
-    std::shared_ptr<const StepFactor> factor;  // null for an empty domain
-    std::vector<int> free, to_rest;
+    std::shared_ptr<const StepFactor> factor;  // of the new domain: factor->vertices()
+    std::vector<int> to_rest;
     int contact = -1;
   };
   void install_ready_factor(int contact);

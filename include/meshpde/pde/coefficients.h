@@ -19,6 +19,8 @@ struct PdeCoefficients {
   double g0 = 0;     ///< elastic foundation (zero-order stiffness); default 0
   double g1 = 1;     ///< Laplacian (membrane) stiffness; default 1
   double g2 = 0;     ///< bi-Laplacian (plate) stiffness; default 0
+
+  bool operator==(const PdeCoefficients&) const = default;
 };
 
 }  // namespace meshpde
