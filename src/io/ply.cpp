@@ -227,7 +227,6 @@ MeshData read_ply(std::string_view bytes, const std::string& name) {
     if (is_vertex) {
       nv = e.count;
       have_vertices = true;
-      xyz.reserve(static_cast<std::size_t>(3 * e.count));
       for (int k = 0; k < static_cast<int>(e.props.size()); ++k) {
         const auto& p = e.props[k];
         if (p.name == "x")
@@ -244,6 +243,9 @@ MeshData read_ply(std::string_view bytes, const std::string& name) {
       }
       if (ix < 0 || iy < 0 || iz < 0)
         fail(name, fmt::format("line {}", e.header_line), "vertex element lacks x, y or z");
+      // Only now: the count of an element with x, y and z was bounded by the data bytes
+      // above, and that of one without properties (a binary one) was not.
+      xyz.reserve(static_cast<std::size_t>(3 * e.count));
     }
     if (is_face) {
       for (int k = 0; k < static_cast<int>(e.props.size()); ++k)
