@@ -135,8 +135,8 @@ TEST(Io, PlyVertexElementWithoutPropertiesIsRefusedBeforeAnyAllocation) {
   // Found by CI's fuzzing: a binary vertex element without properties has a count no
   // byte bounds (10^15 here), and the reader reserved 3 * count coordinates before it
   // noticed x, y and z were missing (ASan: allocation size too big).
-  expect_error("ply\nformat binary_little_endian 1.0\nelement vertex 1000000000000000\nend_header\n",
-               MeshFormat::Ply, {"line 3", "lacks x, y or z"});
+  expect_error("ply\nformat binary_little_endian 1.0\nelement vertex 1000000000000000\nend_header\n", MeshFormat::Ply,
+               {"line 3", "lacks x, y or z"});
 }
 
 TEST(Io, ObjNegativeIndicesSlashesAndPolygons) {
