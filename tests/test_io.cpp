@@ -1,8 +1,10 @@
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <set>
 
 #include "meshpde/core/errors.h"
 #include "meshpde/io/mesh_io.h"
@@ -139,6 +141,93 @@ TEST(Io, PlyVertexElementWithoutPropertiesIsRefusedBeforeAnyAllocation) {
                {"line 3", "lacks x, y or z"});
 }
 
+/// A (cols+1) x (rows+1) grid of the unit spacing in the xy-plane as PLY triangle
+/// strips, one strip per row of squares: top0 bottom0 top1 bottom1 ... (ascending x),
+/// which the strip rule turns into counter-clockwise triangles (normal +z). `joined`
+/// puts every row in one list separated by -1; otherwise each row is its own entry.
+std::string grid_strips_ply(int cols, int rows, bool joined, bool binary) {
+  const int n = (cols + 1) * (rows + 1);
+  std::vector<std::vector<int32_t>> strips;
+  for (int r = 0; r < rows; ++r) {
+    std::vector<int32_t> s;
+    for (int c = 0; c <= cols; ++c) {
+      s.push_back((r + 1) * (cols + 1) + c);
+      s.push_back(r * (cols + 1) + c);
+    }
+    if (joined && !strips.empty()) {
+      strips.back().push_back(-1);
+      strips.back().insert(strips.back().end(), s.begin(), s.end());
+    } else {
+      strips.push_back(s);
+    }
+  }
+  std::string out = fmt::format(
+      "ply\nformat {} 1.0\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\n"
+      "element tristrips {}\nproperty list int int vertex_indices\nend_header\n",
+      binary ? "binary_little_endian" : "ascii", n, strips.size());
+  auto put = [&](auto v) { out.append(reinterpret_cast<const char*>(&v), sizeof(v)); };
+  for (int k = 0; k < n; ++k) {
+    const float x = static_cast<float>(k % (cols + 1)), y = static_cast<float>(k / (cols + 1));
+    if (binary) {
+      put(x), put(y), put(0.0f);
+    } else {
+      out += fmt::format("{} {} 0\n", x, y);
+    }
+  }
+  for (const auto& s : strips) {
+    if (binary) {
+      put(static_cast<int32_t>(s.size()));
+      for (const int32_t v : s) put(v);
+    } else {
+      fmt::format_to(std::back_inserter(out), "{}", s.size());
+      for (const int32_t v : s) fmt::format_to(std::back_inserter(out), " {}", v);
+      out += '\n';
+    }
+  }
+  return out;
+}
+
+TEST(Io, PlyTriangleStripsBecomeConsistentlyOrientedTriangles) {
+  // Independent check: the strips of a grid must give exactly the grid's 2 * cols * rows
+  // unit-square halves, each once, every one counter-clockwise (signed area +1/2).
+  const int cols = 5, rows = 3;
+  for (const bool joined : {true, false})
+    for (const bool binary : {true, false}) {
+      SCOPED_TRACE(fmt::format("joined {} binary {}", joined, binary));
+      const MeshData d = read_mesh_from_memory(grid_strips_ply(cols, rows, joined, binary), MeshFormat::Ply, "s.ply");
+      ASSERT_EQ(d.V.rows(), (cols + 1) * (rows + 1));
+      ASSERT_EQ(d.F.rows(), 2 * cols * rows);
+      EXPECT_TRUE(d.warnings.empty());
+      std::set<std::array<int, 3>> seen;
+      for (Eigen::Index f = 0; f < d.F.rows(); ++f) {
+        const Eigen::RowVector3d a = d.V.row(d.F(f, 0)), b = d.V.row(d.F(f, 1)), c = d.V.row(d.F(f, 2));
+        EXPECT_DOUBLE_EQ(0.5 * ((b - a).x() * (c - a).y() - (b - a).y() * (c - a).x()), 0.5) << "face " << f;
+        std::array<int, 3> key{d.F(f, 0), d.F(f, 1), d.F(f, 2)};
+        std::sort(key.begin(), key.end());
+        EXPECT_TRUE(seen.insert(key).second) << "face " << f << " repeats a triangle";
+      }
+    }
+}
+
+TEST(Io, PlyTriangleStripsDropRepeatedCornersAndKeepTheirParity) {
+  // Two strips stitched into one by repeating a corner (0 1 2 3 | 3 3 | 4 5 6 ...): the
+  // stitch's triangles have a repeated corner and are dropped (and counted), while the
+  // parity keeps running, so the second strip keeps its orientation.
+  const std::string h =
+      "ply\nformat ascii 1.0\nelement vertex 8\nproperty float x\nproperty float y\nproperty float z\n"
+      "element tristrips 1\nproperty list int int vertex_indices\nend_header\n"
+      "0 1 0\n0 0 0\n1 1 0\n1 0 0\n5 1 0\n5 0 0\n6 1 0\n6 0 0\n"
+      "10 0 1 2 3 3 4 4 5 6 7\n";
+  const MeshData d = read_mesh_from_memory(h, MeshFormat::Ply, "stitched.ply");
+  ASSERT_EQ(d.F.rows(), 4);
+  for (Eigen::Index f = 0; f < d.F.rows(); ++f) {
+    const Eigen::RowVector3d a = d.V.row(d.F(f, 0)), b = d.V.row(d.F(f, 1)), c = d.V.row(d.F(f, 2));
+    EXPECT_GT((b - a).x() * (c - a).y() - (b - a).y() * (c - a).x(), 0) << "face " << f;
+  }
+  ASSERT_EQ(d.warnings.size(), 1u);
+  EXPECT_NE(d.warnings[0].find("dropped 4 triangles"), std::string::npos) << d.warnings[0];
+}
+
 TEST(Io, ObjNegativeIndicesSlashesAndPolygons) {
   const std::string obj =
       "# comment\nmtllib x.mtl\no thing\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvn 0 0 1\nvt 0 0\n"
@@ -191,8 +280,12 @@ TEST(Io, MalformedInputGivesClearErrors) {
                {"line 3", "claims"});
   expect_error(
       "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
-      "element tristrips 1\nproperty list int int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n",
-      MeshFormat::Ply, {"line 7", "tristrips"});
+      "element tristrips 1\nproperty list int int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n4 0 1 -2 2\n",
+      MeshFormat::Ply, {"tristrips 0", "vertex index -2 outside"});
+  expect_error(
+      "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+      "element tristrips 1\nproperty list int int vertex_index_list\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n",
+      MeshFormat::Ply, {"line 7", "tristrips element lacks vertex_indices"});
   expect_error(
       "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
       "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 9\n",

@@ -131,6 +131,33 @@ class BinaryReader {
   const std::string& name_;
 };
 
+/// Appends the triangles of a triangle strip whose restarts are -1: within each run
+/// s0 s1 s2 s3 ..., the triangle ending at run position i >= 2 is (s[i-2], s[i-1], s[i])
+/// when i is even and (s[i-1], s[i-2], s[i]) when odd, so that all share one orientation.
+/// Triangles with a repeated corner (strips are often stitched that way) are dropped;
+/// returns how many were.
+int add_strip(std::vector<int>& tris, const std::vector<int>& strip) {
+  int dropped = 0;
+  std::size_t start = 0;
+  for (std::size_t i = 0; i < strip.size(); ++i) {
+    if (strip[i] < 0) {
+      start = i + 1;
+      continue;
+    }
+    if (i < start + 2) continue;
+    const int a = strip[i - 2], b = strip[i - 1], c = strip[i];
+    if (a == b || b == c || a == c) {
+      ++dropped;
+      continue;
+    }
+    const bool odd = (i - start) % 2 == 1;
+    tris.push_back(odd ? b : a);
+    tris.push_back(odd ? a : b);
+    tris.push_back(c);
+  }
+  return dropped;
+}
+
 }  // namespace
 
 MeshData read_ply(std::string_view bytes, const std::string& name) {
@@ -200,15 +227,12 @@ MeshData read_ply(std::string_view bytes, const std::string& name) {
       fail(name, fmt::format("line {}", e.header_line),
            fmt::format("element '{}' claims {} entries, more than the {} data bytes can hold", e.name, e.count,
                        remaining));
-    if (e.name == "tristrips" && e.count > 0)
-      fail(name, fmt::format("line {}", e.header_line),
-           "triangle strips ('tristrips') are not supported; convert the mesh to a face list");
   }
 
   MeshData d;
   std::vector<double> xyz;
   std::vector<int> tris, poly;
-  int polygons = 0;
+  int polygons = 0, strip_degenerates = 0;
   bool have_vertices = false;
   long long nv = 0;
   TextCursor text(bytes, name, data_start, in.line_number());
@@ -221,7 +245,8 @@ MeshData read_ply(std::string_view bytes, const std::string& name) {
   };
 
   for (const auto& e : elements) {
-    const bool is_vertex = e.name == "vertex", is_face = e.name == "face";
+    const bool is_vertex = e.name == "vertex", is_strip = e.name == "tristrips";
+    const bool is_face = is_strip || e.name == "face";
     int ix = -1, iy = -1, iz = -1, ilist = -1;
     std::vector<std::pair<int, Eigen::VectorXd*>> scalars;
     if (is_vertex) {
@@ -250,9 +275,10 @@ MeshData read_ply(std::string_view bytes, const std::string& name) {
     if (is_face) {
       for (int k = 0; k < static_cast<int>(e.props.size()); ++k)
         if (e.props[k].is_list && (e.props[k].name == "vertex_indices" || e.props[k].name == "vertex_index")) ilist = k;
-      if (ilist < 0) fail(name, fmt::format("line {}", e.header_line), "face element lacks vertex_indices");
+      if (ilist < 0)
+        fail(name, fmt::format("line {}", e.header_line), fmt::format("{} element lacks vertex_indices", e.name));
       if (!have_vertices) fail(name, fmt::format("line {}", e.header_line), "faces come before vertices");
-      tris.reserve(static_cast<std::size_t>(3 * e.count));
+      if (!is_strip) tris.reserve(static_cast<std::size_t>(3 * e.count));
     }
     // An element without properties holds no bytes, whatever its count: nothing to
     // read (a count of 10^15 would otherwise loop that often over nothing).
@@ -266,17 +292,24 @@ MeshData read_ply(std::string_view bytes, const std::string& name) {
         const auto& p = e.props[k];
         if (p.is_list) {
           const double n = value(p.count_type, where);
-          if (n < 0 || n > 1'000'000) fail(name, where, fmt::format("list length {} is invalid", n));
+          // A face has few corners; a strip may hold the whole mesh, but never more
+          // entries than bytes are left.
+          const double most = is_strip && k == ilist ? static_cast<double>(bytes.size()) : 1'000'000.0;
+          if (n < 0 || n > most) fail(name, where, fmt::format("list length {} is invalid", n));
           if (k == ilist) poly.clear();
           for (long long j = 0; j < static_cast<long long>(n); ++j) {
             const double x = value(p.type, where);
             if (k == ilist) {
-              if (x < 0 || x >= static_cast<double>(nv) || x != static_cast<double>(static_cast<long long>(x)))
+              const bool restart = is_strip && x == -1;
+              if (!restart &&
+                  (x < 0 || x >= static_cast<double>(nv) || x != static_cast<double>(static_cast<long long>(x))))
                 fail(name, where, fmt::format("vertex index {} outside [0, {})", x, nv));
               poly.push_back(static_cast<int>(x));
             }
           }
-          if (k == ilist) {
+          if (k == ilist && is_strip) {
+            strip_degenerates += add_strip(tris, poly);
+          } else if (k == ilist) {
             if (poly.size() < 3) fail(name, where, fmt::format("a face needs 3 corners, found {}", poly.size()));
             if (poly.size() > 3) ++polygons;
             add_polygon(tris, poly);
@@ -302,6 +335,9 @@ MeshData read_ply(std::string_view bytes, const std::string& name) {
   d.F = to_triangles(tris);
   if (polygons)
     d.warnings.push_back(fmt::format("{}: triangulated {} polygons with more than three corners", name, polygons));
+  if (strip_degenerates)
+    d.warnings.push_back(fmt::format("{}: dropped {} triangles with a repeated corner from the triangle strips", name,
+                                     strip_degenerates));
   return d;
 }
 
