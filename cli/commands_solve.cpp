@@ -209,8 +209,10 @@ void run_correct(const CorrectArgs& a) {
                     {"space", to_string(space)}};
     }
   }
-  // Keep everything the input carried; add the displacement (vector and length).
+  // Keep everything the input carried; add the displacement (vector and length). A
+  // frame given with --space is written too (SPACE= in .vtk, SPACE field data in .vtp).
   data.V = V;
+  if (!a.space.empty()) data.space = space == Space::RAS ? "RAS" : "LPS";
   refresh_normals(data, a.mesh);
   const char* comp[3] = {"displacement_x", "displacement_y", "displacement_z"};
   for (int c = 0; c < 3; ++c) data.vertex_scalars[comp[c]] = disp.col(c);

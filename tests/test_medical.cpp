@@ -221,6 +221,26 @@ TEST(Vtp, LegacyAsciiWithSlicerSpaceHeader) {
   EXPECT_EQ(d.vertex_scalars.at("thickness")(3), 2.0);
 }
 
+TEST(Vtp, TheFrameIsWrittenAsSlicerWritesIt) {
+  // A .vtp carries its frame as 3D Slicer's SPACE field data, as a legacy .vtk carries
+  // it in its header; both read back (that VTK, so Slicer, finds the array:
+  // VtkReaders.OurVtpFrameIsTheFieldDataSlicerReads).
+  for (const std::string frame : {"RAS", "LPS"}) {
+    MeshData d;
+    d.V = Positions{{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+    d.F = Triangles{{0, 1, 2}};
+    d.space = frame;
+    for (const std::string kind : {"vtp", "vtk"}) {
+      const std::string bytes = write_vtk_mesh_to_memory(d, kind);
+      EXPECT_EQ(read_vtk_mesh_from_memory(bytes, kind, "framed." + kind).space, frame) << kind;
+    }
+  }
+  MeshData plain;
+  plain.V = Positions{{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+  plain.F = Triangles{{0, 1, 2}};
+  EXPECT_EQ(read_vtk_mesh_from_memory(write_vtk_mesh_to_memory(plain, "vtp"), "vtp", "plain.vtp").space, "");
+}
+
 TEST(Vtp, BadInputIsAnErrorNamingTheFile) {
   const std::string good = make_vtp<std::uint32_t>({});
   auto expect_error = [](const std::string& text, const std::string& kind, const std::string& needle) {

@@ -9,6 +9,7 @@
 #include <vtkCellArrayIterator.h>
 #include <vtkCellData.h>
 #include <vtkDoubleArray.h>
+#include <vtkFieldData.h>
 #include <vtkFloatArray.h>
 #include <vtkIntArray.h>
 #include <vtkPointData.h>
@@ -17,6 +18,7 @@
 #include <vtkPolyDataReader.h>
 #include <vtkPolyDataWriter.h>
 #include <vtkSmartPointer.h>
+#include <vtkStringArray.h>
 #include <vtkUnsignedCharArray.h>
 #include <vtkXMLPolyDataReader.h>
 #include <vtkXMLPolyDataWriter.h>
@@ -26,6 +28,7 @@
 
 #include "../src/medical/polydata.h"
 #include "meshpde/core/errors.h"
+#include "meshpde/io/medical_io.h"
 #include "test_data.h"
 
 namespace meshpde {
@@ -218,6 +221,51 @@ TEST(VtkReaders, EveryXmlEncodingVtkWritesReadsAsVtkReadsIt) {
               ++cases;
             }
   EXPECT_EQ(cases, 37);  // ascii 1, inline binary 12, appended raw and base64 24
+}
+
+TEST(VtkReaders, SlicersSpaceFieldDataIsReadInEveryXmlEncoding) {
+  // 3D Slicer writes the frame of a .vtp as a field-data string array SPACE ("LPS" or
+  // "RAS"), which VTK stores as NUL-terminated bytes in whatever encoding it writes.
+  for (const std::string frame : {"LPS", "RAS"})
+    for (const int mode : {vtkXMLWriterBase::Ascii, vtkXMLWriterBase::Binary, vtkXMLWriterBase::Appended})
+      for (const bool zlib : {false, true}) {
+        if (mode == vtkXMLWriterBase::Ascii && zlib) continue;
+        const auto pd = sample_polydata();
+        auto tag = Ptr<vtkStringArray>::New();
+        tag->SetName("SPACE");
+        tag->InsertNextValue(frame);
+        pd->GetFieldData()->AddArray(tag);
+        auto w = Ptr<vtkXMLPolyDataWriter>::New();
+        w->SetInputData(pd);
+        w->SetDataMode(mode);
+        if (zlib)
+          w->SetCompressorTypeToZLib();
+        else
+          w->SetCompressorTypeToNone();
+        w->WriteToOutputStringOn();
+        ASSERT_TRUE(w->Write());
+        const std::string bytes = w->GetOutputString();
+        SCOPED_TRACE(fmt::format("{} mode {} zlib {}", frame, mode, zlib));
+        ASSERT_EQ(bytes.find("SPACE=" + frame), std::string::npos);  // only the field data says it
+        const PolyData ours = detail::read_vtp_polydata(bytes, "slicer.vtp");
+        EXPECT_EQ(ours.space, frame);
+        expect_same(ours, vtk_read_xml(bytes));
+      }
+}
+
+TEST(VtkReaders, OurVtpFrameIsTheFieldDataSlicerReads) {
+  MeshData d;
+  d.V = Positions{{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+  d.F = Triangles{{0, 1, 2}};
+  d.space = "RAS";
+  auto reader = Ptr<vtkXMLPolyDataReader>::New();
+  reader->ReadFromInputStringOn();
+  reader->SetInputString(write_vtk_mesh_to_memory(d, "vtp"));
+  reader->Update();
+  auto* tag = vtkStringArray::SafeDownCast(reader->GetOutput()->GetFieldData()->GetAbstractArray("SPACE"));
+  ASSERT_NE(tag, nullptr);
+  ASSERT_EQ(tag->GetNumberOfValues(), 1);
+  EXPECT_EQ(tag->GetValue(0), "RAS");
 }
 
 TEST(VtkReaders, LegacyAsciiAndBinaryInBothFileVersionsReadAsVtkReadsThem) {

@@ -9,6 +9,7 @@
 #include <vtkPolyData.h>
 #include <vtkPolyDataWriter.h>
 #include <vtkSmartPointer.h>
+#include <vtkStringArray.h>
 #include <vtkXMLPolyDataWriter.h>
 
 #include <algorithm>
@@ -150,6 +151,13 @@ std::string write_vtk_mesh_to_memory(const MeshData& data, const std::string& ki
   detail::VtkErrorCapture capture;
   auto pd = to_polydata(data);
   if (kind == "vtp") {
+    // 3D Slicer's convention for XML files: a one-string field-data array named SPACE.
+    if (!data.space.empty()) {
+      auto tag = vtkSmartPointer<vtkStringArray>::New();
+      tag->SetName("SPACE");
+      tag->InsertNextValue(data.space);
+      pd->GetFieldData()->AddArray(tag);
+    }
     auto w = vtkSmartPointer<vtkXMLPolyDataWriter>::New();
     capture.watch(w);
     w->SetInputData(pd);

@@ -372,11 +372,15 @@ std::vector<double> ascii_values(std::string_view text, const std::string& what)
   return out;
 }
 
-// Why an array cannot be read, or "" with its values filled in.
+// Why an array cannot be read, or "" with its values filled in. A "String" array is
+// read as its bytes (each string ends with a NUL), as VTK stores it.
 std::string array_values(const XmlNode& da, const FileSettings& f, const std::string& what, Element& type,
-                         std::vector<double>& values) {
+                         std::vector<double>& values, bool strings = false) {
   const std::string type_name = da.attribute_or("type", "");
-  if (!element_of(type_name, type)) return fmt::format("type '{}' is not numeric", type_name);
+  if (strings && type_name == "String")
+    type = Element::U8;
+  else if (!element_of(type_name, type))
+    return fmt::format("type '{}' is not numeric", type_name);
   const std::string format = da.attribute_or("format", "ascii");
   if (format == "ascii") {
     values = ascii_values(da.text, what);
@@ -587,6 +591,27 @@ PolyData merge(std::vector<Piece>& pieces, const std::string& name) {
   return out;
 }
 
+// 3D Slicer's frame tag of XML files: the first string of the field-data array SPACE
+// ("LPS" or "RAS"), or empty when there is none or it says something else.
+std::string field_data_space(const XmlNode* field_data, const FileSettings& f, const std::string& name) {
+  if (!field_data) return {};
+  for (const XmlNode& da : field_data->children) {
+    // VTK writes a string array as <Array>, numeric ones as <DataArray>.
+    if ((da.tag != "Array" && da.tag != "DataArray") || da.attribute_or("Name", "") != "SPACE") continue;
+    Element type{};
+    std::vector<double> bytes;
+    if (!array_values(da, f, name + ": field data 'SPACE'", type, bytes, true).empty()) return {};
+    std::string value;
+    for (const double b : bytes) {
+      if (b == 0) break;
+      value.push_back(static_cast<char>(static_cast<unsigned char>(b)));
+    }
+    if (value.find("RAS") != std::string::npos) return "RAS";
+    if (value.find("LPS") != std::string::npos) return "LPS";
+  }
+  return {};
+}
+
 }  // namespace
 
 PolyData read_vtp_polydata(const std::string& bytes, const std::string& name) {
@@ -634,7 +659,9 @@ PolyData read_vtp_polydata(const std::string& bytes, const std::string& name) {
     if (node.tag == "Piece") pieces.push_back(read_piece(node, pieces.size(), limit, f, name));
   if (pieces.empty()) throw InputError(fmt::format("{}: <PolyData> has no <Piece>", name));
   PolyData pd = merge(pieces, name);
-  pd.space = detect_space(std::string_view(bytes).substr(0, std::min<std::size_t>(bytes.size(), 4096)));
+  pd.space = field_data_space(poly->child("FieldData"), f, name);
+  if (pd.space.empty())
+    pd.space = detect_space(std::string_view(bytes).substr(0, std::min<std::size_t>(bytes.size(), 4096)));
   return pd;
 }
 
