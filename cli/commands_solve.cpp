@@ -22,6 +22,7 @@
 #include "meshpde/core/errors.h"
 #include "meshpde/mesh/generators.h"
 #include "meshpde/mesh/topology.h"
+#include "meshpde/mesh/units.h"
 #include "meshpde/operators/fem_operators.h"
 
 namespace meshpde::cli {
@@ -73,7 +74,7 @@ std::map<std::string, Eigen::VectorXd> displacement_fields(const DragResult& r) 
 }
 
 struct CorrectArgs {
-  std::string mesh, out, method = "fem", laplacian = "auto", stiffness, image, space, solver = "direct";
+  std::string mesh, out, method = "fem", laplacian = "auto", stiffness, image, space, solver = "direct", units = "mm";
   std::vector<std::string> vertices, moves, brushes;
   int rings = 0, steps = 50, cube = 0, passes = 4;
   double radius = 0, g1 = 0, g2 = 1, tol = 1e-10, image_weight = 30.0, image_sigma = 1.0, search = 3.0;
@@ -81,7 +82,9 @@ struct CorrectArgs {
   bool json = false, dynamic = false, allow_intersections = false;
 };
 
-Eigen::VectorXd stiffness_field(const Mesh& mesh, const MeshData& d, const CorrectArgs& a) {
+// Brush radii are millimetres like every length the user gives; `mm_per_unit` converts
+// them to the mesh's units (a brush's @X,Y,Z is a point of the mesh, in its units).
+Eigen::VectorXd stiffness_field(const Mesh& mesh, const MeshData& d, const CorrectArgs& a, double mm_per_unit) {
   if (a.stiffness.empty() && a.brushes.empty()) return {};
   Eigen::VectorXd w = Eigen::VectorXd::Ones(mesh.num_vertices());
   if (!a.stiffness.empty()) {
@@ -96,7 +99,9 @@ Eigen::VectorXd stiffness_field(const Mesh& mesh, const MeshData& d, const Corre
   }
   for (const auto& b : a.brushes) {
     try {
-      apply_brush(mesh, w, parse_brush(mesh, b));
+      Brush brush = parse_brush(mesh, b);
+      brush.radius /= mm_per_unit;
+      apply_brush(mesh, w, brush);
     } catch (const InputError& e) {
       throw InputError(fmt::format("--brush: {}", e.what()));
     }
@@ -139,6 +144,8 @@ void run_correct(const CorrectArgs& a) {
   const Mesh mesh = load_mesh(a.mesh, &data);
   warn_about_shape(mesh, a.mesh);
   CorrectionParams p;
+  p.units = parse_length_unit(a.units);
+  if (const std::string w = units_warning(mesh, p.units, a.mesh); !w.empty()) fmt::print(stderr, "warning: {}\n", w);
   std::vector<int> handle_vertices;
   for (const auto& spec : a.vertices) handle_vertices.push_back(parse_vertex(mesh, spec, "--vertex"));
   try {
@@ -152,7 +159,7 @@ void run_correct(const CorrectArgs& a) {
   p.g1 = a.g1;
   p.g2 = a.g2;
   p.laplacian = parse_laplacian_kind(a.laplacian);
-  p.stiffness = stiffness_field(mesh, data, a);
+  p.stiffness = stiffness_field(mesh, data, a, millimetres_per(p.units));
   p.dynamic = a.dynamic;
   p.steps = a.steps;
   p.tissue = {a.mass, a.elasticity, a.viscosity};
@@ -201,7 +208,8 @@ void run_correct(const CorrectArgs& a) {
          {"substeps", r.substeps},
          {"intersection_action", r.intersection_action},
          {"handles", p.handles.size()},
-         {"solver", a.solver}};
+         {"solver", a.solver},
+         {"units", to_string(p.units)}};
     if (p.image.edges) {
       j["image"] = {{"pulled_vertices", r.pulled_vertices},
                     {"mean_edge_before", r.image_mean_edge_before},
@@ -242,8 +250,14 @@ void add_solve_commands(CLI::App& app) {
         "(bi-Laplacian on the region of influence), never folding through itself");
     auto a = std::make_shared<CorrectArgs>();
     cmd->add_option("MESH", a->mesh, "Mesh file (.obj .off .ply .stl .vtp .vtk)")->required();
-    cmd->add_option("--vertex", a->vertices, "Handle vertex: index (0-based) or @X,Y,Z (nearest); repeat for several")
+    cmd->add_option("--vertex", a->vertices,
+                    "Handle vertex: index (0-based) or @X,Y,Z (nearest; in the mesh's units); repeat for several")
         ->required();
+    cmd->add_option("--units", a->units,
+                    "Unit of the mesh's coordinates: mm | cm | m. Lengths on the command line stay in mm; the output "
+                    "is written in the mesh's unit")
+        ->check(CLI::IsMember({"mm", "cm", "m"}))
+        ->capture_default_str();
     cmd->add_option("--move", a->moves,
                     "Displacement DX,DY,DZ in mm, or normal:D (D mm along the outward normal), one per --vertex")
         ->required();

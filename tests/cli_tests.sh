@@ -139,6 +139,29 @@ printf 'OFF\n2000000000 1 0\n' >"$T/huge.off"
 check "absurd count exits 1" [ $? -eq 1 ]
 check "absurd count explained" grep -q "claims" "$T/err"
 
+# correct --units: a tube written in cm gives the mm tube's correction (lengths given in mm),
+# written back in cm; read as mm it is warned about, naming --units cm
+"$M" generate tube --radius 5 --length 60 --rings 40 --segments 32 -o "$T/tmm.obj" >/dev/null
+awk '$1 == "v" { printf "v %.17g %.17g %.17g\n", $2 / 10, $3 / 10, $4 / 10; next } { print }' "$T/tmm.obj" >"$T/tcm.obj"
+"$M" correct "$T/tmm.obj" --vertex 600 --move 1,0,0.5 --radius 8 -o "$T/umm.obj" --json >"$T/umm.json" 2>"$T/err" ||
+  bad "correct on the mm tube"
+check "a 60 mm tube in mm is not warned about" bash -c "! grep -q -- '--units' '$T/err'"
+"$M" correct "$T/tcm.obj" --units cm --vertex 600 --move 1,0,0.5 --radius 8 -o "$T/ucm.obj" --json >"$T/ucm.json" \
+  2>"$T/err" || bad "correct --units cm"
+check "correct --units cm reports its units" [ "$(json "$T/ucm.json" "d['units']")" = cm ]
+check "correct --units cm is not warned about" bash -c "! grep -q -- '--units' '$T/err'"
+check "the cm result is the mm result in cm" python3 -c "
+import sys
+v = lambda f: [list(map(float, l.split()[1:4])) for l in open(f) if l.startswith('v ')]
+a, b = v('$T/umm.obj'), v('$T/ucm.obj')
+sys.exit(not (len(a) == len(b) and max(abs(x - 10 * y) for p, q in zip(a, b) for x, y in zip(p, q)) < 1e-9))"
+check "the same region either way" [ "$(json "$T/ucm.json" "d['region_vertices']")" = "$(json "$T/umm.json" "d['region_vertices']")" ]
+"$M" correct "$T/tcm.obj" --vertex 600 --move 0.1,0,0 --radius 1 -o "$T/x.obj" 2>"$T/err" >/dev/null ||
+  bad "correct on the cm tube read as mm"
+check "a 6 mm tube read as mm suggests --units cm" grep -q -- "--units cm" "$T/err"
+"$M" correct "$T/tcm.obj" --units inch --vertex 600 --move 0.1,0,0 --radius 1 -o "$T/x.obj" 2>"$T/err" >/dev/null &&
+  bad "--units inch accepted"
+
 # correct: JSON report, handle moved, outside untouched, bad arguments refused
 "$M" generate icosphere --level 3 --radius 10 -o "$T/s.ply" >/dev/null
 "$M" correct "$T/s.ply" --vertex 0 --move 0,0,1 --radius 4 -o "$T/s2.ply" --json >"$T/k.json" || bad "correct"

@@ -2,6 +2,7 @@
 // method failing it), no self-intersections at a carina, several handles, tissue
 // stiffness, dynamics settling to the static answer, undo and redo; the BVH
 // intersection test and the surface distance against direct constructions.
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include "meshpde/apps/vessel_correction.h"
@@ -9,6 +10,7 @@
 #include "meshpde/mesh/generators.h"
 #include "meshpde/mesh/self_intersections.h"
 #include "meshpde/mesh/surface_distance.h"
+#include "meshpde/mesh/units.h"
 #include "test_support.h"
 
 using namespace meshpde;
@@ -262,4 +264,75 @@ TEST(Vessel, ARadiusBelowOneEdgeMovesOnlyTheHandleWithEverySolver) {
       EXPECT_EQ((r.V - m.positions()).rowwise().norm().maxCoeff(), 2.0);
       EXPECT_TRUE(r.V.allFinite());
     }
+}
+
+TEST(Vessel, AMeshInCentimetresOrMetresGivesTheMillimetreCorrection) {
+  // The same tube in mm, cm and m, the same request in mm (a 1 mm push, 8 mm region):
+  // the displacement comes back in the mesh's unit and equals the mm one scaled, the
+  // dynamic mode and the springs included; read as mm, the cm tube's 8 mm region
+  // would hold ten times more of the tube.
+  const Mesh mm = tube_at(48);
+  const int a = nearest_vertex(mm, {5, 0, 30});
+  for (const CorrectionMethod method : {CorrectionMethod::Fem, CorrectionMethod::Springs})
+    for (const bool dynamic : {false, true}) {
+      if (method == CorrectionMethod::Springs && dynamic) continue;
+      CorrectionParams p;
+      p.handles = {{a, {-1, 0, 0.5}}};
+      p.method = method;
+      p.dynamic = dynamic;
+      if (method == CorrectionMethod::Springs)
+        p.rings = 4;
+      else
+        p.radius = 8;
+      const CorrectionResult ref = correct_vessel(mm, p);
+      for (const LengthUnit u : {LengthUnit::Centimetre, LengthUnit::Metre}) {
+        SCOPED_TRACE(fmt::format("{} dynamic {} {}", method == CorrectionMethod::Fem ? "fem" : "springs", dynamic,
+                                 to_string(u)));
+        const double s = millimetres_per(u);
+        const Mesh scaled(mm.positions() / s, mm.triangles());
+        CorrectionParams q = p;
+        q.units = u;
+        const CorrectionResult r = correct_vessel(scaled, q);
+        // The same vertices (their order may differ where two distances tie to rounding).
+        auto sorted = [](std::vector<int> v) {
+          std::sort(v.begin(), v.end());
+          return v;
+        };
+        EXPECT_EQ(sorted(r.region), sorted(ref.region));
+        EXPECT_LT((r.displacement * s - ref.displacement).cwiseAbs().maxCoeff(), 1e-9);
+        EXPECT_EQ(r.V, scaled.positions() + r.displacement);
+        EXPECT_NEAR(r.max_displacement, ref.max_displacement, 1e-9);  // reported in mm
+        EXPECT_EQ(r.moved_vertices, ref.moved_vertices);
+      }
+    }
+  // Taken for mm, the cm tube (0.5 mm radius) is all inside an 8 mm region.
+  CorrectionParams wrong;
+  wrong.handles = {{a, {-0.1, 0, 0}}};
+  wrong.radius = 8;
+  const Mesh cm(mm.positions() / 10, mm.triangles());
+  EXPECT_GT(correct_vessel(cm, wrong).region.size(), 3 * correct_vessel(mm, wrong).region.size());
+}
+
+TEST(Vessel, UnitsThatMakeAnImplausibleVesselAreNamed) {
+  const Mesh mm = tube_at(48);  // 5 mm radius, 60 mm long: plausible in mm
+  EXPECT_FALSE(check_units(mm, LengthUnit::Millimetre).implausible);
+  EXPECT_EQ(units_warning(mm, LengthUnit::Millimetre, "tube.vtp"), "");
+  // Read in metres it is 60 m long: mm is suggested.
+  const UnitsCheck as_m = check_units(mm, LengthUnit::Metre);
+  EXPECT_TRUE(as_m.implausible);
+  ASSERT_TRUE(as_m.suggested.has_value());
+  EXPECT_EQ(*as_m.suggested, LengthUnit::Millimetre);
+  // The same tube written in cm (6 units long), read as mm: cm is suggested.
+  const Mesh cm(mm.positions() / 10, mm.triangles());
+  const UnitsCheck c = check_units(cm, LengthUnit::Millimetre);
+  EXPECT_TRUE(c.implausible);
+  EXPECT_NEAR(c.diagonal_mm, check_units(mm, LengthUnit::Millimetre).diagonal_mm / 10, 1e-9);
+  ASSERT_TRUE(c.suggested.has_value());
+  EXPECT_EQ(*c.suggested, LengthUnit::Centimetre);
+  const std::string w = units_warning(cm, LengthUnit::Millimetre, "tube.vtp");
+  EXPECT_NE(w.find("tube.vtp"), std::string::npos) << w;
+  EXPECT_NE(w.find("--units cm"), std::string::npos) << w;
+  EXPECT_FALSE(check_units(cm, LengthUnit::Centimetre).implausible);
+  EXPECT_EQ(parse_length_unit("CM"), LengthUnit::Centimetre);
+  EXPECT_THROW(parse_length_unit("inch"), InputError);
 }

@@ -119,6 +119,7 @@ class CorrectionResult:
     intersection_action: str
     handles: int
     solver: str
+    units: str
     image: dict[str, Any] | None
     def to_dict(self) -> dict[str, Any]: ...
 
@@ -128,7 +129,8 @@ def correct(V: ArrayLike, F: ArrayLike, vertices: ArrayLike, moves: Sequence[Mov
             elasticity: float = 0.9, viscosity: float = 0.6, allow_intersections: bool = False,
             max_substeps: int = 8, image: Union[Path, tuple[ArrayLike, ArrayLike], None] = None, space: str = "lps",
             image_weight: float = 30.0, image_sigma: float = 1.0, search_radius: float = 3.0, cube: int = 0,
-            passes: int = 4, solver: str = "direct") -> CorrectionResult: ...
+            passes: int = 4, solver: str = "direct",
+            units: str = "mm") -> CorrectionResult: ...
 
 class CorrectionSession:
     V: np.ndarray
@@ -143,7 +145,7 @@ class CorrectionSession:
               elasticity: float = 0.9, viscosity: float = 0.6, allow_intersections: bool = False,
               max_substeps: int = 8, image: Union[Path, tuple[ArrayLike, ArrayLike], None] = None,
               space: str = "lps", image_weight: float = 30.0, image_sigma: float = 1.0, search_radius: float = 3.0,
-              cube: int = 0, passes: int = 4, solver: str = "direct") -> CorrectionResult: ...
+              cube: int = 0, passes: int = 4, solver: str = "direct", units: str = "mm") -> CorrectionResult: ...
     def undo(self) -> None: ...
     def redo(self) -> None: ...
     def new_self_intersections(self) -> int: ...

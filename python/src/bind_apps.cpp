@@ -123,6 +123,7 @@ struct CorrectionOptions {
   std::string method = "fem";
   std::string solver = "direct";
   std::optional<std::string> image_space;
+  std::string units_warning;  // the mesh looks unlike a vessel in params.units
 };
 
 Volume volume_arg(const py::handle& image) {
@@ -179,9 +180,11 @@ CorrectionOptions correction_options(const Mesh& mesh, const py::handle& vertice
   auto integer = [&](const char* key, int& x) {
     if (const py::object v = get(key); !v.is_none()) x = v.cast<int>();
   };
+  if (const py::object v = get("units"); !v.is_none()) p.units = parse_length_unit(v.cast<std::string>());
+  c.units_warning = units_warning(mesh, p.units, "V", "units=");
   num("radius", p.radius);
   integer("rings", p.rings);
-  if (p.radius <= 0 && p.rings <= 0) throw py::value_error("give radius (mesh units, mm) or rings (a count) > 0");
+  if (p.radius <= 0 && p.rings <= 0) throw py::value_error("give radius (mm) or rings (a count) > 0");
   if (p.radius > 0 && p.rings > 0) throw py::value_error("give radius or rings, not both");
   if (const py::object v = get("method"); !v.is_none()) c.method = v.cast<std::string>();
   p.method = parse_correction_method(c.method);
@@ -227,6 +230,7 @@ struct PyCorrectionResult {
   int handles = 0;
   std::optional<std::string> image_space;
   std::string solver;
+  std::string units;
 
   py::object image() const {
     if (!image_space) return py::none();
@@ -260,14 +264,16 @@ struct PyCorrectionResult {
     j["intersection_action"] = r.intersection_action;
     j["handles"] = handles;
     j["solver"] = solver;
+    j["units"] = units;
     if (image_space) j["image"] = image();
     return j;
   }
 };
 
 PyCorrectionResult wrap(CorrectionResult r, const CorrectionOptions& c) {
-  PyCorrectionResult out{std::move(r),  c.method, c.params.dynamic, static_cast<int>(c.params.handles.size()),
-                         c.image_space, c.solver};
+  PyCorrectionResult out{std::move(r),  c.method, c.params.dynamic,         static_cast<int>(c.params.handles.size()),
+                         c.image_space, c.solver, to_string(c.params.units)};
+  if (!c.units_warning.empty()) PyErr_WarnEx(PyExc_UserWarning, c.units_warning.c_str(), 1);
   if (!out.r.accuracy_warning.empty()) PyErr_WarnEx(PyExc_RuntimeWarning, out.r.accuracy_warning.c_str(), 1);
   return out;
 }
@@ -431,6 +437,7 @@ void bind_apps(py::module_& m) {
       .def_property_readonly("intersection_action", [](const PyCorrectionResult& c) { return c.r.intersection_action; })
       .def_readonly("handles", &PyCorrectionResult::handles)
       .def_readonly("solver", &PyCorrectionResult::solver)
+      .def_readonly("units", &PyCorrectionResult::units, "unit of the mesh's coordinates: mm, cm or m")
       .def_property_readonly("image", &PyCorrectionResult::image)
       .def("to_dict", &PyCorrectionResult::to_dict, "The report as a dict, with the keys of `meshpde correct --json`.")
       .def("__repr__", [](const PyCorrectionResult& c) {

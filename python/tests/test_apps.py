@@ -111,7 +111,7 @@ def test_fair_equals_the_cli(cli, tmp_path):
 
 CORRECT_KEYS = ["moved_vertices", "max_displacement", "region_vertices", "new_self_intersections", "method",
                 "dynamic", "laplacian", "laplacian_reason", "relative_residual", "applied_fraction", "substeps",
-                "intersection_action", "handles"]
+                "intersection_action", "handles", "units"]
 
 
 @pytest.mark.parametrize("extra", [[], ["--method", "springs", "--rings", 3], ["--dynamic", "--steps", 20]])
@@ -151,6 +151,26 @@ def test_correct_moves_the_handle_and_holds_the_outside():
     outside = np.setdiff1d(np.arange(len(V)), r.region)
     assert np.array_equal(r.V[outside], V[outside])
     assert r.handles == 2 and r.new_self_intersections == 0
+
+
+@pytest.mark.parametrize("units,scale", [("cm", 10.0), ("m", 1000.0)])
+def test_correct_in_other_units_is_the_millimetre_correction(units, scale):
+    # A tube 60 mm long written in cm or m, the request in mm: the result is the mm
+    # one in the mesh's unit, in a session too; read as mm the mesh is warned about.
+    V, F = meshpde.generate.tube(radius=5, length=60, rings=40, segments=32)
+    ref = meshpde.correct(V, F, [600], [(1, 0, 0.5)], radius=8.0)
+    r = meshpde.correct(V / scale, F, [600], [(1, 0, 0.5)], radius=8.0, units=units)
+    assert r.units == units and r.to_dict()["units"] == units
+    assert np.abs(r.displacement * scale - ref.displacement).max() < 1e-9
+    assert np.array_equal(r.V, V / scale + r.displacement)
+    assert r.max_displacement == pytest.approx(ref.max_displacement)  # mm
+    s = meshpde.CorrectionSession(V / scale, F)
+    a = s.apply([600], [(1, 0, 0.5)], radius=8.0, units=units)
+    assert np.abs(a.displacement * scale - ref.displacement).max() < 1e-9
+    with pytest.warns(UserWarning, match=f"units={units}"):
+        meshpde.correct(V / scale, F, [600], [(0.01, 0, 0)], radius=0.5)
+    with pytest.raises(meshpde.InputError, match="inch"):
+        meshpde.correct(V, F, [600], [(1, 0, 0)], radius=8.0, units="inch")
 
 
 def test_correction_session_undo_and_redo():

@@ -404,6 +404,9 @@ Field fem_solve(const Mesh& mesh, const CorrectionParams& p, const std::vector<i
 }  // namespace
 
 CorrectionRegion correction_region(const Mesh& mesh, const CorrectionParams& p) {
+  if (p.units != LengthUnit::Millimetre)
+    throw InputError(
+        fmt::format("correction_region works on a mesh in millimetres, not {}: scale it first", to_string(p.units)));
   validate(mesh, p);
   CorrectionRegion out;
   out.region = region_of(mesh, p);
@@ -422,6 +425,19 @@ namespace {
 
 CorrectionResult correct_vessel_impl(const Mesh& mesh, const CorrectionParams& p,
                                      const SelfIntersectionChecker* checker, std::span<const int> already_moved) {
+  if (p.units != LengthUnit::Millimetre) {
+    // Everything below works in millimetres: solve on the mesh scaled to them and give
+    // the displacement back in the mesh's units (added to the input positions, so the
+    // vertices that did not move are the input's, bit for bit). The caller's checker
+    // holds positions in the mesh's units: one is built on the scaled mesh instead.
+    const double s = millimetres_per(p.units);
+    CorrectionParams mm = p;
+    mm.units = LengthUnit::Millimetre;
+    CorrectionResult r = correct_vessel_impl(Mesh(mesh.positions() * s, mesh.triangles()), mm, nullptr, already_moved);
+    r.displacement /= s;
+    r.V = mesh.positions() + r.displacement;
+    return r;
+  }
   const auto t0 = std::chrono::steady_clock::now();
   validate(mesh, p);
   CorrectionResult r;

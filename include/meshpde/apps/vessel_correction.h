@@ -68,6 +68,7 @@
 #include "meshpde/mesh/mesh.h"
 #include "meshpde/mesh/regions.h"
 #include "meshpde/mesh/self_intersections.h"
+#include "meshpde/mesh/units.h"
 #include "meshpde/operators/fem_operators.h"
 #include "meshpde/operators/intrinsic_delaunay.h"
 #include "meshpde/operators/laplacian.h"
@@ -83,7 +84,7 @@ CorrectionMethod parse_correction_method(const std::string& text);
 /// A handle: a vertex moved by a prescribed displacement.
 struct CorrectionHandle {
   int vertex = 0;                                          ///< index into the mesh's vertices
-  Eigen::Vector3d displacement = Eigen::Vector3d::Zero();  ///< in the mesh's units (mm for vessels)
+  Eigen::Vector3d displacement = Eigen::Vector3d::Zero();  ///< mm (CorrectionParams::units: the mesh's unit)
 };
 
 /// Handles from moves written as the user writes them, one per vertex:
@@ -118,10 +119,17 @@ struct ImageGuidance {
   int cube_size = 0;                    ///< springs only: thesis direction cube (odd, >= 3); 0: off
 };
 
-/// One correction's request. Exactly one of radius and rings is > 0.
+/// One correction's request. Exactly one of radius and rings is > 0. Every length in
+/// it (handle displacements, radius, image search radius) is in millimetres, whatever
+/// the mesh's own unit (`units`).
 struct CorrectionParams {
   std::vector<CorrectionHandle> handles;  ///< at least one; parse_handles() reads the CLI's form
-  /// Region of influence: edge-path distance (mesh units, mm) from any handle; 0: use
+  /// Unit of the mesh's coordinates (default mm). Another unit scales the mesh to mm for
+  /// the solve (so that image guidance, radius and displacements in mm apply as they
+  /// say); the result's V and displacement are in the mesh's unit again, its
+  /// max_displacement in mm. mesh/units.h's units_warning() spots a wrong guess.
+  LengthUnit units = LengthUnit::Millimetre;
+  /// Region of influence: edge-path distance (mm) from any handle; 0: use
   /// rings. The free set is taken within radius - h (h the mean edge length), which
   /// makes the result independent of the resolution (see above). Default 0.
   double radius = 0;
@@ -165,8 +173,9 @@ inline constexpr int kCorrectionMarginRings = 6;
 /// numbering; mesh/regions.h's influence_region, clamped at the radius), the region's
 /// copy and the operators built on the copy (params.laplacian, params.stiffness). The
 /// editor's drag preview solves on exactly these, so that the preview when the mouse
-/// stops equals the correction applied on release.
-/// \throw InputError as correct_vessel for bad handles, region or stiffness.
+/// stops equals the correction applied on release. The mesh must be in millimetres.
+/// \throw InputError as correct_vessel for bad handles, region or stiffness, and for
+///        params.units other than mm.
 struct CorrectionRegion {
   std::vector<int> region;  ///< handles first
   RegionCopy copy;
@@ -175,8 +184,8 @@ struct CorrectionRegion {
 CorrectionRegion correction_region(const Mesh& mesh, const CorrectionParams& params);
 
 struct CorrectionResult {
-  Positions V;                               ///< corrected positions
-  Field displacement;                        ///< #V x 3, mm
+  Positions V;                               ///< corrected positions (the mesh's unit)
+  Field displacement;                        ///< #V x 3, the mesh's unit (mm unless params.units says otherwise)
   std::vector<int> region;                   ///< vertices of the region of influence (handles included)
   int moved_vertices = 0;                    ///< |d| > 1e-6 of the largest handle displacement
   double max_displacement = 0;               ///< mm
