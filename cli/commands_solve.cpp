@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cctype>
+#include <charconv>
 #include <chrono>
 #include <memory>
 #include <optional>
@@ -78,35 +79,59 @@ struct CorrectArgs {
   std::vector<std::string> vertices, moves, brushes;
   int rings = 0, steps = 50, cube = 0, passes = 4;
   double radius = 0, g1 = 0, g2 = 1, tol = 1e-10, image_weight = 30.0, image_sigma = 1.0, search = 3.0;
-  double mass = 0.1, elasticity = 0.9, viscosity = 0.6;
+  std::string mass = "0.1", elasticity = "0.9", viscosity = "0.6";  // a number or a vertex field's name
   bool json = false, dynamic = false, allow_intersections = false;
 };
 
-// Brush radii are millimetres like every length the user gives; `mm_per_unit` converts
-// them to the mesh's units (a brush's @X,Y,Z is a point of the mesh, in its units).
-Eigen::VectorXd stiffness_field(const Mesh& mesh, const MeshData& d, const CorrectArgs& a, double mm_per_unit) {
-  if (a.stiffness.empty() && a.brushes.empty()) return {};
-  Eigen::VectorXd w = Eigen::VectorXd::Ones(mesh.num_vertices());
-  if (!a.stiffness.empty()) {
-    const auto it = d.vertex_scalars.find(a.stiffness);
-    if (it == d.vertex_scalars.end()) {
-      std::string names;
-      for (const auto& [k, v] : d.vertex_scalars) names += (names.empty() ? "" : ", ") + k;
-      throw InputError(fmt::format("{}: no vertex field '{}' for --stiffness (fields: {})", a.mesh, a.stiffness,
-                                   names.empty() ? "none" : names));
-    }
-    w = it->second;
+// A vertex field of the mesh named by an option, or an error listing the fields.
+const Eigen::VectorXd& vertex_field(const MeshData& d, const std::string& mesh, const std::string& option,
+                                    const std::string& name) {
+  const auto it = d.vertex_scalars.find(name);
+  if (it != d.vertex_scalars.end()) return it->second;
+  std::string names;
+  for (const auto& [k, v] : d.vertex_scalars) names += (names.empty() ? "" : ", ") + k;
+  throw InputError(
+      fmt::format("{}: no vertex field '{}' for {} (fields: {})", mesh, name, option, names.empty() ? "none" : names));
+}
+
+// --mass, --elasticity, --viscosity: a number for the whole region, else the name of a
+// vertex field of the mesh.
+void tissue_option(const MeshData& d, const CorrectArgs& a, const std::string& option, const std::string& text,
+                   double& scalar, Eigen::VectorXd& field) {
+  double x = 0;
+  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), x);
+  if (ec == std::errc() && end == text.data() + text.size()) {
+    scalar = x;
+    return;
   }
+  field = vertex_field(d, a.mesh, option, text);
+}
+
+// The per-vertex tissue: --stiffness and the tissue options, then the brushes in their
+// order. A brush is [PROPERTY:]V:RADIUS:VALUE (PROPERTY stiffness by default); its radius
+// is in millimetres like every length the user gives, so `mm_per_unit` converts it to
+// the mesh's units (its @X,Y,Z is a point of the mesh, in its units).
+void tissue_fields(const Mesh& mesh, const MeshData& d, const CorrectArgs& a, double mm_per_unit, CorrectionParams& p) {
+  if (!a.stiffness.empty()) p.stiffness = vertex_field(d, a.mesh, "--stiffness", a.stiffness);
+  tissue_option(d, a, "--mass", a.mass, p.tissue.mass, p.tissue.mass_field);
+  tissue_option(d, a, "--elasticity", a.elasticity, p.tissue.elasticity, p.tissue.elasticity_field);
+  tissue_option(d, a, "--viscosity", a.viscosity, p.tissue.viscosity, p.tissue.viscosity_field);
   for (const auto& b : a.brushes) {
     try {
-      Brush brush = parse_brush(mesh, b);
+      TissueProperty property = TissueProperty::Stiffness;
+      std::string spec = b;
+      if (const auto colon = b.find(':');
+          colon != std::string::npos && std::isalpha(static_cast<unsigned char>(b[0]))) {
+        property = parse_tissue_property(b.substr(0, colon));
+        spec = b.substr(colon + 1);
+      }
+      Brush brush = parse_brush(mesh, spec);
       brush.radius /= mm_per_unit;
-      apply_brush(mesh, w, brush);
+      paint_tissue(mesh, p, property, brush);
     } catch (const InputError& e) {
-      throw InputError(fmt::format("--brush: {}", e.what()));
+      throw InputError(fmt::format("--brush {}: {}", b, e.what()));
     }
   }
-  return w;
 }
 
 // Point normals the input carried (vmtk's Normals_, Slicer's Normals) would shade the
@@ -159,10 +184,9 @@ void run_correct(const CorrectArgs& a) {
   p.g1 = a.g1;
   p.g2 = a.g2;
   p.laplacian = parse_laplacian_kind(a.laplacian);
-  p.stiffness = stiffness_field(mesh, data, a, millimetres_per(p.units));
+  tissue_fields(mesh, data, a, millimetres_per(p.units), p);
   p.dynamic = a.dynamic;
   p.steps = a.steps;
-  p.tissue = {a.mass, a.elasticity, a.viscosity};
   p.prevent_intersections = !a.allow_intersections;
   const Space space = mesh_space(a.space, data);
   if (!a.image.empty()) {
@@ -271,13 +295,18 @@ void add_solve_commands(CLI::App& app) {
     cmd->add_flag("--dynamic", a->dynamic,
                   "Settle like tissue (mass, viscosity, elasticity) instead of a static solve");
     cmd->add_option("--steps", a->steps, "Time steps of --dynamic")->capture_default_str();
-    cmd->add_option("--mass", a->mass, "Tissue mass in [0, 1] (thesis default 0.1)")->capture_default_str();
-    cmd->add_option("--elasticity", a->elasticity, "Tissue elasticity in [0, 1]")->capture_default_str();
-    cmd->add_option("--viscosity", a->viscosity, "Tissue viscosity in [0, 1] (1: critical damping)")
+    cmd->add_option("--mass", a->mass,
+                    "Tissue mass in [0, 1] (thesis default 0.1), or the name of a vertex field of MESH (per vertex)")
+        ->capture_default_str();
+    cmd->add_option("--elasticity", a->elasticity, "Tissue elasticity in [0, 1], or a vertex field's name")
+        ->capture_default_str();
+    cmd->add_option("--viscosity", a->viscosity,
+                    "Tissue viscosity in [0, 1] (1: critical damping), or a vertex field's name")
         ->capture_default_str();
     cmd->add_option("--stiffness", a->stiffness, "Per-vertex stiffness multiplier: name of a vertex field in MESH");
     cmd->add_option("--brush", a->brushes,
-                    "Stiffness brush V:RADIUS:VALUE (vertex index or @X,Y,Z; radius in mm), applied after --stiffness; "
+                    "Brush [PROPERTY:]V:RADIUS:VALUE painting stiffness (default), mass, elasticity or viscosity "
+                    "(vertex index or @X,Y,Z; radius in mm; tissue values in [0, 1]), applied after the options; "
                     "repeatable");
     cmd->add_option("--g1", a->g1, "Membrane (Laplacian) stiffness")->capture_default_str();
     cmd->add_option("--g2", a->g2, "Plate (bi-Laplacian) stiffness")->capture_default_str();

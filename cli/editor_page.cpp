@@ -119,7 +119,7 @@ void EditorPage::send_binary(std::string bytes) {
 void EditorPage::load(Loaded l) {
   session_ = std::make_unique<EditorSession>(l.data, edges_, space_);
   source_ = std::move(l);
-  stiffness_.resize(0);
+  tissue_ = CorrectionParams{};
   intersections_ = 0;
   const Mesh& m = session_->mesh();
   send_json({{"type", "mesh"},
@@ -182,11 +182,12 @@ void EditorPage::handle(const std::string& payload, bool binary) {
     } else if (type == "poke_end") {
       s.poke_end();
     } else if (type == "brush") {
-      apply_brush(s.mesh(), stiffness_, Brush{vertex_of(j), number(j, "radius", 3), number(j, "value", 5)});
-      reply["brushed"] = true;
+      const TissueProperty property = parse_tissue_property(j.value("property", std::string("stiffness")));
+      paint_tissue(s.mesh(), tissue_, property, Brush{vertex_of(j), number(j, "radius", 3), number(j, "value", 5)});
+      reply["brushed"] = to_string(property);
     } else if (type == "drag_begin") {
       const double radius = number(j, "radius", 8);
-      reply["setup_ms"] = s.drag_begin(vertex_of(j), radius, stiffness_);
+      reply["setup_ms"] = s.drag_begin(vertex_of(j), radius, tissue_.stiffness, tissue_.tissue);
       reply["region_vertices"] = s.drag_region_vertices();
     } else if (type == "drag_move") {
       // Moves after a refused drag_begin (a region too large to preview) are dropped
@@ -206,7 +207,9 @@ void EditorPage::handle(const std::string& payload, bool binary) {
         p.rings = rings_for_radius(s.mesh(), p.radius);
         p.radius = 0;
       }
-      p.stiffness = stiffness_;
+      p.stiffness = tissue_.stiffness;
+      p.tissue = tissue_.tissue;
+      p.dynamic = j.value("dynamic", false) && p.method == CorrectionMethod::Fem;
       if (!j.value("image", true) || p.method == CorrectionMethod::Springs) p.image.weight = 0;
       const CorrectionResult r = s.correct(p);
       intersections_ = s.self_intersections();

@@ -83,7 +83,7 @@ class EditorPage {
   Eigen::VectorXd sent_field_;     // field as the page has it
   Eigen::MatrixX3d sent_vectors_;  // vector field as the page has it
   std::string sent_field_name_;
-  Eigen::VectorXd stiffness_;  // the page's stiffness brush (empty: uniform)
+  CorrectionParams tissue_;  // the page's brushes: stiffness and tissue fields (empty: uniform)
   int intersections_ = 0;
   double frame_ms_ = 0;  // time to build the last frame
   std::chrono::steady_clock::time_point last_stats_{};

@@ -183,6 +183,25 @@ check "dynamic reported" [ "$(json "$T/dy.json" "d['dynamic']")" = True ]
 "$M" correct "$T/s.ply" --vertex 0 --move 0,0,1 --radius 4 --stiffness nothing -o "$T/x.ply" 2>"$T/err" >/dev/null
 check "missing stiffness field exits 1" [ $? -eq 1 ]
 check "missing stiffness field named" grep -q "no vertex field 'nothing'" "$T/err"
+# per-vertex tissue: a field named by --mass/--elasticity/--viscosity, tissue brushes; a
+# brush over the whole mesh is the scalar option, bit for bit
+"$M" correct "$T/s2.ply" --vertex 0 --move 0,0,1 --radius 4 --dynamic --steps 10 --viscosity displacement_magnitude \
+  --elasticity displacement_magnitude -o "$T/tv.ply" >/dev/null || bad "correct --viscosity FIELD --elasticity FIELD"
+"$M" correct "$T/s.ply" --vertex 0 --move 0,0,1 --radius 4 --dynamic --steps 10 --mass 0.3 --viscosity 0.9 \
+  -o "$T/ms.ply" >/dev/null || bad "correct --mass 0.3 --viscosity 0.9"
+"$M" correct "$T/s.ply" --vertex 0 --move 0,0,1 --radius 4 --dynamic --steps 10 --brush mass:0:1000:0.3 \
+  --brush viscosity:@0,0,10:1000:0.9 -o "$T/mb.ply" >/dev/null || bad "correct --brush mass: --brush viscosity:"
+check "a tissue brush over the whole mesh equals the scalar option" cmp -s "$T/ms.ply" "$T/mb.ply"
+"$M" correct "$T/s.ply" --vertex 0 --move 0,0,1 --radius 4 --dynamic --steps 10 --brush mass:0:3:0.9 \
+  -o "$T/mh.ply" >/dev/null || bad "correct --brush mass:0:3:0.9"
+check "a heavy patch changes the dynamic result" bash -c "! cmp -s '$T/ms.ply' '$T/mh.ply'"
+"$M" correct "$T/s.ply" --vertex 0 --move 0,0,1 --radius 4 --mass nothing -o "$T/x.ply" 2>"$T/err" >/dev/null
+check "missing mass field named" grep -q "no vertex field 'nothing' for --mass" "$T/err"
+"$M" correct "$T/s.ply" --vertex 0 --move 0,0,1 --radius 4 --brush viscosity:0:2:1.5 -o "$T/x.ply" 2>"$T/err" >/dev/null
+check "a viscosity brush above 1 is refused" grep -q "\[0, 1\]" "$T/err"
+"$M" correct "$T/s.ply" --vertex 0 --move 0,0,1 --radius 4 --brush colour:0:2:1 -o "$T/x.ply" 2>"$T/err" >/dev/null
+check "an unknown brush property is named" grep -q "unknown tissue property 'colour'" "$T/err"
+rm -f "$T/x.ply"
 "$M" correct "$T/s.ply" --vertex 0 --vertex 1 --move 0,0,1 --radius 4 -o "$T/x.ply" 2>"$T/err" >/dev/null
 check "handle/move count mismatch exits 1" [ $? -eq 1 ]
 check "handle/move count mismatch explained" grep -q "one displacement per handle" "$T/err"

@@ -153,7 +153,9 @@ _CORRECT_DOC = """
     "cotan" or "intrinsic".
     stiffness: (n,) per-vertex tissue stiffness multiplier (> 0), default 1.
     dynamic, steps, mass, elasticity, viscosity: settle like tissue (thesis defaults
-    0.1, 0.9, 0.6) instead of the static solve.
+    0.1, 0.9, 0.6) instead of the static solve; each of the three is a number in [0, 1]
+    or an (n,) array of them, one per vertex (elasticity then weighs the static solve
+    too, relative to its largest value).
     allow_intersections: do not split or limit a correction that would make the
     surface intersect itself (default False); max_substeps: how far it is split.
     image: a volume path (.mha .nii .nii.gz .nrrd), or a (values[i, j, k], affine)

@@ -125,12 +125,11 @@ class CorrectionResult:
 
 def correct(V: ArrayLike, F: ArrayLike, vertices: ArrayLike, moves: Sequence[Move], *, radius: float = 0.0,
             rings: int = 0, method: str = "fem", g1: float = 0.0, g2: float = 1.0, laplacian: str = "auto",
-            stiffness: ArrayLike | None = None, dynamic: bool = False, steps: int = 50, mass: float = 0.1,
-            elasticity: float = 0.9, viscosity: float = 0.6, allow_intersections: bool = False,
-            max_substeps: int = 8, image: Union[Path, tuple[ArrayLike, ArrayLike], None] = None, space: str = "lps",
+            stiffness: ArrayLike | None = None, dynamic: bool = False, steps: int = 50,
+            mass: float | ArrayLike = 0.1, elasticity: float | ArrayLike = 0.9, viscosity: float | ArrayLike = 0.6,
+            allow_intersections: bool = False, max_substeps: int = 8, image: Union[Path, tuple[ArrayLike, ArrayLike], None] = None, space: str = "lps",
             image_weight: float = 30.0, image_sigma: float = 1.0, search_radius: float = 3.0, cube: int = 0,
-            passes: int = 4, solver: str = "direct",
-            units: str = "mm") -> CorrectionResult: ...
+            passes: int = 4, solver: str = "direct", units: str = "mm") -> CorrectionResult: ...
 
 class CorrectionSession:
     V: np.ndarray
@@ -141,9 +140,9 @@ class CorrectionSession:
     def __init__(self, V: ArrayLike, F: ArrayLike) -> None: ...
     def apply(self, vertices: ArrayLike, moves: Sequence[Move], *, radius: float = 0.0, rings: int = 0,
               method: str = "fem", g1: float = 0.0, g2: float = 1.0, laplacian: str = "auto",
-              stiffness: ArrayLike | None = None, dynamic: bool = False, steps: int = 50, mass: float = 0.1,
-              elasticity: float = 0.9, viscosity: float = 0.6, allow_intersections: bool = False,
-              max_substeps: int = 8, image: Union[Path, tuple[ArrayLike, ArrayLike], None] = None,
+              stiffness: ArrayLike | None = None, dynamic: bool = False, steps: int = 50,
+              mass: float | ArrayLike = 0.1, elasticity: float | ArrayLike = 0.9, viscosity: float | ArrayLike = 0.6,
+              allow_intersections: bool = False, max_substeps: int = 8, image: Union[Path, tuple[ArrayLike, ArrayLike], None] = None,
               space: str = "lps", image_weight: float = 30.0, image_sigma: float = 1.0, search_radius: float = 3.0,
               cube: int = 0, passes: int = 4, solver: str = "direct", units: str = "mm") -> CorrectionResult: ...
     def undo(self) -> None: ...

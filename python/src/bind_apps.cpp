@@ -195,9 +195,18 @@ CorrectionOptions correction_options(const Mesh& mesh, const py::handle& vertice
     p.stiffness = vector_arg(v, "stiffness", mesh.num_vertices());
   if (const py::object v = get("dynamic"); !v.is_none()) p.dynamic = v.cast<bool>();
   integer("steps", p.steps);
-  num("mass", p.tissue.mass);
-  num("elasticity", p.tissue.elasticity);
-  num("viscosity", p.tissue.viscosity);
+  // A number for the whole region, or an (n,) array: one value per vertex.
+  auto tissue = [&](const char* key, double& scalar, Eigen::VectorXd& field) {
+    const py::object v = get(key);
+    if (v.is_none()) return;
+    if (py::isinstance<py::float_>(v) || py::isinstance<py::int_>(v))
+      scalar = v.cast<double>();
+    else
+      field = vector_arg(v, key, mesh.num_vertices());
+  };
+  tissue("mass", p.tissue.mass, p.tissue.mass_field);
+  tissue("elasticity", p.tissue.elasticity, p.tissue.elasticity_field);
+  tissue("viscosity", p.tissue.viscosity, p.tissue.viscosity_field);
   if (const py::object v = get("allow_intersections"); !v.is_none()) p.prevent_intersections = !v.cast<bool>();
   integer("max_substeps", p.max_substeps);
   if (const py::object v = get("solver"); !v.is_none()) {

@@ -173,6 +173,25 @@ def test_correct_in_other_units_is_the_millimetre_correction(units, scale):
         meshpde.correct(V, F, [600], [(1, 0, 0)], radius=8.0, units="inch")
 
 
+def test_correct_takes_per_vertex_tissue_arrays():
+    # A constant array is the scalar, bit for bit; a heavy patch changes the dynamics.
+    V, F = meshpde.generate.tube(radius=5, length=60, rings=40, segments=32)
+    n = len(V)
+    args = dict(radius=8.0, dynamic=True, steps=10)
+    scalar = meshpde.correct(V, F, [600], [(1, 0, 0.5)], mass=0.3, elasticity=0.5, viscosity=0.8, **args)
+    fields = meshpde.correct(V, F, [600], [(1, 0, 0.5)], mass=np.full(n, 0.3), elasticity=np.full(n, 0.5),
+                             viscosity=np.full(n, 0.8), **args)
+    assert np.array_equal(scalar.displacement, fields.displacement)
+    heavy = np.full(n, 0.3)
+    heavy[np.abs(V[:, 2] - 33) < 2] = 1.0
+    patched = meshpde.correct(V, F, [600], [(1, 0, 0.5)], mass=heavy, elasticity=0.5, viscosity=0.8, **args)
+    assert np.abs(patched.displacement - scalar.displacement).max() > 1e-4
+    with pytest.raises(meshpde.InputError, match="outside"):
+        meshpde.correct(V, F, [600], [(1, 0, 0.5)], viscosity=np.full(n, 1.5), **args)
+    with pytest.raises(ValueError):
+        meshpde.correct(V, F, [600], [(1, 0, 0.5)], mass=np.full(n - 1, 0.3), **args)
+
+
 def test_correction_session_undo_and_redo():
     V, F = meshpde.generate.icosphere(3, radius=10)
     s = meshpde.CorrectionSession(V, F)

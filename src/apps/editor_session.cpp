@@ -52,7 +52,8 @@ Positions EditorSession::display_positions() const {
   return V;
 }
 
-double EditorSession::drag_begin(int vertex, double radius, const Eigen::VectorXd& stiffness) {
+double EditorSession::drag_begin(int vertex, double radius, const Eigen::VectorXd& stiffness,
+                                 const TissueParams& tissue) {
   check_vertex(vertex);
   if (!(radius > 0) || !std::isfinite(radius)) throw InputError("drag radius must be a length > 0");
   // The release's correction (fem, static, the automatic Laplacian, this radius).
@@ -60,6 +61,7 @@ double EditorSession::drag_begin(int vertex, double radius, const Eigen::VectorX
   p.handles = {{vertex, Eigen::Vector3d::Zero()}};
   p.radius = radius;
   p.stiffness = stiffness;
+  p.tissue = tissue;
   // A live preview factors the region on the server's one thread: keep it to regions
   // whose set-up takes a fraction of a second (about 0.3 s at 20k vertices here).
   constexpr std::size_t kPreviewLimit = 20000;

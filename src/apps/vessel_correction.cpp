@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <optional>
 #include <set>
 #include <sstream>
@@ -107,6 +108,16 @@ void validate(const Mesh& mesh, const CorrectionParams& p) {
   }
   for (double t : {p.tissue.mass, p.tissue.elasticity, p.tissue.viscosity})
     if (!(t >= 0 && t <= 1)) throw InputError(fmt::format("tissue parameter {} is outside [0, 1]", t));
+  const std::pair<const char*, const Eigen::VectorXd*> fields[] = {{"mass", &p.tissue.mass_field},
+                                                                   {"elasticity", &p.tissue.elasticity_field},
+                                                                   {"viscosity", &p.tissue.viscosity_field}};
+  for (const auto& [name, f] : fields) {
+    if (f->size() == 0) continue;
+    if (f->size() != nv) throw InputError(fmt::format("{} field has {} values for {} vertices", name, f->size(), nv));
+    for (int i = 0; i < nv; ++i)
+      if (!((*f)[i] >= 0 && (*f)[i] <= 1))
+        throw InputError(fmt::format("{} {} at vertex {} is outside [0, 1]", name, (*f)[i], i));
+  }
   if (p.dynamic && p.steps < 1) throw InputError("a dynamic correction needs steps >= 1");
   if (p.solver != SteadySolver::Direct && (p.dynamic || p.image.edges || p.method != CorrectionMethod::Fem))
     throw InputError("the global and iterative solvers take the static fem correction without image guidance only");
@@ -198,6 +209,37 @@ double mean_edge_strength(const ImageGuidance& g, const std::vector<int>& vertic
   return n ? sum / n : 0.0;
 }
 
+// Vertex v's value of a tissue property: its field's entry, else the scalar.
+double tissue_at(const Eigen::VectorXd& field, double scalar, int v) {
+  return field.size() ? field[v] : scalar;
+}
+
+// The weights of the Fem operator: the stiffness field times the elasticity field
+// relative to p.tissue.elasticity (its largest value after normalized(); at least 1e-3,
+// so that no triangle loses all stiffness). Empty when both are absent or every
+// weight is 1, so that a constant elasticity field takes the scalar's path exactly.
+Eigen::VectorXd operator_weights(const CorrectionParams& p, int nv) {
+  const Eigen::VectorXd& e = p.tissue.elasticity_field;
+  if (e.size() == 0) return p.stiffness;
+  Eigen::VectorXd w = p.stiffness.size() ? p.stiffness : Eigen::VectorXd::Ones(nv);
+  bool unit = p.stiffness.size() == 0;
+  for (int i = 0; i < nv; ++i) {
+    const double r = p.tissue.elasticity > 0 ? std::max(e[i] / p.tissue.elasticity, 1e-3) : 1.0;
+    w[i] *= r;
+    unit = unit && r == 1.0;
+  }
+  return unit ? Eigen::VectorXd() : w;
+}
+
+// With an elasticity field, its largest value takes the scalar's place (it scales
+// (g1, g2) in the dynamic mode, and the field relative to it weighs the operator),
+// taken on the whole mesh so that the region's copy weighs alike.
+CorrectionParams normalized(const CorrectionParams& p) {
+  CorrectionParams q = p;
+  if (q.tissue.elasticity_field.size()) q.tissue.elasticity = q.tissue.elasticity_field.maxCoeff();
+  return q;
+}
+
 // The thesis's method (see the header): ring by ring, each vertex moved once to
 // where its springs to already-placed neighbours are relaxed down to the
 // stability threshold.
@@ -211,9 +253,10 @@ Field springs(const Mesh& mesh, const CorrectionParams& p, const std::vector<int
   }
   double scale = 0;
   for (const auto& h : p.handles) scale = std::max(scale, h.displacement.norm());
-  const double c = std::max(p.tissue.elasticity, 1e-3);
   for (const int j : region) {
     if (placed[static_cast<std::size_t>(j)]) continue;
+    const double c = std::max(tissue_at(p.tissue.elasticity_field, p.tissue.elasticity, j), 1e-3);
+    const double viscosity = tissue_at(p.tissue.viscosity_field, p.tissue.viscosity, j);
     const Eigen::Vector3d p0 = V.row(j).transpose();
     std::vector<Eigen::Vector3d> q;
     std::vector<double> rest;
@@ -230,7 +273,7 @@ Field springs(const Mesh& mesh, const CorrectionParams& p, const std::vector<int
     // "Stable" when the net spring force is below c * tol: each ring is left that
     // much stretched, so the displacement decays ring by ring (faster with more
     // viscosity), as the thesis reports.
-    const double tol = std::max(1e-4 * scale, 0.1 * p.tissue.viscosity * mean_rest);
+    const double tol = std::max(1e-4 * scale, 0.1 * viscosity * mean_rest);
     Eigen::Vector3d x = p0;
     const double eta = 0.5 / (c * static_cast<double>(q.size()));  // overdamped step, stable for unit springs
     for (int it = 0; it < 2000; ++it) {
@@ -256,7 +299,7 @@ struct FemSetup {
 
 FemSetup fem_setup(const Mesh& mesh, const CorrectionParams& p, const std::vector<int>& region) {
   FemSetup s;
-  s.mo = build_mesh_operators(mesh, p.laplacian, p.stiffness);
+  s.mo = build_mesh_operators(mesh, p.laplacian, operator_weights(p, mesh.num_vertices()));
   std::set<int> handles;
   for (const auto& h : p.handles) handles.insert(h.vertex);
   for (int v : region)
@@ -291,19 +334,29 @@ Field fem_solve_local(const Mesh& mesh, const CorrectionParams& p, const std::ve
       extra[v] += lambda * s.mo.ops.mass[v];
     }
   // Dynamic: implicit steps of alpha M d'' + b1 M d' + Kt d = f with the thesis's
-  // parameters (see the header); c M joins the diagonal.
-  const double e = p.tissue.elasticity;
-  const double alpha = std::max(p.tissue.mass, 1e-6);
+  // parameters (see the header), per vertex: alpha_i M_i and b1_i M_i, and
+  // (alpha_i / dt^2 + b1_i / dt) M_i joins the diagonal. Scalars are constant fields.
+  const double e = p.tissue.elasticity;  // the largest of an elasticity field (normalized())
+  Eigen::VectorXd alpha = Eigen::VectorXd::Zero(nv), b1 = Eigen::VectorXd::Zero(nv);
+  double alpha_min = std::numeric_limits<double>::infinity();
+  for (int v : s.free) {
+    alpha[v] = std::max(tissue_at(p.tissue.mass_field, p.tissue.mass, v), 1e-6);
+    alpha_min = std::min(alpha_min, alpha[v]);
+  }
+  if (s.free.empty()) alpha_min = std::max(p.tissue.mass, 1e-6);
   const double k_eff = std::max(e, 1e-6) * stiff;
-  const double omega = std::sqrt(k_eff / alpha);
-  // A quarter of 1/omega a step: backward Euler's own damping stays small against
-  // the tissue's (so viscosity matters), and the default 50 steps span 12.5 / omega.
+  const double omega = std::sqrt(k_eff / alpha_min);
+  // A quarter of 1/omega a step (omega of the stiffest, lightest tissue): backward
+  // Euler's own damping stays small against the tissue's (so viscosity matters), and
+  // the default 50 steps span 12.5 / omega.
   const double dt = 0.25 / omega;
-  const double b1 = 2 * p.tissue.viscosity * std::sqrt(alpha * k_eff);
-  const double c_inertia = alpha / (dt * dt) + b1 / dt;
+  for (int v : s.free) {
+    const double k_v = std::max(tissue_at(p.tissue.elasticity_field, e, v), 1e-6) * stiff;
+    b1[v] = 2 * tissue_at(p.tissue.viscosity_field, p.tissue.viscosity, v) * std::sqrt(alpha[v] * k_v);
+  }
   const PdeCoefficients coef{.g0 = 0, .g1 = p.dynamic ? e * p.g1 : p.g1, .g2 = p.dynamic ? e * p.g2 : p.g2};
   if (p.dynamic)
-    for (int v : s.free) extra[v] += c_inertia * s.mo.ops.mass[v];
+    for (int v : s.free) extra[v] += (alpha[v] / (dt * dt) + b1[v] / dt) * s.mo.ops.mass[v];
   if (p.solver != SteadySolver::Direct) {  // static and unguided (validate() made sure)
     SteadySolveResult sr;
     if (p.solver == SteadySolver::Global) {
@@ -357,7 +410,7 @@ Field fem_solve_local(const Mesh& mesh, const CorrectionParams& p, const std::ve
     for (int step = 0; step < p.steps; ++step) {
       Field f = Field::Zero(nv, 3);
       for (int v : s.free)
-        f.row(v) = s.mo.ops.mass[v] * (alpha / (dt * dt) * (2 * cur.row(v) - prev.row(v)) + b1 / dt * cur.row(v));
+        f.row(v) = s.mo.ops.mass[v] * (alpha[v] / (dt * dt) * (2 * cur.row(v) - prev.row(v)) + b1[v] / dt * cur.row(v));
       image_load(cur, f);
       Field next = solver.solve(held, &f);
       worst = std::max(worst, solver.last_relative_residual());
@@ -387,11 +440,15 @@ Field fem_solve(const Mesh& mesh, const CorrectionParams& p, const std::vector<i
   if (c.whole) return fem_solve_local(mesh, p, region, fraction, r);
   CorrectionParams lp = p;
   for (auto& h : lp.handles) h.vertex = c.local(h.vertex);
-  if (p.stiffness.size()) {
-    lp.stiffness.resize(static_cast<Eigen::Index>(c.to_mesh.size()));
-    for (std::size_t k = 0; k < c.to_mesh.size(); ++k)
-      lp.stiffness[static_cast<Eigen::Index>(k)] = p.stiffness[c.to_mesh[k]];
-  }
+  auto localize = [&](const Eigen::VectorXd& field, Eigen::VectorXd& local) {
+    if (field.size() == 0) return;
+    local.resize(static_cast<Eigen::Index>(c.to_mesh.size()));
+    for (std::size_t k = 0; k < c.to_mesh.size(); ++k) local[static_cast<Eigen::Index>(k)] = field[c.to_mesh[k]];
+  };
+  localize(p.stiffness, lp.stiffness);
+  localize(p.tissue.mass_field, lp.tissue.mass_field);
+  localize(p.tissue.elasticity_field, lp.tissue.elasticity_field);
+  localize(p.tissue.viscosity_field, lp.tissue.viscosity_field);
   std::vector<int> local_region;
   local_region.reserve(region.size());
   for (int v : region) local_region.push_back(c.local(v));
@@ -403,6 +460,45 @@ Field fem_solve(const Mesh& mesh, const CorrectionParams& p, const std::vector<i
 
 }  // namespace
 
+TissueProperty parse_tissue_property(const std::string& text) {
+  for (const TissueProperty t :
+       {TissueProperty::Stiffness, TissueProperty::Mass, TissueProperty::Elasticity, TissueProperty::Viscosity})
+    if (text == to_string(t)) return t;
+  throw InputError(fmt::format("unknown tissue property '{}' (stiffness, mass, elasticity or viscosity)", text));
+}
+
+const char* to_string(TissueProperty property) {
+  switch (property) {
+    case TissueProperty::Stiffness:
+      return "stiffness";
+    case TissueProperty::Mass:
+      return "mass";
+    case TissueProperty::Elasticity:
+      return "elasticity";
+    case TissueProperty::Viscosity:
+      return "viscosity";
+  }
+  return "stiffness";
+}
+
+void paint_tissue(const Mesh& mesh, CorrectionParams& params, TissueProperty property, const Brush& brush) {
+  if (property == TissueProperty::Stiffness) {
+    apply_brush(mesh, params.stiffness, brush);
+    return;
+  }
+  if (!(brush.value >= 0 && brush.value <= 1))
+    throw InputError(fmt::format("a {} brush paints values in [0, 1], not {}", to_string(property), brush.value));
+  TissueParams& t = params.tissue;
+  Eigen::VectorXd& field = property == TissueProperty::Mass         ? t.mass_field
+                           : property == TissueProperty::Elasticity ? t.elasticity_field
+                                                                    : t.viscosity_field;
+  const double scalar = property == TissueProperty::Mass         ? t.mass
+                        : property == TissueProperty::Elasticity ? t.elasticity
+                                                                 : t.viscosity;
+  if (field.size() == 0) field = Eigen::VectorXd::Constant(mesh.num_vertices(), scalar);
+  apply_brush(mesh, field, brush);
+}
+
 CorrectionRegion correction_region(const Mesh& mesh, const CorrectionParams& p) {
   if (p.units != LengthUnit::Millimetre)
     throw InputError(
@@ -411,11 +507,12 @@ CorrectionRegion correction_region(const Mesh& mesh, const CorrectionParams& p) 
   CorrectionRegion out;
   out.region = region_of(mesh, p);
   out.copy = copy_region(mesh, out.region, kCorrectionMarginRings);
+  const Eigen::VectorXd all = operator_weights(normalized(p), mesh.num_vertices());
   Eigen::VectorXd weights;
-  if (p.stiffness.size()) {
+  if (all.size()) {
     weights.resize(static_cast<Eigen::Index>(out.copy.to_mesh.size()));
     for (std::size_t k = 0; k < out.copy.to_mesh.size(); ++k)
-      weights[static_cast<Eigen::Index>(k)] = p.stiffness[out.copy.to_mesh[k]];
+      weights[static_cast<Eigen::Index>(k)] = all[out.copy.to_mesh[k]];
   }
   out.operators = build_mesh_operators(out.copy.mesh, p.laplacian, weights);
   return out;
@@ -423,15 +520,15 @@ CorrectionRegion correction_region(const Mesh& mesh, const CorrectionParams& p) 
 
 namespace {
 
-CorrectionResult correct_vessel_impl(const Mesh& mesh, const CorrectionParams& p,
+CorrectionResult correct_vessel_impl(const Mesh& mesh, const CorrectionParams& p_in,
                                      const SelfIntersectionChecker* checker, std::span<const int> already_moved) {
-  if (p.units != LengthUnit::Millimetre) {
+  if (p_in.units != LengthUnit::Millimetre) {
     // Everything below works in millimetres: solve on the mesh scaled to them and give
     // the displacement back in the mesh's units (added to the input positions, so the
     // vertices that did not move are the input's, bit for bit). The caller's checker
     // holds positions in the mesh's units: one is built on the scaled mesh instead.
-    const double s = millimetres_per(p.units);
-    CorrectionParams mm = p;
+    const double s = millimetres_per(p_in.units);
+    CorrectionParams mm = p_in;
     mm.units = LengthUnit::Millimetre;
     CorrectionResult r = correct_vessel_impl(Mesh(mesh.positions() * s, mesh.triangles()), mm, nullptr, already_moved);
     r.displacement /= s;
@@ -439,7 +536,8 @@ CorrectionResult correct_vessel_impl(const Mesh& mesh, const CorrectionParams& p
     return r;
   }
   const auto t0 = std::chrono::steady_clock::now();
-  validate(mesh, p);
+  validate(mesh, p_in);
+  const CorrectionParams p = normalized(p_in);
   CorrectionResult r;
   r.region = region_of(mesh, p);
   const auto& V0 = mesh.positions();

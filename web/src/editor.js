@@ -285,7 +285,8 @@ renderer.domElement.addEventListener('pointerdown', (ev) => {
     return;
   }
   if (t === 'brush') {
-    send({ type: 'brush', vertex: hit.vertex, radius: +$('brush-radius').value, value: +$('brush-value').value });
+    send({ type: 'brush', property: $('brush-property').value, vertex: hit.vertex, radius: +$('brush-radius').value,
+      value: +$('brush-value').value });
     return;
   }
   if (t === 'heat' || t === 'wave') { send({ type: 'source', vertex: hit.vertex }); return; }
@@ -329,7 +330,7 @@ function endDrag(ev) {
     send({ type: 'paint_vector', vertex: drag.vertex, vector: offset.toArray(), g1: +$('g1').value, g2: +$('g2').value });
   else if (tool() === 'correct' && offset.length() > 0)
     send({ type: 'correct', vertex: drag.vertex, move: offset.toArray(), radius: +$('radius').value,
-          method: $('method').value, image: $('image').checked });  // replaces the preview
+          method: $('method').value, image: $('image').checked, dynamic: $('dynamic').checked });  // replaces the preview
   else if (tool() === 'correct') send({ type: 'drag_end' });
   state.poking = false;
   drag = null;
@@ -349,6 +350,13 @@ $('pause').onclick = () => send({ type: 'pause' });
 $('clear-sources').onclick = () => send({ type: 'clear_sources' });
 $('wireframe').onchange = () => { if (wire) wire.visible = $('wireframe').checked; };
 for (const id of ['g1', 'g2']) $(id).oninput = () => { $(`${id}-value`).textContent = $(id).value; };
+// Stiffness multiplies (any value > 0); mass, elasticity and viscosity are in [0, 1].
+const brushDefaults = { stiffness: 5, mass: 0.8, elasticity: 0.3, viscosity: 1 };
+$('brush-property').onchange = () => {
+  const p = $('brush-property').value;
+  $('brush-value').value = brushDefaults[p];
+  $('brush-value').max = p === 'stiffness' ? '' : '1';
+};
 
 async function upload(file) {
   status(`uploading ${file.name} (${(file.size / 1e6).toFixed(1)} MB)…`);

@@ -199,6 +199,40 @@ try {
   await page.waitForTimeout(500);
   check('redo brings the correction back', maxDiff(await positions(page), corrected) < 1e-5);
 
+  // ---------------------------------------------------------------- tissue brush
+  // The brush paints the property chosen (mass here, in [0, 1]); a value outside is an
+  // error for this page only. Then a dynamic correction (settle like tissue) runs.
+  await page.check('input[name=tool][value=brush]');
+  await page.selectOption('#brush-property', 'mass');
+  check('choosing mass sets a value in [0, 1]', Number(await page.inputValue('#brush-value')) <= 1);
+  let before = await page.evaluate(() => meshpde.oks);
+  await page.mouse.click(centre.x, centre.y);
+  await page.waitForFunction((n) => meshpde.oks > n && meshpde.lastOk === 'brush', before, { timeout: 10000 })
+    .catch(() => {});
+  check('a mass brush is accepted', (await page.evaluate(() => meshpde.lastOk)) === 'brush');
+  const errorsBefore = await page.evaluate(() => meshpde.errors);
+  await page.selectOption('#brush-property', 'viscosity');
+  await page.fill('#brush-value', '1.5');
+  await page.mouse.click(centre.x, centre.y);
+  await page.waitForFunction((n) => meshpde.errors > n, errorsBefore, { timeout: 10000 }).catch(() => {});
+  check('a viscosity of 1.5 is refused with a message', /\[0, 1\]/.test(await page.evaluate(() => meshpde.lastError)),
+        await page.evaluate(() => meshpde.lastError));
+  await page.check('input[name=tool][value=correct]');
+  await page.check('#dynamic');
+  before = await page.evaluate(() => meshpde.oks);
+  const beforeDynamic = await positions(page);
+  await dragBy(page, centre, -30, 20);
+  await page.mouse.up();
+  await page.waitForFunction((n) => meshpde.oks > n && meshpde.lastOk === 'correct', before, { timeout: 60000 })
+    .catch(() => {});
+  await page.waitForTimeout(300);
+  check('a dynamic correction through the heavy patch moves vertices',
+        maxDiff(await positions(page), beforeDynamic) > 0.3);
+  await page.uncheck('#dynamic');
+  await page.click('#undo');
+  await page.waitForTimeout(500);
+  check('undo after the dynamic correction', maxDiff(await positions(page), corrected) < 1e-5);
+
   // ---------------------------------------------------------------- paint
   await page.check('input[name=tool][value=paint]');
   await page.fill('#paint-value', '1');

@@ -64,9 +64,11 @@ class EditorSession {
   // operators that correct() uses (correction_region()), so when the mouse stops it
   // equals the correction applied on release to rounding, unless that one is
   // image-guided, dynamic or has to avoid a self-intersection.
-  /// radius: the region of influence in mesh units; stiffness: the per-vertex tissue
-  /// stiffness the release will use (empty: 1). Returns the set-up time in ms.
-  double drag_begin(int vertex, double radius, const Eigen::VectorXd& stiffness = Eigen::VectorXd());
+  /// radius: the region of influence in mesh units; stiffness and tissue: the per-vertex
+  /// stiffness (empty: 1) and tissue the release will use (its elasticity field weighs
+  /// the static solve too). Returns the set-up time in ms.
+  double drag_begin(int vertex, double radius, const Eigen::VectorXd& stiffness = Eigen::VectorXd(),
+                    const TissueParams& tissue = {});
   void drag_move(const Eigen::Vector3d& offset);
   void drag_end();  ///< drops the preview (correct() drops it too)
   bool dragging() const { return drag_ != nullptr; }

@@ -97,7 +97,9 @@ struct CorrectionHandle {
 std::vector<CorrectionHandle> parse_handles(const Mesh& mesh, const std::vector<int>& vertices,
                                             const std::vector<std::string>& moves);
 
-/// The thesis's tissue parameters, each in [0, 1] and unit-free (defaults: the thesis's).
+/// The thesis's tissue parameters, each in [0, 1] and unit-free (defaults: the thesis's),
+/// for the whole region or per vertex: a field (#V entries, each in [0, 1]) replaces its
+/// scalar; a constant field gives exactly the scalar's result.
 struct TissueParams {
   /// Inertia: alpha of the dynamic mode (Fem) or m of eq. 12.1 (springs). Heavier
   /// tissue settles more slowly. Default 0.1.
@@ -108,7 +110,26 @@ struct TissueParams {
   /// Damping: 1 is critical damping of the region's slowest mode (dynamic mode); for
   /// springs, how stretched each ring is left ("stable" threshold). Default 0.6.
   double viscosity = 0.6;
+  /// Per-vertex mass: vertex i's inertia is mass_field[i] M_i. The time step follows the
+  /// fastest tissue of the region (the smallest mass), so `steps` counts its time and a
+  /// heavier band settles later. Empty (default): `mass` everywhere.
+  Eigen::VectorXd mass_field;
+  /// Per-vertex elasticity: it multiplies the stiffness field (relative to its largest
+  /// value, which scales (g1, g2) as `elasticity` does in the dynamic mode), so a band of
+  /// lower elasticity bends more, static or dynamic; springs: vertex j's spring constant.
+  /// Empty (default): `elasticity` everywhere.
+  Eigen::VectorXd elasticity_field;
+  /// Per-vertex viscosity: vertex i's damping is 2 viscosity_i sqrt(alpha_i k_i) M_i, with
+  /// k_i its elasticity times the region's slowest-mode stiffness; springs: vertex j's
+  /// "stable" threshold. Empty (default): `viscosity` everywhere.
+  Eigen::VectorXd viscosity_field;
 };
+
+/// A per-vertex property of the tissue that a brush paints.
+enum class TissueProperty { Stiffness, Mass, Elasticity, Viscosity };
+/// "stiffness", "mass", "elasticity" or "viscosity". \throw InputError otherwise.
+TissueProperty parse_tissue_property(const std::string& text);
+const char* to_string(TissueProperty property);
 
 struct ImageGuidance {
   std::shared_ptr<const Volume> edges;  ///< edge map E (gradient_magnitude of the image); null: off
@@ -159,6 +180,12 @@ struct CorrectionParams {
   SteadySolver solver = SteadySolver::Direct;
   CgOptions cg{.tolerance = 1e-10, .max_iterations = 50000};  ///< for SteadySolver::Iterative
 };
+
+/// Paints `brush` into `params`' field of `property` (stiffness, or one of the tissue
+/// fields). An empty field starts as its scalar everywhere (stiffness: 1), so painting
+/// one band leaves the rest as the scalar option says.
+/// \throw InputError for a bad brush, or a tissue value outside [0, 1].
+void paint_tissue(const Mesh& mesh, CorrectionParams& params, TissueProperty property, const Brush& brush);
 
 /// A Fem correction solves on a copy of its region and this many rings around it
 /// (mesh/regions.h's copy_region), so its cost follows the region, not the mesh. The
