@@ -259,7 +259,9 @@ void add_mesh_commands(CLI::App& app) {
     auto scale = std::make_shared<std::string>("area");
     auto out = std::make_shared<std::string>();
     auto json = std::make_shared<bool>(false);
+    auto laplacian = std::make_shared<std::string>("auto");
     cmd->add_option("MESH", *path, "Mesh file")->required();
+    add_laplacian_option(cmd, *laplacian);
     cmd->add_option("--scale", *scale, "area: c = 3/A (Meyer et al.); valence: c = 4 cos^2(pi/n)/A")
         ->check(CLI::IsMember({"area", "valence"}))
         ->capture_default_str();
@@ -270,14 +272,16 @@ void add_mesh_commands(CLI::App& app) {
         throw InputError(fmt::format("{}: vertex properties need a .ply output", *out));
       const Mesh mesh = load_mesh(*path);
       warn_about_shape(mesh, *path);
-      const FemOperators ops = build_operators(mesh);
-      const Eigen::VectorXd H =
-          mean_curvature(mesh, ops, *scale == "valence" ? CurvatureScale::Valence : CurvatureScale::Area);
+      const CurvatureResult c = mean_curvature(
+          mesh, *scale == "valence" ? CurvatureScale::Valence : CurvatureScale::Area, parse_laplacian_kind(*laplacian));
+      const Eigen::VectorXd& H = c.H;
       const double mean = H.mean();
       const double sd = std::sqrt((H.array() - mean).square().mean());
       Eigen::VectorXd rho = H.cwiseInverse();
       if (*json) {
         print_json({{"scale", *scale},
+                    {"laplacian", to_string(c.laplacian)},
+                    {"laplacian_reason", c.reason},
                     {"mean_curvature", std::vector<double>(H.data(), H.data() + H.size())},
                     {"mean", mean},
                     {"std", sd},
@@ -286,8 +290,10 @@ void add_mesh_commands(CLI::App& app) {
                     {"mean_radius", rho.mean()},
                     {"radius_range", rho.maxCoeff() - rho.minCoeff()}});
       } else {
-        fmt::print("mean curvature ({} scaling) over {} vertices: mean {:.6g}, std {:.3g}, range [{:.6g}, {:.6g}]\n",
-                   *scale, H.size(), mean, sd, H.minCoeff(), H.maxCoeff());
+        fmt::print(
+            "mean curvature ({} scaling, {} Laplacian) over {} vertices: mean {:.6g}, std {:.3g}, range [{:.6g}, "
+            "{:.6g}]\n",
+            *scale, to_string(c.laplacian), H.size(), mean, sd, H.minCoeff(), H.maxCoeff());
         fmt::print("radius 1/H: mean {:.6g}, max - min {:.3g}\n", rho.mean(), rho.maxCoeff() - rho.minCoeff());
       }
       if (!out->empty()) save_mesh(*out, mesh.positions(), mesh.triangles(), {{"mean_curvature", H}});

@@ -33,14 +33,18 @@ namespace {
 struct DragReport {
   DragResult result;
   double setup_ms = 0, solve_ms = 0;
+  LaplacianKind laplacian = LaplacianKind::Cotan;
 };
 
-DragReport run_drag(const Mesh& mesh, const DragParams& p) {
+// The drag on the operators of `kind` (intrinsic: on its operator mesh, whose vertices
+// and positions are the input's, so the result applies to the input triangles).
+DragReport run_drag(const Mesh& mesh, const DragParams& p, LaplacianKind kind) {
   using clock = std::chrono::steady_clock;
   const auto t0 = clock::now();
-  const FemOperators ops = build_operators(mesh);
+  const MeshOperators mo = build_mesh_operators(mesh, kind);
   const auto t1 = clock::now();
-  DragReport r{drag_vertex(mesh, ops, p)};
+  DragReport r{drag_vertex(mo.mesh, mo.ops, p)};
+  r.laplacian = mo.kind;
   const auto t2 = clock::now();
   r.setup_ms = std::chrono::duration<double, std::milli>(t1 - t0).count();
   r.solve_ms = std::chrono::duration<double, std::milli>(t2 - t1).count();
@@ -57,7 +61,8 @@ nlohmann::json drag_json(const DragReport& r) {
           {"cg_iterations", r.result.cg.iterations},
           {"relative_residual", r.result.cg.relative_residual},
           {"converged", r.result.cg.converged()},
-          {"handle_force", {r.result.reaction.x(), r.result.reaction.y(), r.result.reaction.z()}}};
+          {"handle_force", {r.result.reaction.x(), r.result.reaction.y(), r.result.reaction.z()}},
+          {"laplacian", to_string(r.laplacian)}};
 }
 
 void print_drag(const DragReport& r, const std::string& out) {
@@ -339,11 +344,12 @@ void add_solve_commands(CLI::App& app) {
     auto* cmd = app.add_subcommand(
         "demo", "Main job: generate a dented Y bifurcation and drag the dented wall back out (bi-Laplacian, local)");
     struct Args {
-      std::string outdir = "meshpde-demo";
+      std::string outdir = "meshpde-demo", laplacian = "auto";
       double radius = 8.0;
       bool json = false;
     };
     auto a = std::make_shared<Args>();
+    add_laplacian_option(cmd, a->laplacian);
     cmd->add_option("-o,--output-dir", a->outdir, "Where to write the input and corrected meshes")
         ->capture_default_str();
     cmd->add_option("--radius", a->radius, "Region of influence in mm")->capture_default_str();
@@ -360,7 +366,8 @@ void add_solve_commands(CLI::App& app) {
       const auto out_path = std::filesystem::path(a->outdir) / "bifurcation-corrected.ply";
       save_mesh(in_path, mesh.positions(), mesh.triangles());
       const MeshReport rep = analyze(mesh);
-      const DragReport r = run_drag(mesh, DragParams{.vertex = handle, .displacement = move, .radius = a->radius});
+      const DragReport r = run_drag(mesh, DragParams{.vertex = handle, .displacement = move, .radius = a->radius},
+                                    parse_laplacian_kind(a->laplacian));
       save_mesh(out_path, r.result.V, mesh.triangles(), displacement_fields(r.result));
       if (a->json) {
         auto j = drag_json(r);

@@ -104,8 +104,8 @@ Loaded generated(const std::string& requested) {
   return l;
 }
 
-EditorPage::EditorPage(PageSink sink, std::shared_ptr<const Volume> edges, Space space)
-    : sink_(std::move(sink)), edges_(std::move(edges)), space_(space) {}
+EditorPage::EditorPage(PageSink sink, std::shared_ptr<const Volume> edges, Space space, LaplacianKind laplacian)
+    : sink_(std::move(sink)), edges_(std::move(edges)), space_(space), laplacian_(laplacian) {}
 
 // Names in messages come from the user's files (field and file names) and need not be
 // UTF-8; they are sent with U+FFFD in place of the bad bytes rather than thrown on.
@@ -117,7 +117,7 @@ void EditorPage::send_binary(std::string bytes) {
 }
 
 void EditorPage::load(Loaded l) {
-  session_ = std::make_unique<EditorSession>(l.data, edges_, space_);
+  session_ = std::make_unique<EditorSession>(l.data, edges_, space_, laplacian_);
   source_ = std::move(l);
   tissue_ = CorrectionParams{};
   intersections_ = 0;

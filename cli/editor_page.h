@@ -52,7 +52,8 @@ class EditorPage {
  public:
   /// A page with no mesh yet; `edges` (may be null) guides corrections, `space` is
   /// the frame of the meshes' coordinates.
-  EditorPage(PageSink sink, std::shared_ptr<const Volume> edges, Space space);
+  EditorPage(PageSink sink, std::shared_ptr<const Volume> edges, Space space,
+             LaplacianKind laplacian = LaplacianKind::Auto);
 
   /// Opens `l` (a new session) and sends it: a "mesh" message and a MESH frame.
   /// \throw InputError (the page keeps its mesh).
@@ -77,6 +78,7 @@ class EditorPage {
   PageSink sink_;
   std::shared_ptr<const Volume> edges_;
   Space space_;
+  LaplacianKind laplacian_;
   Loaded source_;
   std::unique_ptr<EditorSession> session_;
   Positions sent_;                 // positions as the page has them

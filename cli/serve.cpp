@@ -52,7 +52,7 @@ using Hdl = int;  // a page's connection id
 namespace fs = std::filesystem;
 
 struct ServeArgs {
-  std::string mesh, host = "127.0.0.1", image, space, web_root;
+  std::string mesh, host = "127.0.0.1", image, space, web_root, laplacian = "auto";
   int port = 8080;
   double max_upload_mb = 64;
 };
@@ -224,6 +224,7 @@ class EditorServer {
       initial_ = generated("dented");
     }
     space_ = mesh_space(a.space, initial_.data);
+    laplacian_ = parse_laplacian_kind(a.laplacian);
     if (!a.image.empty()) {
 #ifdef MESHPDE_HAVE_MEDICAL
       edges_ = std::make_shared<const Volume>(gradient_magnitude(read_volume(a.image), 1.0));
@@ -269,7 +270,7 @@ class EditorServer {
     page.editor = std::make_shared<EditorPage>(
         PageSink{.text = [this, h](std::string s) { server_.send_text(h, std::move(s)); },
                  .binary = [this, h](std::string s) { server_.send_binary(h, std::move(s)); }},
-        edges_, space_);
+        edges_, space_, laplacian_);
     page.worker = std::make_unique<PageWorker>();
     send_json(h, {{"type", "hello"}, {"client", h}});
     EditorPage* c = page.editor.get();
@@ -418,6 +419,7 @@ class EditorServer {
   fs::path web_root_;
   Loaded initial_;
   Space space_ = Space::LPS;
+  LaplacianKind laplacian_ = LaplacianKind::Auto;
   std::shared_ptr<const Volume> edges_;
   std::map<Hdl, Page> pages_;  // the I/O thread's
   std::vector<Page> retired_;  // closed, their workers finishing
@@ -447,6 +449,7 @@ void add_serve_command(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--image", a->image, "Volume for image-guided correction (.mha .mhd .nii .nii.gz .nrrd .nhdr)");
   cmd->add_option("--space", a->space, "Frame of the mesh coordinates: lps | ras");
+  add_laplacian_option(cmd, a->laplacian);
   cmd->add_option("--web-root", a->web_root, "Folder with the built page")->capture_default_str();
   cmd->add_option("--max-upload-mb", a->max_upload_mb, "Largest accepted upload")->capture_default_str();
   cmd->callback([a] {

@@ -34,6 +34,14 @@ check "fins are non-manifold" [ "$(json "$T/g.json" "d['nonmanifold_edges']")" =
 check "curvature mean radius 112.1" [ "$(json "$T/c.json" "round(d['mean_radius'], 1)")" = 112.1 ]
 check "curvature array length" [ "$(json "$T/c.json" "len(d['mean_curvature'])")" = 14 ]
 "$M" curvature "$T/l3.obj" -o "$T/c.ply" >/dev/null || bad "curvature -o"
+"$M" curvature "$T/l3.obj" --laplacian intrinsic --json >"$T/ci.json" || bad "curvature --laplacian intrinsic"
+check "curvature reports the Laplacian chosen" [ "$(json "$T/ci.json" "d['laplacian']")" = intrinsic ]
+check "curvature's auto is cotan" [ "$(json "$T/c.json" "d['laplacian']")" = cotan ]
+"$M" demo --laplacian intrinsic --json -o "$T/demo-i" >"$T/di.json" || bad "demo --laplacian intrinsic"
+check "demo reports the Laplacian chosen" [ "$(json "$T/di.json" "d['laplacian']")" = intrinsic ]
+"$M" serve --laplacian bogus 2>"$T/err" >/dev/null
+check "serve refuses an unknown --laplacian" grep -q "bogus" "$T/err"
+
 check "curvature field written" grep -q "property double mean_curvature" "$T/c.ply"
 
 # real data

@@ -366,3 +366,28 @@ TEST(DragSession, EditorPreviewEqualsTheReleasedCorrectionWithStiffnessOnADented
   soft.stiffness.resize(0);
   EXPECT_GT((correct_vessel(Mesh(data.V, data.F), soft).V - r.V).cwiseAbs().maxCoeff(), 1e-3 * offset.norm());
 }
+
+TEST(DragSession, TheEditorsLaplacianChoiceReachesEveryTool) {
+  // serve --laplacian: the session's operators (paint, heat, probe) and its corrections
+  // and previews use the kind chosen, not Auto's pick. An icosphere is well shaped, so
+  // Auto would take the cotangent operator everywhere.
+  const GeneratedMesh g = icosphere(3);
+  MeshData data;
+  data.V = g.V;
+  data.F = g.F;
+  for (const LaplacianKind kind : {LaplacianKind::Auto, LaplacianKind::IntrinsicDelaunay}) {
+    EditorSession s(data, nullptr, Space::LPS, kind);
+    EXPECT_EQ(s.laplacian(), kind);
+    CorrectionParams p;
+    p.handles = {{0, Eigen::Vector3d(0, 0, 0.1)}};
+    p.radius = 0.5;
+    const CorrectionResult r = s.correct(p);
+    EXPECT_EQ(r.laplacian, kind == LaplacianKind::Auto ? LaplacianKind::Cotan : LaplacianKind::IntrinsicDelaunay);
+    // The preview solves with the same operator as the release: they agree.
+    s.undo();
+    s.drag_begin(0, 0.5);
+    s.drag_move(Eigen::Vector3d(0, 0, 0.1));
+    EXPECT_LE((s.display_positions() - r.V).cwiseAbs().maxCoeff(), 1e-9);
+    s.drag_end();
+  }
+}

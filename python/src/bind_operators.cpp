@@ -100,23 +100,25 @@ K and M on the intrinsic Delaunay triangulation of the same surface (Sharp and C
       py::arg("V"), py::arg("F"), py::arg("mollify_epsilon") = IntrinsicDelaunayOptions{}.mollify_epsilon);
   m.def(
       "curvature",
-      [](const py::handle& V, const py::handle& F, const std::string& scale) {
+      [](const py::handle& V, const py::handle& F, const std::string& scale, const std::string& laplacian) {
         if (scale != "area" && scale != "valence")
           throw py::value_error(fmt::format("scale: expected 'area' or 'valence', got '{}'", scale));
+        const LaplacianKind kind = parse_laplacian_kind(laplacian);
         const Mesh mesh = mesh_arg(V, F);
         Eigen::VectorXd H;
         {
           py::gil_scoped_release release;
-          H = mean_curvature(mesh, build_operators(mesh),
-                             scale == "area" ? CurvatureScale::Area : CurvatureScale::Valence);
+          H = mean_curvature(mesh, scale == "area" ? CurvatureScale::Area : CurvatureScale::Valence, kind).H;
         }
         return to_numpy(H);
       },
-      R"doc(curvature(V, F, scale="area") -> (n,)
+      R"doc(curvature(V, F, scale="area", laplacian="auto") -> (n,)
 
 Mean curvature H_i = |row_i(K V)| c_i / 2 (1 / length): 1/R on a sphere of radius R.
-scale: "area" (c_i = 3 / area around i) or "valence" (seed 000's flat-umbrella fit).)doc",
-      py::arg("V"), py::arg("F"), py::arg("scale") = "area");
+scale: "area" (c_i = 3 / area around i) or "valence" (seed 000's flat-umbrella fit).
+laplacian: "auto" (intrinsic Delaunay on badly shaped or non-manifold meshes), "cotan"
+or "intrinsic", as ``meshpde curvature --laplacian``.)doc",
+      py::arg("V"), py::arg("F"), py::arg("scale") = "area", py::arg("laplacian") = "auto");
 }
 
 }  // namespace meshpde::python

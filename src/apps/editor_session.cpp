@@ -23,8 +23,12 @@ Mesh checked_mesh(const MeshData& d) {
 
 }  // namespace
 
-EditorSession::EditorSession(MeshData data, std::shared_ptr<const Volume> edges, Space space)
-    : data_(std::move(data)), correction_(checked_mesh(data_)), edges_(std::move(edges)), space_(space) {
+EditorSession::EditorSession(MeshData data, std::shared_ptr<const Volume> edges, Space space, LaplacianKind laplacian)
+    : data_(std::move(data)),
+      correction_(checked_mesh(data_)),
+      edges_(std::move(edges)),
+      space_(space),
+      laplacian_(laplacian) {
   mean_edge_ = std::max(meshpde::mean_edge_length(correction_.mesh()), 1e-12);
 }
 
@@ -62,6 +66,7 @@ double EditorSession::drag_begin(int vertex, double radius, const Eigen::VectorX
   p.radius = radius;
   p.stiffness = stiffness;
   p.tissue = tissue;
+  p.laplacian = laplacian_;
   // A live preview factors the region on the server's one thread: keep it to regions
   // whose set-up takes a fraction of a second (about 0.3 s at 20k vertices here).
   constexpr std::size_t kPreviewLimit = 20000;
@@ -161,6 +166,7 @@ CorrectionResult EditorSession::correct(CorrectionParams params) {
   stop_poke();
   pause();
   drag_end();  // the correction replaces the preview
+  params.laplacian = laplacian_;
   if (edges_ && !params.image.edges && params.image.weight > 0) {
     params.image.edges = edges_;
     params.image.space = space_;

@@ -30,7 +30,11 @@ namespace meshpde {
 class EditorSession {
  public:
   /// The mesh with its fields (kept for saving). \throw InputError for an unusable mesh.
-  explicit EditorSession(MeshData data, std::shared_ptr<const Volume> edges = nullptr, Space space = Space::LPS);
+  /// laplacian: the operator of poke, paint, heat, wave, the drag preview and correct
+  /// (Auto: intrinsic Delaunay on badly shaped or non-manifold meshes; `serve --laplacian`).
+  explicit EditorSession(MeshData data, std::shared_ptr<const Volume> edges = nullptr, Space space = Space::LPS,
+                         LaplacianKind laplacian = LaplacianKind::Auto);
+  LaplacianKind laplacian() const { return laplacian_; }
   ~EditorSession();
   EditorSession(const EditorSession&) = delete;
   EditorSession& operator=(const EditorSession&) = delete;
@@ -123,10 +127,11 @@ class EditorSession {
   CorrectionSession correction_;
   std::shared_ptr<const Volume> edges_;
   Space space_;
+  LaplacianKind laplacian_ = LaplacianKind::Auto;
   double mean_edge_ = 1;
   // The surface's operators (intrinsic Delaunay on badly shaped meshes), one cache for
   // the probe, heat and wave and painting; refreshed by every change of the surface.
-  OperatorCache geometry_{LaplacianKind::Auto};
+  OperatorCache geometry_{laplacian_};
   // Poke state: the operators it was built on (kept alive while it runs).
   std::shared_ptr<const MeshOperators> poke_geometry_;
   std::unique_ptr<HapticSession> haptic_;
