@@ -18,8 +18,11 @@ void add_bench_command(CLI::App& app) {
   cmd->add_flag("--large", options->large,
                 "Also the global solves on the 655k and 2.6M icospheres (iteration counts; minutes, several GB)");
   cmd->add_option("--threads", options->threads, "Thread limit for the whole run (default: every core)");
-  cmd->add_option("--only", options->only, "One section alone: haptic (the haptic_* figures)")
-      ->check(CLI::IsMember({"haptic"}));
+  cmd->add_option(
+         "--only", options->only,
+         "One section alone: haptic (the haptic_* figures) or global_real (the global bi-Laplacian on the real "
+         "meshes)")
+      ->check(CLI::IsMember({"haptic", "global_real"}));
   cmd->callback([=] {
     options->data_dir = data_dir();
     options->progress = [](const std::string& what) { fmt::print(stderr, "[bench] {}\n", what); };

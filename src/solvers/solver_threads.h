@@ -40,7 +40,7 @@ class OpenMpActiveLevels {
   OpenMpActiveLevels& operator=(const OpenMpActiveLevels&) = delete;
 
  private:
-  int saved_ = 0;
+  [[maybe_unused]] int saved_ = 0;  // unused without OpenMP
 };
 
 /// Runs f0 and f1 at the same time, each on one core, with one BLAS thread each; CHOLMOD's
