@@ -220,6 +220,7 @@ void run_correct(const CorrectArgs& a) {
     V = r.V;
     disp = r.displacement;
     if (!r.accuracy_warning.empty()) fmt::print(stderr, "warning: {}\n", r.accuracy_warning);
+    if (!r.region_warning.empty()) fmt::print(stderr, "warning: {}: {}\n", a.mesh, r.region_warning);
     j = {{"moved_vertices", r.moved_vertices},
          {"max_displacement", r.max_displacement},
          {"region_vertices", r.region.size()},
@@ -233,6 +234,7 @@ void run_correct(const CorrectArgs& a) {
          {"condition_estimate", r.condition_estimate},
          {"error_bound", r.error_bound},
          {"accuracy_warning", r.accuracy_warning.empty() ? nlohmann::json() : nlohmann::json(r.accuracy_warning)},
+         {"region_warning", r.region_warning.empty() ? nlohmann::json() : nlohmann::json(r.region_warning)},
          {"applied_fraction", r.applied_fraction},
          {"substeps", r.substeps},
          {"intersection_action", r.intersection_action},

@@ -216,6 +216,7 @@ void EditorPage::handle(const std::string& payload, bool binary) {
       reply.update({{"moved_vertices", r.moved_vertices},
                     {"new_self_intersections", r.new_self_intersections},
                     {"intersection_action", r.intersection_action},
+                    {"region_warning", r.region_warning},
                     {"time_ms", r.time_ms}});
     } else if (type == "undo" || type == "redo") {
       type == "undo" ? s.undo() : s.redo();

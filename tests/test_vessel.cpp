@@ -264,7 +264,14 @@ TEST(Vessel, ARadiusBelowOneEdgeMovesOnlyTheHandleWithEverySolver) {
       EXPECT_EQ(r.V.row(6), m.positions().row(6) + Eigen::RowVector3d(0, 0, 2));
       EXPECT_EQ((r.V - m.positions()).rowwise().norm().maxCoeff(), 2.0);
       EXPECT_TRUE(r.V.allFinite());
+      // And it says so, naming the radius against the edges.
+      EXPECT_NE(r.region_warning.find("only the handles move"), std::string::npos) << r.region_warning;
+      EXPECT_NE(r.region_warning.find("radius of 1 mm"), std::string::npos) << r.region_warning;
     }
+  CorrectionParams wide;
+  wide.handles = {{6, Eigen::Vector3d(0, 0, 2)}};
+  wide.radius = 12;
+  EXPECT_EQ(correct_vessel(m, wide).region_warning, "");
 }
 
 TEST(Vessel, AMeshInCentimetresOrMetresGivesTheMillimetreCorrection) {

@@ -114,6 +114,7 @@ class CorrectionResult:
     condition_estimate: float
     error_bound: float
     accuracy_warning: str | None
+    region_warning: str | None
     applied_fraction: float
     substeps: int
     intersection_action: str

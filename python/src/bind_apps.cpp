@@ -268,6 +268,7 @@ struct PyCorrectionResult {
     j["condition_estimate"] = r.condition_estimate;
     j["error_bound"] = r.error_bound;
     j["accuracy_warning"] = accuracy_warning();
+    j["region_warning"] = r.region_warning.empty() ? py::object(py::none()) : py::object(py::str(r.region_warning));
     j["applied_fraction"] = r.applied_fraction;
     j["substeps"] = r.substeps;
     j["intersection_action"] = r.intersection_action;
@@ -283,6 +284,7 @@ PyCorrectionResult wrap(CorrectionResult r, const CorrectionOptions& c) {
   PyCorrectionResult out{std::move(r),  c.method, c.params.dynamic,         static_cast<int>(c.params.handles.size()),
                          c.image_space, c.solver, to_string(c.params.units)};
   if (!c.units_warning.empty()) PyErr_WarnEx(PyExc_UserWarning, c.units_warning.c_str(), 1);
+  if (!out.r.region_warning.empty()) PyErr_WarnEx(PyExc_UserWarning, out.r.region_warning.c_str(), 1);
   if (!out.r.accuracy_warning.empty()) PyErr_WarnEx(PyExc_RuntimeWarning, out.r.accuracy_warning.c_str(), 1);
   return out;
 }
@@ -441,6 +443,12 @@ void bind_apps(py::module_& m) {
       .def_property_readonly("condition_estimate", [](const PyCorrectionResult& c) { return c.r.condition_estimate; })
       .def_property_readonly("error_bound", [](const PyCorrectionResult& c) { return c.r.error_bound; })
       .def_property_readonly("accuracy_warning", &PyCorrectionResult::accuracy_warning)
+      .def_property_readonly(
+          "region_warning",
+          [](const PyCorrectionResult& c) {
+            return c.r.region_warning.empty() ? py::object(py::none()) : py::object(py::str(c.r.region_warning));
+          },
+          "set when the region holds only the handles (a radius below one edge): only they move")
       .def_property_readonly("applied_fraction", [](const PyCorrectionResult& c) { return c.r.applied_fraction; })
       .def_property_readonly("substeps", [](const PyCorrectionResult& c) { return c.r.substeps; })
       .def_property_readonly("intersection_action", [](const PyCorrectionResult& c) { return c.r.intersection_action; })

@@ -192,6 +192,15 @@ def test_correct_takes_per_vertex_tissue_arrays():
         meshpde.correct(V, F, [600], [(1, 0, 0.5)], mass=np.full(n - 1, 0.3), **args)
 
 
+def test_a_radius_below_one_edge_warns_that_only_the_handle_moves():
+    V, F = meshpde.generate.icosphere(2, radius=10)  # edges of about 4.4
+    with pytest.warns(UserWarning, match="only the handles move"):
+        r = meshpde.correct(V, F, [6], [(0, 0, 2)], radius=1.0)
+    assert r.moved_vertices == 1 and "only the handles move" in r.region_warning
+    assert r.to_dict()["region_warning"] == r.region_warning
+    assert meshpde.correct(V, F, [6], [(0, 0, 2)], radius=12.0).region_warning is None
+
+
 def test_correction_session_undo_and_redo():
     V, F = meshpde.generate.icosphere(3, radius=10)
     s = meshpde.CorrectionSession(V, F)

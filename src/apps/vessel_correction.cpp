@@ -540,6 +540,20 @@ CorrectionResult correct_vessel_impl(const Mesh& mesh, const CorrectionParams& p
   const CorrectionParams p = normalized(p_in);
   CorrectionResult r;
   r.region = region_of(mesh, p);
+  if (r.region.size() <= p.handles.size()) {
+    double sum = 0;  // mean length of the edges at the handles
+    int count = 0;
+    for (const auto& h : p.handles)
+      for (const int n : mesh.neighbors(h.vertex)) {
+        sum += (mesh.positions().row(n) - mesh.positions().row(h.vertex)).norm();
+        ++count;
+      }
+    r.region_warning = fmt::format(
+        "the region of influence holds only the handles: a radius of {:.3g} mm is below the {:.3g} mm edges "
+        "around them, so only the handles move; give a radius of a few edge lengths",
+        p.radius, count ? sum / count : 0.0);
+    if (p.radius <= 0) r.region_warning = "the region of influence holds only the handles: only they move";
+  }
   const auto& V0 = mesh.positions();
 
   // Intersections are always counted (and reported); prevent_intersections only

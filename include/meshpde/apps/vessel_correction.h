@@ -224,6 +224,9 @@ struct CorrectionResult {
   double condition_estimate = 0;             ///< largest cond_1 of the scaled system (SteadyDirectSolver::conditioning)
   double error_bound = 0;                    ///< largest estimated relative error of a solve
   std::string accuracy_warning;              ///< set when a solve cannot promise 1e-5 relative accuracy
+  /// Set when the region holds nothing but the handles (a radius below about one edge
+  /// length): only the handles move, the wall around them does not follow.
+  std::string region_warning;
   LaplacianKind laplacian = LaplacianKind::Cotan;
   std::string laplacian_reason;
   double image_mean_edge_before = 0;  ///< image guidance: mean E over the pulled vertices
