@@ -300,7 +300,8 @@ void add_solve_commands(CLI::App& app) {
         ->check(CLI::IsMember({"fem", "springs"}))
         ->capture_default_str();
     cmd->add_flag("--dynamic", a->dynamic,
-                  "Settle like tissue (mass, viscosity, elasticity) instead of a static solve");
+                  "Settle like tissue (mass, viscosity, elasticity) instead of a static solve (springs: the thesis's "
+                  "dynamic version)");
     cmd->add_option("--steps", a->steps, "Time steps of --dynamic")->capture_default_str();
     cmd->add_option("--mass", a->mass,
                     "Tissue mass in [0, 1] (thesis default 0.1), or the name of a vertex field of MESH (per vertex)")
@@ -328,7 +329,9 @@ void add_solve_commands(CLI::App& app) {
     cmd->add_option("--search-radius", a->search,
                     "Distance (mm) searched for an edge along each vertex normal, both ways")
         ->capture_default_str();
-    cmd->add_option("--cube", a->cube, "Thesis direction cube (odd, >= 3) instead of the search along the normal");
+    cmd->add_option("--cube", a->cube,
+                    "Thesis direction cube (odd, >= 3) instead of the search along the normal (needed by --method "
+                    "springs --image: the thesis's image step)");
     cmd->add_option("--passes", a->passes, "Image fixed-point passes")->capture_default_str();
     cmd->add_option("--solver", a->solver,
                     "direct (default) | global (multigrid-CG, for very large regions) | iterative (Jacobi-CG, for "

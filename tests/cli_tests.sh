@@ -98,6 +98,14 @@ if [ -f "$DATA/aorta-closed-6k.vtp" ]; then
     "$M" correct "$DATA/aorta-closed-6k.vtp" --vertex 500 --move 1,0,0 --radius 9 --image "$DATA/aorta-mra.mha" \
       --space ras -o "$T/ai.vtp" --json >"$T/ai.json" || bad "correct --image"
     check "image guidance pulled vertices" [ "$(json "$T/ai.json" "d['image']['pulled_vertices'] > 0")" = True ]
+    # the thesis's springs with their image step (direction cube) and dynamic version
+    "$M" correct "$DATA/aorta-closed-6k.vtp" --vertex 500 --move normal:2 --rings 9 --method springs --dynamic \
+      --image "$DATA/aorta-mra.mha" --space ras --cube 3 -o "$T/as.vtp" --json >"$T/as.json" ||
+      bad "correct --method springs --dynamic --image --cube 3"
+    check "springs' image step pulled vertices" [ "$(json "$T/as.json" "d['image']['pulled_vertices'] > 0")" = True ]
+    "$M" correct "$DATA/aorta-closed-6k.vtp" --vertex 500 --move normal:2 --rings 9 --method springs \
+      --image "$DATA/aorta-mra.mha" --space ras -o "$T/x.vtp" 2>"$T/err" >/dev/null
+    check "springs with an image but no cube are refused in words" grep -q "direction cube" "$T/err"
     "$M" correct "$DATA/aorta-closed-6k.vtp" --vertex 500 --move 1,0,0 --radius 9 --image "$DATA/absent.mha" \
       -o "$T/x.vtp" 2>"$T/err" >/dev/null
     check "missing volume exits 1" [ $? -eq 1 ]

@@ -123,8 +123,8 @@ void validate(const Mesh& mesh, const CorrectionParams& p) {
     throw InputError("the global and iterative solvers take the static fem correction without image guidance only");
   if (p.solver == SteadySolver::Global && !(p.g2 > 0))
     throw InputError("the global solver needs g2 > 0 (a bi-Laplacian term)");
-  if (p.image.edges && p.method == CorrectionMethod::Springs)
-    throw InputError("image guidance is available with the fem method only");
+  if (p.image.edges && p.method == CorrectionMethod::Springs && p.image.cube_size < 3)
+    throw InputError("the springs method finds edges with the thesis's direction cube: give a cube size (3 or 5)");
   if (p.image.cube_size != 0 && (p.image.cube_size < 3 || p.image.cube_size % 2 == 0))
     throw InputError(fmt::format("direction cube size {} must be odd and at least 3", p.image.cube_size));
 }
@@ -144,6 +144,29 @@ struct ImageTargets {
   std::vector<Eigen::Vector3d> target;
 };
 
+// The thesis's direction cube (eq. 13.7): the centre of the strongest voxel of E in the
+// cube of g.cube_size voxels around q (q itself when none is inside the image), in the
+// mesh's frame.
+Eigen::Vector3d strongest_in_cube(const ImageGuidance& g, const Eigen::Vector3d& q) {
+  const Volume& E = *g.edges;
+  const Eigen::Vector3d idx = E.lps_to_index(to_lps(q, g.space));
+  const int h = g.cube_size / 2;
+  double best_value = -1;
+  Eigen::Vector3d best = q;
+  for (int dk = -h; dk <= h; ++dk)
+    for (int dj = -h; dj <= h; ++dj)
+      for (int di = -h; di <= h; ++di) {
+        const int ii = static_cast<int>(std::lround(idx[0])) + di, jj = static_cast<int>(std::lround(idx[1])) + dj,
+                  kk = static_cast<int>(std::lround(idx[2])) + dk;
+        if (ii < 0 || jj < 0 || kk < 0 || ii >= E.dims[0] || jj >= E.dims[1] || kk >= E.dims[2]) continue;
+        if (E.at(ii, jj, kk) > best_value) {
+          best_value = E.at(ii, jj, kk);
+          best = to_lps(E.index_to_lps(Eigen::Vector3d(ii, jj, kk)), g.space);  // LPS <-> RAS is an involution
+        }
+      }
+  return best;
+}
+
 ImageTargets find_targets(const ImageGuidance& g, const std::vector<int>& pulled, const Positions& Q,
                           const Eigen::MatrixX3d& normals) {
   ImageTargets t;
@@ -154,20 +177,7 @@ ImageTargets find_targets(const ImageGuidance& g, const std::vector<int>& pulled
     if (!E.sample(q, g.space)) continue;
     Eigen::Vector3d best = q;
     if (g.cube_size >= 3) {
-      const Eigen::Vector3d idx = E.lps_to_index(to_lps(q, g.space));
-      const int h = g.cube_size / 2;
-      double best_value = -1;
-      for (int dk = -h; dk <= h; ++dk)
-        for (int dj = -h; dj <= h; ++dj)
-          for (int di = -h; di <= h; ++di) {
-            const int ii = static_cast<int>(std::lround(idx[0])) + di, jj = static_cast<int>(std::lround(idx[1])) + dj,
-                      kk = static_cast<int>(std::lround(idx[2])) + dk;
-            if (ii < 0 || jj < 0 || kk < 0 || ii >= E.dims[0] || jj >= E.dims[1] || kk >= E.dims[2]) continue;
-            if (E.at(ii, jj, kk) > best_value) {
-              best_value = E.at(ii, jj, kk);
-              best = to_lps(E.index_to_lps(Eigen::Vector3d(ii, jj, kk)), g.space);  // LPS <-> RAS is an involution
-            }
-          }
+      best = strongest_in_cube(g, q);
     } else {
       // The nearest ridge of E along the normal: interior local maxima only (a
       // maximum at the end of the window belongs to something farther away), the
@@ -274,17 +284,50 @@ Field springs(const Mesh& mesh, const CorrectionParams& p, const std::vector<int
     // much stretched, so the displacement decays ring by ring (faster with more
     // viscosity), as the thesis reports.
     const double tol = std::max(1e-4 * scale, 0.1 * viscosity * mean_rest);
-    Eigen::Vector3d x = p0;
-    const double eta = 0.5 / (c * static_cast<double>(q.size()));  // overdamped step, stable for unit springs
-    for (int it = 0; it < 2000; ++it) {
+    const double n = static_cast<double>(q.size());
+    auto spring_force = [&](const Eigen::Vector3d& x) {
       Eigen::Vector3d f = Eigen::Vector3d::Zero();
       for (std::size_t k = 0; k < q.size(); ++k) {
         const Eigen::Vector3d r = q[k] - x;
         const double len = r.norm();
         if (len > 0) f += c * (len - rest[k]) / len * r;
       }
-      if (f.norm() <= c * tol) break;
-      x += eta * f;
+      return f;
+    };
+    // The image step (eq. 13.7), read as a force: towards the strongest voxel of the
+    // direction cube around the vertex, c n 0.006 |d| strong, so that the overdamped
+    // step moves the vertex 0.003 |d| a step towards it (the thesis moves it by the
+    // image's 0.6 of its factor, 0.006 |d|); "stable" then means the springs and the
+    // image balance.
+    auto image_force = [&](const Eigen::Vector3d& x) -> Eigen::Vector3d {
+      if (!p.image.edges) return Eigen::Vector3d::Zero();
+      const Eigen::Vector3d to = strongest_in_cube(p.image, x) - x;
+      const double len = to.norm();
+      return len > 1e-3 * mean_rest ? Eigen::Vector3d(c * n * 0.006 * scale / len * to) : Eigen::Vector3d::Zero();
+    };
+    Eigen::Vector3d x = p0;
+    if (!p.dynamic) {
+      const double eta = 0.5 / (c * n);  // overdamped step, stable for unit springs
+      for (int it = 0; it < 2000; ++it) {
+        const Eigen::Vector3d f = spring_force(x) + image_force(x);
+        if (f.norm() <= c * tol) break;
+        x += eta * f;
+      }
+    } else {
+      // The thesis's dynamic version: eq. 12.1 with its inertia, m x'' + gamma x' = f,
+      // from rest (semi-implicit Euler, dt a tenth of the vertex's period sqrt(m / (c n))),
+      // gamma = 2 viscosity sqrt(m c n): viscosity 1 damps the vertex critically between
+      // its springs, 0 leaves it ringing until the step limit, where it stays.
+      const double m = std::max(tissue_at(p.tissue.mass_field, p.tissue.mass, j), 1e-3);
+      const double gamma = 2 * viscosity * std::sqrt(m * c * n);
+      const double dt = 0.1 * std::sqrt(m / (c * n));
+      Eigen::Vector3d v = Eigen::Vector3d::Zero();
+      for (int it = 0; it < 4000; ++it) {
+        const Eigen::Vector3d f = spring_force(x) + image_force(x);
+        if (f.norm() <= c * tol && v.norm() * 10 * dt <= tol) break;  // at rest within a period
+        v += dt / m * (f - gamma * v);
+        x += dt * v;
+      }
     }
     d.row(j) = (x - p0).transpose();
   }
@@ -581,6 +624,14 @@ CorrectionResult correct_vessel_impl(const Mesh& mesh, const CorrectionParams& p
   if (p.method == CorrectionMethod::Springs) {
     d = springs(mesh, p, r.region);
     r.laplacian_reason = "springs: no operator";
+    if (p.image.edges) {
+      std::vector<int> pulled;
+      for (int v : r.region)
+        if (p.image.edges->sample(V0.row(v).transpose(), p.image.space)) pulled.push_back(v);
+      r.pulled_vertices = static_cast<int>(pulled.size());
+      r.image_mean_edge_before = mean_edge_strength(p.image, pulled, V0);
+      r.image_mean_edge_after = mean_edge_strength(p.image, pulled, V0 + d);
+    }
     r.new_self_intersections = count_new(V0 + d);  // the thesis method does not prevent them
   } else {
     d = fem_solve(mesh, p, r.region, 1.0, r);

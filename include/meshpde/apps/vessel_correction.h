@@ -34,6 +34,15 @@
 // each ring is left that much stretched, so the motion decays ring by ring, faster
 // with more viscosity. Its region is counted in rings, so its result changes with
 // the resolution, and nothing stops it from pushing the wall through itself.
+// `dynamic` is the thesis's dynamic version (its section 13.3): eq. 12.1 integrated
+// with its inertia from rest (semi-implicit Euler, a tenth of the vertex's period
+// sqrt(m / (c n)) a step, gamma = 2 viscosity sqrt(m c n): viscosity 1 damps the
+// vertex critically between its n springs, 0 leaves it ringing until the step limit).
+// With an image (`image.cube_size` >= 3, the thesis's direction cube) a force of
+// c n 0.006 |d| pulls each vertex towards the strongest voxel of the cube around it,
+// inside the integration (eq. 13.7's image step, read as a force: an overdamped step
+// moves the vertex 0.003 |d| towards it), and "stable" is the springs and the image
+// in balance.
 //
 // Self-intersections. Triangles touching moved vertices are checked against the
 // mesh with a BVH built once (mesh/self_intersections.h). When a Fem correction
@@ -137,7 +146,7 @@ struct ImageGuidance {
   double weight = 30.0;                 ///< pull strength, relative to the region's slowest mode (see above)
   double search_radius = 3.0;           ///< mm searched along the normal, each way, for an edge
   int passes = 4;                       ///< fixed-point passes (re-sampling E at the new positions)
-  int cube_size = 0;                    ///< springs only: thesis direction cube (odd, >= 3); 0: off
+  int cube_size = 0;  ///< thesis direction cube (odd, >= 3; springs need one); 0: the search along the normal
 };
 
 /// One correction's request. Exactly one of radius and rings is > 0. Every length in
