@@ -30,6 +30,7 @@ from ._meshpde import (  # noqa: F401  (re-exported)
     InputError,
     PdeSession,
     SolverError,
+    check_units,
     curvature,
     generate,
     geodesic_ball,
@@ -55,9 +56,10 @@ if has_medical:
 
 __all__ = [
     "CorrectionResult", "CorrectionSession", "DragSession", "Error", "GlobalBilaplacianSolver", "HapticSession",
-    "InputError", "PdeSession", "SolverError", "correct", "curvature", "fair", "from_vtk", "generate", "geodesic_ball", "heat", "info",
-    "interpolate", "intrinsic_delaunay", "mass", "read_mesh", "read_volume", "render", "ring_ball", "self_intersections",
-    "stiffness", "to_vtk", "vertex_normals", "wave", "wave_energy", "write_mesh",
+    "InputError", "PdeSession", "SolverError", "check_units", "correct", "curvature", "fair", "from_vtk", "generate",
+    "geodesic_ball", "heat", "info", "interpolate", "intrinsic_delaunay", "mass", "read_mesh", "read_volume",
+    "render", "ring_ball", "self_intersections", "stiffness", "to_vtk", "vertex_normals", "wave", "wave_energy",
+    "write_mesh",
 ]
 
 

@@ -75,6 +75,8 @@ def mass(V: ArrayLike, F: ArrayLike, laplacian: str = "cotan") -> scipy.sparse.c
 def intrinsic_delaunay(V: ArrayLike, F: ArrayLike, mollify_epsilon: float = 1e-2
                        ) -> tuple[scipy.sparse.csr_matrix, scipy.sparse.csr_matrix, dict[str, Any]]:
     """(K, M, stats) on the intrinsic Delaunay triangulation: an M-matrix on any mesh."""
+def check_units(V: ArrayLike, F: ArrayLike, units: str = "mm") -> dict[str, Any]:
+    """Sizes in mm when V is read in `units`; `implausible` for a vessel, and the unit `suggested`."""
 def curvature(V: ArrayLike, F: ArrayLike, scale: str = "area", laplacian: str = "auto") -> np.ndarray:
     """Mean curvature per vertex (1 / length); scale "area" or "valence"; laplacian "auto", "cotan", "intrinsic"."""
 

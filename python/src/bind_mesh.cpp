@@ -17,6 +17,7 @@
 #include "meshpde/mesh/regions.h"
 #include "meshpde/mesh/self_intersections.h"
 #include "meshpde/mesh/topology.h"
+#include "meshpde/mesh/units.h"
 #include "meshpde/viz/render.h"
 #ifdef MESHPDE_HAVE_MEDICAL
 #include "meshpde/io/medical_io.h"
@@ -248,6 +249,28 @@ The report of `meshpde info --json`: counts, boundary loops, non-manifold edges 
 vertices, components, orientation, signed volume, angles, warnings. For a volume file:
 dims, spacing, origin, direction (LPS), orientation code, extent, value range.)doc",
       py::arg("V"), py::arg("F") = py::none());
+
+  m.def(
+      "check_units",
+      [](const py::handle& V, const py::handle& F, const std::string& units) -> py::dict {
+        const LengthUnit unit = parse_length_unit(units);
+        const Mesh mesh = mesh_arg(V, F);
+        const UnitsCheck c = check_units(mesh, unit);
+        py::dict d;
+        d["units"] = to_string(unit);
+        d["diagonal_mm"] = c.diagonal_mm;
+        d["mean_edge_mm"] = c.mean_edge_mm;
+        d["implausible"] = c.implausible;
+        d["suggested"] = c.suggested ? py::object(py::str(to_string(*c.suggested))) : py::object(py::none());
+        return d;
+      },
+      R"doc(check_units(V, F, units="mm") -> dict
+
+What V looks like in millimetres when read in `units` ("mm", "cm" or "m"): its
+bounding-box diagonal and mean edge (`diagonal_mm`, `mean_edge_mm`), whether that is
+unlike a vessel model (`implausible`: outside 15 mm to 2 m across or 0.02 to 8 mm
+edges) and the unit that would fit (`suggested`, or None), as `correct(units=)` warns.)doc",
+      py::arg("V"), py::arg("F"), py::arg("units") = "mm");
 
   m.def(
       "vertex_normals",

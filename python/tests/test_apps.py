@@ -171,6 +171,11 @@ def test_correct_in_other_units_is_the_millimetre_correction(units, scale):
         meshpde.correct(V / scale, F, [600], [(0.01, 0, 0)], radius=0.5)
     with pytest.raises(meshpde.InputError, match="inch"):
         meshpde.correct(V, F, [600], [(1, 0, 0)], radius=8.0, units="inch")
+    c = meshpde.check_units(V / scale, F)
+    assert c["implausible"] and c["suggested"] == units
+    assert c["diagonal_mm"] == pytest.approx(meshpde.check_units(V, F)["diagonal_mm"] / scale)
+    assert meshpde.check_units(V / scale, F, units) == dict(meshpde.check_units(V / scale, F, units),
+                                                            implausible=False, suggested=None)
 
 
 def test_correct_takes_per_vertex_tissue_arrays():
