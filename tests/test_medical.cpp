@@ -241,6 +241,30 @@ TEST(Vtp, TheFrameIsWrittenAsSlicerWritesIt) {
   EXPECT_EQ(read_vtk_mesh_from_memory(write_vtk_mesh_to_memory(plain, "vtp"), "vtp", "plain.vtp").space, "");
 }
 
+TEST(Vtp, ASpaceArrayOfOtherThanBytesIsNoFrame) {
+  // Found by fuzzing: an ascii SPACE string array holding a number that is no byte
+  // (6058) was converted to a character (undefined behaviour); it is now no frame.
+  auto vtp = [](const std::string& codes) {
+    return R"(<?xml version="1.0"?>
+<VTKFile type="PolyData" version="0.1" byte_order="LittleEndian" header_type="UInt32">
+<PolyData><FieldData><Array type="String" Name="SPACE" NumberOfTuples="1" format="ascii">)" +
+           codes + R"(</Array></FieldData>
+<Piece NumberOfPoints="3" NumberOfPolys="1">
+<Points><DataArray type="Float64" NumberOfComponents="3" format="ascii">0 0 0 1 0 0 0 1 0</DataArray></Points>
+<Polys><DataArray type="Int64" Name="connectivity" format="ascii">0 1 2</DataArray>
+<DataArray type="Int64" Name="offsets" format="ascii">3</DataArray></Polys>
+</Piece></PolyData></VTKFile>
+)";
+  };
+  EXPECT_EQ(read_vtk_mesh_from_memory(vtp("82 65 83 0"), "vtp", "ras.vtp").space, "RAS");
+  EXPECT_EQ(read_vtk_mesh_from_memory(vtp("76 80 83 0"), "vtp", "lps.vtp").space, "LPS");
+  for (const char* bad : {"82 6058 83 0", "82 -1 83 0", "82 65.5 83 0", "1e300"}) {
+    const MeshData d = read_vtk_mesh_from_memory(vtp(bad), "vtp", "bad.vtp");
+    EXPECT_EQ(d.space, "") << bad;
+    EXPECT_EQ(d.F.rows(), 1) << bad;
+  }
+}
+
 TEST(Vtp, BadInputIsAnErrorNamingTheFile) {
   const std::string good = make_vtp<std::uint32_t>({});
   auto expect_error = [](const std::string& text, const std::string& kind, const std::string& needle) {

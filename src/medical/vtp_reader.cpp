@@ -604,6 +604,8 @@ std::string field_data_space(const XmlNode* field_data, const FileSettings& f, c
     std::string value;
     for (const double b : bytes) {
       if (b == 0) break;
+      // An ascii array may hold any number: only byte values spell a string.
+      if (!(b >= 0 && b <= 255) || b != std::floor(b)) return {};
       value.push_back(static_cast<char>(static_cast<unsigned char>(b)));
     }
     if (value.find("RAS") != std::string::npos) return "RAS";

@@ -87,6 +87,11 @@ int write_seeds(const fs::path& root) {
                   "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n") +
           std::string(36, '\0') + std::string("\x03\0\0\0\0\0\0\0\x01\0\0\0\x02", 13),
       count);
+  put(root / "ply", "tristrips.ply",
+      "ply\nformat ascii 1.0\nelement vertex 8\nproperty float x\nproperty float y\nproperty float z\n"
+      "element tristrips 1\nproperty list int int vertex_indices\nend_header\n0 1 0\n0 0 0\n1 1 0\n1 0 0\n"
+      "5 1 0\n5 0 0\n6 1 0\n6 0 0\n11 0 1 2 3 -1 3 4 4 5 6 7\n",
+      count);
   put(root / "stl", "binary.stl", write_mesh_to_memory(m, MeshFormat::Stl), count);
   put(root / "stl", "ascii.stl", write_mesh_to_memory(m, MeshFormat::Stl, {.binary = false}), count);
   put(root / "constraints", "scalar.csv", "vertex,value\n0,1\n5, -2.5 # a comment\n", count);
@@ -141,6 +146,11 @@ int write_seeds(const fs::path& root) {
   put(root / "editor_upload", "upload-vtp.bin", std::string(1, '\x04') + write_vtk_mesh_to_memory(m, "vtp"), count);
   put(root / "editor_upload", "upload-vtk.bin", std::string(1, '\x05') + write_vtk_mesh_to_memory(m, "vtk"), count);
   put(root / "vtp", "appended-zlib.vtp", write_vtk_mesh_to_memory(m, "vtp"), count);
+  {
+    MeshData framed = m;  // 3D Slicer's frame tag: a field-data string array SPACE
+    framed.space = "RAS";
+    put(root / "vtp", "space-field-data.vtp", write_vtk_mesh_to_memory(framed, "vtp"), count);
+  }
   put(root / "vtp", "ascii.vtp",
       R"(<?xml version="1.0"?>
 <VTKFile type="PolyData" version="0.1" byte_order="LittleEndian" header_type="UInt32">
