@@ -4,6 +4,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <set>
 
 #include "meshpde/core/errors.h"
@@ -226,6 +227,30 @@ TEST(Io, PlyTriangleStripsDropRepeatedCornersAndKeepTheirParity) {
   }
   ASSERT_EQ(d.warnings.size(), 1u);
   EXPECT_NE(d.warnings[0].find("dropped 4 triangles"), std::string::npos) << d.warnings[0];
+}
+
+TEST(Io, PlyListCountsAndIndicesThatAreNotIntegersAreErrors) {
+  // Found by fuzzing: a float list count or index of NaN passed the range checks (every
+  // comparison with NaN is false) and was converted to an integer (undefined behaviour).
+  const std::string verts =
+      "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+      "property float z\nelement face 1\n";
+  auto floats = [](std::initializer_list<float> v) {
+    std::string b;
+    for (const float x : v) b.append(reinterpret_cast<const char*>(&x), 4);
+    return b;
+  };
+  const std::string xyz = floats({0, 0, 0, 1, 0, 0, 0, 1, 0});
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  expect_error(
+      verts + "property list float int vertex_indices\nend_header\n" + xyz + floats({nan}) + std::string(12, '\0'),
+      MeshFormat::Ply, {"face 0", "list length nan is invalid"});
+  expect_error(
+      verts + "property list float int vertex_indices\nend_header\n" + xyz + floats({2.5f}) + std::string(12, '\0'),
+      MeshFormat::Ply, {"face 0", "list length 2.5 is invalid"});
+  std::string idx = "\x03" + floats({0, nan, 2});
+  expect_error(verts + "property list uchar float vertex_indices\nend_header\n" + xyz + idx, MeshFormat::Ply,
+               {"face 0", "vertex index nan outside"});
 }
 
 TEST(Io, ObjNegativeIndicesSlashesAndPolygons) {

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <bit>
+#include <cmath>
 #include <cstring>
 
 #include "io_detail.h"
@@ -295,14 +296,15 @@ MeshData read_ply(std::string_view bytes, const std::string& name) {
           // A face has few corners; a strip may hold the whole mesh, but never more
           // entries than bytes are left.
           const double most = is_strip && k == ilist ? static_cast<double>(bytes.size()) : 1'000'000.0;
-          if (n < 0 || n > most) fail(name, where, fmt::format("list length {} is invalid", n));
+          // (NaN and fractions too: a float count type can hold them.)
+          if (!(n >= 0 && n <= most) || n != std::floor(n))
+            fail(name, where, fmt::format("list length {} is invalid", n));
           if (k == ilist) poly.clear();
           for (long long j = 0; j < static_cast<long long>(n); ++j) {
             const double x = value(p.type, where);
             if (k == ilist) {
               const bool restart = is_strip && x == -1;
-              if (!restart &&
-                  (x < 0 || x >= static_cast<double>(nv) || x != static_cast<double>(static_cast<long long>(x))))
+              if (!restart && (!(x >= 0 && x < static_cast<double>(nv)) || x != std::floor(x)))
                 fail(name, where, fmt::format("vertex index {} outside [0, {})", x, nv));
               poly.push_back(static_cast<int>(x));
             }
