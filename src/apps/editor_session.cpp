@@ -60,7 +60,7 @@ double EditorSession::drag_begin(int vertex, double radius, const Eigen::VectorX
                                  const TissueParams& tissue) {
   check_vertex(vertex);
   if (!(radius > 0) || !std::isfinite(radius)) throw InputError("drag radius must be a length > 0");
-  // The release's correction (fem, static, the automatic Laplacian, this radius).
+  // The release's correction (fem, static, the session's Laplacian and tissue, this radius).
   CorrectionParams p;
   p.handles = {{vertex, Eigen::Vector3d::Zero()}};
   p.radius = radius;
