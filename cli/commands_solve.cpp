@@ -101,7 +101,7 @@ const Eigen::VectorXd& vertex_field(const MeshData& d, const std::string& mesh, 
 
 // --mass, --elasticity, --viscosity: a number for the whole region, else the name of a
 // vertex field of the mesh.
-void tissue_option(const MeshData& d, const CorrectArgs& a, const std::string& option, const std::string& text,
+void tissue_option(const MeshData& d, const std::string& mesh, const std::string& option, const std::string& text,
                    double& scalar, Eigen::VectorXd& field) {
   double x = 0;
   const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), x);
@@ -109,7 +109,7 @@ void tissue_option(const MeshData& d, const CorrectArgs& a, const std::string& o
     scalar = x;
     return;
   }
-  field = vertex_field(d, a.mesh, option, text);
+  field = vertex_field(d, mesh, option, text);
 }
 
 // The per-vertex tissue: --stiffness and the tissue options, then the brushes in their
@@ -118,9 +118,9 @@ void tissue_option(const MeshData& d, const CorrectArgs& a, const std::string& o
 // the mesh's units (its @X,Y,Z is a point of the mesh, in its units).
 void tissue_fields(const Mesh& mesh, const MeshData& d, const CorrectArgs& a, double mm_per_unit, CorrectionParams& p) {
   if (!a.stiffness.empty()) p.stiffness = vertex_field(d, a.mesh, "--stiffness", a.stiffness);
-  tissue_option(d, a, "--mass", a.mass, p.tissue.mass, p.tissue.mass_field);
-  tissue_option(d, a, "--elasticity", a.elasticity, p.tissue.elasticity, p.tissue.elasticity_field);
-  tissue_option(d, a, "--viscosity", a.viscosity, p.tissue.viscosity, p.tissue.viscosity_field);
+  tissue_option(d, a.mesh, "--mass", a.mass, p.tissue.mass, p.tissue.mass_field);
+  tissue_option(d, a.mesh, "--elasticity", a.elasticity, p.tissue.elasticity, p.tissue.elasticity_field);
+  tissue_option(d, a.mesh, "--viscosity", a.viscosity, p.tissue.viscosity, p.tissue.viscosity_field);
   for (const auto& b : a.brushes) {
     try {
       TissueProperty property = TissueProperty::Stiffness;
