@@ -16,6 +16,9 @@ Errors: ``meshpde.InputError`` (a ``ValueError``) for unusable input, naming the
 argument, file, line or element; ``IndexError`` for an index out of range;
 ``meshpde.SolverError`` (a ``RuntimeError``) when a solve cannot proceed. Long calls
 release the GIL; ``heat`` and ``wave`` stop on Ctrl-C with ``KeyboardInterrupt``.
+
+``meshpde.batch`` (imported on its own: ``import meshpde.batch``) runs one of these
+over many mesh files on a Dask cluster (docs/batch.md).
 """
 
 from __future__ import annotations
