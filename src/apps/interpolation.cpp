@@ -169,11 +169,16 @@ InterpolationResult interpolate(const Mesh& mesh, FieldKind kind, const std::vec
 
 std::vector<InterpolationConstraint> parse_constraints(const Mesh& mesh, const std::string& text, int m,
                                                        const std::string& path) {
+  return parse_constraints([&](const std::string& spec) { return parse_vertex_spec(mesh, spec); }, text, m, path);
+}
+
+std::vector<InterpolationConstraint> parse_constraints(const std::function<int(const std::string&)>& vertex,
+                                                       const std::string& text, int m, const std::string& path) {
   if (m < 1) throw InputError(fmt::format("{}: a constraint needs at least one value (asked for {})", path, m));
-  // A vertex as an index or @X,Y,Z, its errors prefixed with the file and the place.
+  // A vertex as the resolver reads it, its errors prefixed with the file and the place.
   auto parse_vertex = [&](const std::string& spec, const std::string& where) {
     try {
-      return parse_vertex_spec(mesh, spec);
+      return vertex(spec);
     } catch (const InputError& e) {
       throw InputError(fmt::format("{}: {}: {}", path, where, e.what()));
     }

@@ -17,6 +17,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -83,6 +84,12 @@ InterpolationResult interpolate(const Mesh& mesh, FieldKind kind,
 ///        values, a non-finite value, or no constraint at all.
 std::vector<InterpolationConstraint> parse_constraints(const Mesh& mesh, const std::string& text, int values,
                                                        const std::string& name);
+
+/// The same with each vertex spec resolved by `vertex` (which throws InputError for a
+/// bad one): for a mesh no process holds whole (distributed/), where the caller knows
+/// only the vertex count.
+std::vector<InterpolationConstraint> parse_constraints(const std::function<int(const std::string&)>& vertex,
+                                                       const std::string& text, int values, const std::string& name);
 
 /// The same on plain (V, F).
 inline InterpolationResult interpolate(const Positions& V, const Triangles& F, FieldKind kind,

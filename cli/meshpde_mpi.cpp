@@ -1,0 +1,209 @@
+// meshpde-mpi: distributed solves over MPI (target meshpde::distributed).
+//   meshpde partition MESH --parts N -o DIR
+//   mpirun -n N meshpde-mpi interpolate DIR --constraints FILE -o OUTDIR [--json]
+// Every process reads only its own part (DIR/part-RANK.ply). Exit codes as meshpde's:
+// 0 success, 1 bad input or failed solve (on every rank: a part one rank cannot read
+// stops them all), 2 usage error.
+#include <fmt/format.h>
+#include <mpi.h>
+
+#include <CLI/CLI.hpp>
+#include <charconv>
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "meshpde/core/errors.h"
+#include "meshpde/distributed/distributed_solve.h"
+#include "meshpde/distributed/partition.h"
+#include "meshpde/io/mesh_io.h"
+
+namespace {
+
+using namespace meshpde;
+
+// True on every rank when any rank says true.
+bool any_rank(bool mine, MPI_Comm comm) {
+  int in = mine ? 1 : 0, out = 0;
+  MPI_Allreduce(&in, &out, 1, MPI_INT, MPI_MAX, comm);
+  return out != 0;
+}
+
+std::string read_text(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(fmt::format("{}: cannot read the file", path.string()));
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+struct Args {
+  std::string dir, constraints, out;
+  double g1 = 0, g2 = 1, rtol = 1e-12;
+  int max_iterations = 5000;
+  bool json = false;
+};
+
+int run_interpolate(const Args& a, MPI_Comm comm) {
+  int rank = 0, size = 1;
+  MPI_Comm_rank(comm, &rank);
+  MPI_Comm_size(comm, &size);
+  const auto t0 = std::chrono::steady_clock::now();
+  // Reading: each rank its own part and the (small) constraints file; all agree on
+  // failure before anything collective starts, so a bad part stops the run, not hangs it.
+  MeshPart part;
+  std::vector<InterpolationConstraint> cons;
+  std::string error;
+  try {
+    part = read_partition_part(a.dir, rank);
+    if (part.parts != size)
+      throw InputError(fmt::format("{}: the partition has {} parts; run it with mpirun -n {} (not {})", a.dir,
+                                   part.parts, part.parts, size));
+    const long long n = part.global_vertices;
+    cons = parse_constraints(
+        [n](const std::string& spec) {
+          int v = -1;
+          const auto [end, ec] = std::from_chars(spec.data(), spec.data() + spec.size(), v);
+          if (ec != std::errc() || end != spec.data() + spec.size())
+            throw InputError(
+                fmt::format("vertex \"{}\": a distributed run takes vertex indices of the input mesh "
+                            "(no @X,Y,Z: no process holds the whole mesh)",
+                            spec));
+          if (v < 0 || v >= n)
+            throw InputError(fmt::format("vertex {} does not exist (the mesh has {} vertices)", v, n));
+          return v;
+        },
+        read_text(a.constraints), 1, a.constraints);
+  } catch (const std::exception& e) {
+    error = e.what();
+  }
+  if (any_rank(!error.empty(), comm)) {
+    if (!error.empty()) fmt::print(stderr, "meshpde-mpi: error: rank {}: {}\n", rank, error);
+    return 1;
+  }
+  DistributedResult r;
+  try {
+    r = distributed_interpolate(
+        part, cons,
+        DistributedSolveParams{.g1 = a.g1, .g2 = a.g2, .tolerance = a.rtol, .max_iterations = a.max_iterations}, comm);
+  } catch (const Error& e) {
+    // The solve's own errors (bad constraints, no convergence) are the same on every
+    // rank; anything else ends the whole run rather than leave the others waiting.
+    if (rank == 0) fmt::print(stderr, "meshpde-mpi: error: {}\n", e.what());
+    return 1;
+  } catch (const std::exception& e) {
+    fmt::print(stderr, "meshpde-mpi: error: rank {}: {}\n", rank, e.what());
+    MPI_Abort(comm, 1);
+  }
+  // Each rank writes its own vertices' values, in the input's numbering.
+  const std::filesystem::path out(a.out);
+  error.clear();
+  try {
+    std::filesystem::create_directories(out);
+    std::string text = "vertex,u\n";
+    for (int i = 0; i < part.owned; ++i) text += fmt::format("{},{:.17g}\n", part.original_id[i], r.values[i]);
+    write_file_atomically(out / fmt::format("u-{}.csv", rank), text);
+  } catch (const std::exception& e) {
+    error = e.what();
+  }
+  if (any_rank(!error.empty(), comm)) {
+    if (!error.empty()) fmt::print(stderr, "meshpde-mpi: error: rank {}: {}\n", rank, error);
+    return 1;
+  }
+  // The report: every rank's share gathered on rank 0.
+  const double mine[7] = {static_cast<double>(r.rank.owned),
+                          static_cast<double>(r.rank.ghosts),
+                          r.rank.ghost_fraction,
+                          r.rank.setup_seconds,
+                          r.rank.solve_seconds,
+                          r.rank.peak_rss_mb,
+                          std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count()};
+  std::vector<double> all(static_cast<std::size_t>(7 * size));
+  MPI_Gather(mine, 7, MPI_DOUBLE, all.data(), 7, MPI_DOUBLE, 0, comm);
+  if (rank != 0) return 0;
+  nlohmann::json per_rank = nlohmann::json::array();
+  double setup = 0, solve = 0, total = 0, ghosts = 0;
+  for (int k = 0; k < size; ++k) {
+    const double* x = all.data() + 7 * k;
+    per_rank.push_back({{"rank", k},
+                        {"vertices", static_cast<long long>(x[0])},
+                        {"ghosts", static_cast<long long>(x[1])},
+                        {"ghost_fraction", x[2]},
+                        {"setup_seconds", x[3]},
+                        {"solve_seconds", x[4]},
+                        {"peak_rss_mb", x[5]}});
+    setup = std::max(setup, x[3]);
+    solve = std::max(solve, x[4]);
+    total = std::max(total, x[6]);
+    ghosts += x[1];
+  }
+  if (a.json) {
+    std::cout << nlohmann::json{{"constraints", cons.size()},
+                                {"g1", a.g1},
+                                {"g2", a.g2},
+                                {"laplacian", "cotan"},
+                                {"vertices", part.global_vertices},
+                                {"ranks", size},
+                                {"preconditioner", r.preconditioner},
+                                {"ghost_fraction", ghosts / static_cast<double>(part.global_vertices)},
+                                {"result",
+                                 {{"seconds", total},
+                                  {"setup_seconds", setup},
+                                  {"solve_seconds", solve},
+                                  {"cg_iterations", r.iterations},
+                                  {"relative_residual", r.relative_residual}}},
+                                {"per_rank", per_rank},
+                                {"output", out.string()}}
+                     .dump(2)
+              << std::endl;
+  } else {
+    fmt::print(
+        "{} vertices on {} ranks: {} CG iterations ({}), relative residual {:.2g}, set-up {:.3f} s, solve "
+        "{:.3f} s; values in {}/u-RANK.csv\n",
+        part.global_vertices, size, r.iterations, r.preconditioner, r.relative_residual, setup, solve, out.string());
+  }
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  int code = 0;
+  try {
+    meshpde::PetscScope petsc(&argc, &argv);  // MPI too; PETSc options (-ksp_monitor ...) pass through
+    int rank = 0;
+    MPI_Comm_rank(MPI_COMM_WORLD, &rank);
+    CLI::App app{"meshpde-mpi: distributed solves over MPI on a mesh cut by `meshpde partition`"};
+    app.allow_extras();
+    app.require_subcommand(1);
+    Args a;
+    auto* cmd =
+        app.add_subcommand("interpolate", "Spread scalar values given at a few vertices: (g1 K + g2 K D K) u = 0");
+    cmd->allow_extras();
+    cmd->add_option("DIR", a.dir, "The partitioned folder (meshpde partition MESH --parts N -o DIR)")->required();
+    cmd->add_option("--constraints", a.constraints, "CSV (vertex,value) or JSON, vertex indices of the input mesh")
+        ->required();
+    cmd->add_option("--g1", a.g1, "Laplacian weight")->capture_default_str();
+    cmd->add_option("--g2", a.g2, "bi-Laplacian weight")->capture_default_str();
+    cmd->add_option("--rtol", a.rtol, "CG's relative residual")->capture_default_str();
+    cmd->add_option("--max-iterations", a.max_iterations, "CG's limit")->capture_default_str();
+    cmd->add_option("-o,--output", a.out, "Output folder: u-RANK.csv, \"vertex,u\" for each rank's vertices")
+        ->required();
+    cmd->add_flag("--json", a.json, "Print a JSON report (rank 0)");
+    try {
+      app.parse(argc, argv);
+    } catch (const CLI::ParseError& e) {
+      code = rank == 0 ? app.exit(e) : (e.get_exit_code() == 0 ? 0 : 2);
+      if (code != 0) code = 2;
+      return code;
+    }
+    code = run_interpolate(a, MPI_COMM_WORLD);
+  } catch (const std::exception& e) {
+    fmt::print(stderr, "meshpde-mpi: error: {}\n", e.what());
+    return 1;
+  }
+  return code;
+}

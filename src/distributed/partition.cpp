@@ -1,0 +1,238 @@
+#include "meshpde/distributed/partition.h"
+
+#include <fmt/format.h>
+#include <petscmat.h>
+
+#include <algorithm>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <numeric>
+#include <sstream>
+
+#include "meshpde/core/errors.h"
+
+namespace meshpde {
+
+namespace {
+
+void check(PetscErrorCode e, const char* what) {
+  if (e != 0) throw SolverError(fmt::format("PETSc: {} failed (error {})", what, static_cast<int>(e)));
+}
+
+// An id held in a double vertex field: an integer in [0, limit), exactly.
+long long id_from(double x, long long limit, const std::string& file, const char* field, int v) {
+  if (!(x >= 0) || !(x < static_cast<double>(limit)) || x != std::floor(x))
+    throw InputError(fmt::format("{}: vertex {}: {} {} is not a vertex index of the whole mesh (0 to {})", file, v,
+                                 field, x, limit - 1));
+  return static_cast<long long>(x);
+}
+
+}  // namespace
+
+std::vector<int> partition_vertices(const Mesh& mesh, int parts) {
+  const int n = mesh.num_vertices();
+  if (parts < 1) throw InputError(fmt::format("--parts must be at least 1 (got {})", parts));
+  if (parts > n) throw InputError(fmt::format("{} parts for {} vertices: give at most one part a vertex", parts, n));
+  if (parts == 1) return std::vector<int>(static_cast<std::size_t>(n), 0);
+  PetscBool up = PETSC_FALSE;
+  check(PetscInitialized(&up), "PetscInitialized");
+  if (!up) check(PetscInitializeNoArguments(), "PetscInitialize");
+  // The vertex adjacency graph, rows sorted and without the diagonal, in PETSc's
+  // memory: MatCreateMPIAdj takes the arrays over.
+  const auto off = mesh.offsets();
+  const auto nbr = mesh.neighbors();
+  PetscInt *ia = nullptr, *ja = nullptr;
+  check(PetscMalloc1(n + 1, &ia), "PetscMalloc1");
+  check(PetscMalloc1(std::max<PetscInt>(1, off[n]), &ja), "PetscMalloc1");
+  PetscInt k = 0;
+  ia[0] = 0;
+  for (int v = 0; v < n; ++v) {
+    const PetscInt begin = k;
+    for (int q = off[v]; q < off[v + 1]; ++q)
+      if (nbr[q] != v) ja[k++] = nbr[q];
+    std::sort(ja + begin, ja + k);
+    k = static_cast<PetscInt>(std::unique(ja + begin, ja + k) - ja);
+    ia[v + 1] = k;
+  }
+  Mat adj = nullptr;
+  MatPartitioning mp = nullptr;
+  IS is = nullptr;
+  std::vector<int> out(static_cast<std::size_t>(n));
+  try {
+    check(MatCreateMPIAdj(PETSC_COMM_SELF, n, n, ia, ja, nullptr, &adj), "MatCreateMPIAdj");
+    check(MatPartitioningCreate(PETSC_COMM_SELF, &mp), "MatPartitioningCreate");
+    check(MatPartitioningSetAdjacency(mp, adj), "MatPartitioningSetAdjacency");
+    check(MatPartitioningSetNParts(mp, parts), "MatPartitioningSetNParts");
+    check(MatPartitioningSetType(mp, MATPARTITIONINGPTSCOTCH), "MatPartitioningSetType(ptscotch)");
+    check(MatPartitioningApply(mp, &is), "MatPartitioningApply");
+    const PetscInt* idx = nullptr;
+    check(ISGetIndices(is, &idx), "ISGetIndices");
+    for (int v = 0; v < n; ++v) out[static_cast<std::size_t>(v)] = static_cast<int>(idx[v]);
+    check(ISRestoreIndices(is, &idx), "ISRestoreIndices");
+  } catch (...) {
+    ISDestroy(&is);
+    MatPartitioningDestroy(&mp);
+    MatDestroy(&adj);
+    throw;
+  }
+  ISDestroy(&is);
+  MatPartitioningDestroy(&mp);
+  MatDestroy(&adj);
+  return out;
+}
+
+PartitionSummary write_partition(const MeshData& data, const std::vector<int>& part_of,
+                                 const std::filesystem::path& dir, const std::string& source) {
+  const Mesh mesh(data.V, data.F);
+  const int n = mesh.num_vertices();
+  if (static_cast<int>(part_of.size()) != n)
+    throw InputError(fmt::format("a partition of {} entries for {} vertices", part_of.size(), n));
+  const int parts = n ? *std::max_element(part_of.begin(), part_of.end()) + 1 : 0;
+  if (parts < 1 || *std::min_element(part_of.begin(), part_of.end()) < 0)
+    throw InputError("a partition's parts are numbered 0, 1, ...");
+  // Global numbering: part by part, each in the input's order.
+  std::vector<int> owned(static_cast<std::size_t>(parts), 0);
+  for (int p : part_of) ++owned[static_cast<std::size_t>(p)];
+  std::vector<long long> offsets(static_cast<std::size_t>(parts) + 1, 0);
+  for (int p = 0; p < parts; ++p) offsets[p + 1] = offsets[p] + owned[p];
+  std::vector<long long> global(static_cast<std::size_t>(n));
+  {
+    std::vector<long long> next(offsets.begin(), offsets.end() - 1);
+    for (int v = 0; v < n; ++v) global[v] = next[static_cast<std::size_t>(part_of[v])]++;
+  }
+  PartitionSummary s;
+  s.parts = parts;
+  s.owned = owned;
+  for (int v = 0; v < n; ++v)
+    for (int w : mesh.neighbors(v))
+      if (w > v && part_of[v] != part_of[w]) ++s.cut_edges;
+  std::filesystem::create_directories(dir);
+  nlohmann::json files = nlohmann::json::array();
+  for (int p = 0; p < parts; ++p) {
+    // The triangles with a corner in p, the vertices they touch: p's first, in global
+    // order, then the ghosts in global order.
+    std::vector<int> tris;
+    for (int f = 0; f < mesh.num_faces(); ++f)
+      for (int c = 0; c < 3; ++c)
+        if (part_of[mesh.triangles()(f, c)] == p) {
+          tris.push_back(f);
+          break;
+        }
+    std::vector<int> mine, ghosts;
+    std::vector<char> in(static_cast<std::size_t>(n), 0);
+    for (int v = 0; v < n; ++v)
+      if (part_of[v] == p) {
+        mine.push_back(v);
+        in[v] = 1;
+      }
+    for (int f : tris)
+      for (int c = 0; c < 3; ++c)
+        if (const int v = mesh.triangles()(f, c); !in[v]) {
+          in[v] = 1;
+          ghosts.push_back(v);
+        }
+    std::sort(ghosts.begin(), ghosts.end(), [&](int a, int b) { return global[a] < global[b]; });
+    std::vector<int> local_of(static_cast<std::size_t>(n), -1);
+    MeshData out;
+    out.V.resize(static_cast<Eigen::Index>(mine.size() + ghosts.size()), 3);
+    Eigen::VectorXd gid(out.V.rows()), oid(out.V.rows());
+    int k = 0;
+    for (const auto* list : {&mine, &ghosts})
+      for (int v : *list) {
+        local_of[v] = k;
+        out.V.row(k) = data.V.row(v);
+        gid[k] = static_cast<double>(global[v]);
+        oid[k] = v;
+        ++k;
+      }
+    out.F.resize(static_cast<Eigen::Index>(tris.size()), 3);
+    for (std::size_t t = 0; t < tris.size(); ++t)
+      for (int c = 0; c < 3; ++c) out.F(static_cast<Eigen::Index>(t), c) = local_of[mesh.triangles()(tris[t], c)];
+    out.vertex_scalars["global_id"] = gid;
+    out.vertex_scalars["original_id"] = oid;
+    const std::string name = fmt::format("part-{}.ply", p);
+    write_mesh(dir / name, out);
+    files.push_back(name);
+    s.ghosts.push_back(static_cast<int>(ghosts.size()));
+    s.faces.push_back(static_cast<int>(tris.size()));
+  }
+  nlohmann::json index = {{"format", "meshpde-partition"},
+                          {"version", 1},
+                          {"parts", parts},
+                          {"vertices", n},
+                          {"faces", mesh.num_faces()},
+                          {"source", source},
+                          {"offsets", offsets},
+                          {"files", files},
+                          {"owned", s.owned},
+                          {"ghosts", s.ghosts},
+                          {"part_faces", s.faces},
+                          {"cut_edges", s.cut_edges}};
+  write_file_atomically(dir / "partition.json", index.dump(2) + "\n");
+  return s;
+}
+
+MeshPart read_partition_part(const std::filesystem::path& dir, int part) {
+  const auto index_path = dir / "partition.json";
+  std::ifstream in(index_path);
+  if (!in)
+    throw InputError(fmt::format("{}: cannot read the partition's index (is {} a folder `meshpde partition` wrote?)",
+                                 index_path.string(), dir.string()));
+  std::stringstream text;
+  text << in.rdbuf();
+  MeshPart m;
+  std::string file;
+  try {
+    const auto j = nlohmann::json::parse(text.str());
+    if (j.value("format", "") != "meshpde-partition")
+      throw InputError(fmt::format("{}: not a meshpde partition index (\"format\" is not \"meshpde-partition\")",
+                                   index_path.string()));
+    m.parts = j.at("parts").get<int>();
+    m.global_vertices = j.at("vertices").get<long long>();
+    m.offsets = j.at("offsets").get<std::vector<long long>>();
+    const auto files = j.at("files").get<std::vector<std::string>>();
+    if (m.parts < 1 || static_cast<int>(m.offsets.size()) != m.parts + 1 || static_cast<int>(files.size()) != m.parts ||
+        m.offsets.front() != 0 || m.offsets.back() != m.global_vertices ||
+        !std::is_sorted(m.offsets.begin(), m.offsets.end()))
+      throw InputError(fmt::format("{}: parts, offsets, files and vertices do not agree", index_path.string()));
+    if (part < 0 || part >= m.parts)
+      throw InputError(fmt::format("{}: the partition has {} parts, not a part {} (run as many processes as parts)",
+                                   index_path.string(), m.parts, part));
+    file = files[static_cast<std::size_t>(part)];
+    if (file.find('/') != std::string::npos || file.find("..") != std::string::npos)
+      throw InputError(fmt::format("{}: part file \"{}\" is not a name in the folder", index_path.string(), file));
+  } catch (const nlohmann::json::exception& e) {
+    throw InputError(fmt::format("{}: {}", index_path.string(), e.what()));
+  }
+  m.part = part;
+  m.first = m.offsets[static_cast<std::size_t>(part)];
+  const long long owned = m.offsets[static_cast<std::size_t>(part) + 1] - m.first;
+  const std::string path = (dir / file).string();
+  MeshData d = read_mesh(dir / file);
+  for (const char* field : {"global_id", "original_id"})
+    if (!d.vertex_scalars.count(field))
+      throw InputError(fmt::format("{}: no vertex property {} (write parts with `meshpde partition`)", path, field));
+  const int nl = static_cast<int>(d.V.rows());
+  if (owned > nl)
+    throw InputError(fmt::format("{}: the index gives part {} {} vertices, the file holds {}", path, part, owned, nl));
+  m.owned = static_cast<int>(owned);
+  m.global_id.resize(static_cast<std::size_t>(nl));
+  m.original_id.resize(static_cast<std::size_t>(nl));
+  const auto& gid = d.vertex_scalars.at("global_id");
+  const auto& oid = d.vertex_scalars.at("original_id");
+  for (int v = 0; v < nl; ++v) {
+    m.global_id[v] = id_from(gid[v], m.global_vertices, path, "global_id", v);
+    m.original_id[v] = id_from(oid[v], m.global_vertices, path, "original_id", v);
+    const bool mine = m.global_id[v] >= m.first && m.global_id[v] < m.first + owned;
+    if (v < owned && m.global_id[v] != m.first + v)
+      throw InputError(fmt::format("{}: vertex {} has global_id {}, the part's vertex {} should be {}", path, v,
+                                   m.global_id[v], v, m.first + v));
+    if (v >= owned && mine)
+      throw InputError(
+          fmt::format("{}: ghost vertex {} has global_id {}, which this part owns", path, v, m.global_id[v]));
+  }
+  m.mesh = Mesh(std::move(d.V), std::move(d.F));
+  return m;
+}
+
+}  // namespace meshpde

@@ -1,0 +1,123 @@
+#!/usr/bin/env bash
+# The distributed component end to end (ctest distributed.mpi): `meshpde partition`
+# and `mpirun -n 1|2|4 meshpde-mpi interpolate` against the single-process
+# `meshpde interpolate --laplacian cotan` on a generated sphere, a real mesh and a
+# non-manifold one (1e-8 relative), every vertex's value written by exactly one rank,
+# and bad parts failing the whole run with a message and no hang.
+#   distributed_test.sh MESHPDE MESHPDE_MPI PYTHON DATA_DIR
+set -euo pipefail
+M="$1"; MPI_TOOL="$2"; PY="$3"; DATA="$4"
+T="$(mktemp -d)"
+trap 'rm -rf "$T"' EXIT
+export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1   # CI runs as root
+export OMPI_MCA_btl=self,vader OMPI_MCA_btl_vader_single_copy_mechanism=none OMPI_MCA_rmaps_base_oversubscribe=1
+fail() { echo "FAIL: $*" >&2; exit 1; }
+run() { timeout 120 mpirun -n "$1" "${@:2}"; }
+
+for mesh in bunny-3k.off nonmanifold-vierbein.obj; do
+  if [ ! -f "$DATA/$mesh" ]; then
+    [ "${CI:-}" = true ] && fail "$DATA/$mesh is missing (CI=true needs ../shared/data)"
+    echo "skip: $DATA/$mesh not found"; continue
+  fi
+  cp "$DATA/$mesh" "$T/"
+done
+"$M" generate icosphere --level 4 -o "$T/sphere.off" >/dev/null
+
+compare() {  # compare SERIAL.ply OUTDIR N: the ranks' values against the serial u
+  "$PY" - "$1" "$2" "$3" <<'PY'
+import csv, glob, math, sys
+serial, outdir, n = sys.argv[1], sys.argv[2], int(sys.argv[3])
+# The serial answer: the PLY's property u (ascii or binary: read through the tool's Python-free route below).
+import struct
+data = open(serial, "rb").read()
+head, body = data.split(b"end_header\n", 1)
+lines = head.decode().splitlines()
+fmt = [l for l in lines if l.startswith("format")][0].split()[1]
+nv = int([l for l in lines if l.startswith("element vertex")][0].split()[2])
+props = []
+inside = False
+for l in lines:
+    if l.startswith("element"):
+        inside = l.split()[1] == "vertex"
+    elif l.startswith("property") and inside:
+        props.append((l.split()[1], l.split()[2]))
+codes = {"float": "f", "double": "d", "float32": "f", "float64": "d", "int": "i", "uchar": "B", "int32": "i"}
+assert fmt == "binary_little_endian", fmt
+rec = "<" + "".join(codes[t] for t, _ in props)
+size = struct.calcsize(rec)
+k = [name for _, name in props].index("u")
+u = [struct.unpack_from(rec, body, i * size)[k] for i in range(nv)]
+got = [None] * nv
+files = sorted(glob.glob(f"{outdir}/u-*.csv"))
+assert len(files) == n, f"{len(files)} value files for {n} ranks"
+for f in files:
+    for row in csv.DictReader(open(f)):
+        v = int(row["vertex"])
+        assert got[v] is None, f"vertex {v} written twice"
+        got[v] = float(row["u"])
+missing = [v for v in range(nv) if got[v] is None]
+assert not missing, f"{len(missing)} vertices without a value, e.g. {missing[:5]}"
+scale = max(abs(x) for x in u)
+rel = max(abs(a - b) for a, b in zip(got, u)) / scale
+assert rel < 1e-8, f"{outdir}: relative difference {rel:.3g} to the single-process answer"
+print(f"  {outdir}: {n} ranks, relative difference {rel:.2g}")
+PY
+}
+
+for mesh in sphere.off bunny-3k.off nonmanifold-vierbein.obj; do
+  [ -f "$T/$mesh" ] || continue
+  nv=$("$M" info "$T/$mesh" --json | "$PY" -c "import json,sys; print(json.load(sys.stdin)['vertices'])")
+  printf "vertex,value\n0,1\n%d,-1\n%d,0.5\n%d,2\n" $((nv / 3)) $((nv / 2)) $((nv - 1)) >"$T/cons.csv"
+  "$M" interpolate "$T/$mesh" --constraints "$T/cons.csv" --laplacian cotan -o "$T/serial.ply" >/dev/null
+  echo "$mesh ($nv vertices)"
+  for n in 1 2 4; do
+    "$M" partition "$T/$mesh" --parts $n -o "$T/parts-$n" --json >"$T/partition-report.json"
+    run $n "$MPI_TOOL" interpolate "$T/parts-$n" --constraints "$T/cons.csv" -o "$T/out-$n" --json >"$T/report.json"
+    "$PY" - "$T/report.json" $n $nv <<'PY'
+import json, sys
+r, n, nv = json.load(open(sys.argv[1])), int(sys.argv[2]), int(sys.argv[3])
+assert r["ranks"] == n and r["vertices"] == nv and len(r["per_rank"]) == n, r
+assert sum(x["vertices"] for x in r["per_rank"]) == nv, r["per_rank"]
+assert r["result"]["relative_residual"] < 1e-8 and r["result"]["cg_iterations"] > 0, r["result"]
+assert all(x["peak_rss_mb"] > 0 and x["solve_seconds"] >= 0 for x in r["per_rank"]), r["per_rank"]
+PY
+    compare "$T/serial.ply" "$T/out-$n" $n
+  done
+done
+
+echo "bad input"
+# expect_failure WHAT PATTERN COMMAND...: non-zero, not the timeout's 124, stderr matching PATTERN.
+expect_failure() {
+  local what="$1" pattern="$2" rc=0
+  shift 2
+  "$@" >/dev/null 2>"$T/err" || rc=$?
+  [ $rc -ne 0 ] || fail "$what was accepted"
+  [ $rc -ne 124 ] || fail "$what: the run hung"
+  grep -q -- "$pattern" "$T/err" || fail "$what: the message lacks '$pattern': $(head -5 "$T/err")"
+  echo "  $what: $(grep -m1 error "$T/err")"
+}
+# A truncated part: the whole run fails, naming the file, within the timeout.
+cp -r "$T/parts-2" "$T/broken"
+head -c 300 "$T/parts-2/part-1.ply" >"$T/broken/part-1.ply"
+expect_failure "a truncated part" "part-1.ply" run 2 "$MPI_TOOL" interpolate "$T/broken" --constraints "$T/cons.csv" -o "$T/x"
+# A part that claims another part's vertices as its own.
+cp -r "$T/parts-2" "$T/swapped"
+cp "$T/parts-2/part-0.ply" "$T/swapped/part-1.ply"
+expect_failure "a part holding another part's vertices" "global_id" \
+  run 2 "$MPI_TOOL" interpolate "$T/swapped" --constraints "$T/cons.csv" -o "$T/x"
+# A missing index, and fewer processes than parts.
+expect_failure "a folder without partition.json" "partition.json" \
+  run 2 "$MPI_TOOL" interpolate "$T" --constraints "$T/cons.csv" -o "$T/x"
+expect_failure "4 parts on 2 processes" "mpirun -n 4" \
+  run 2 "$MPI_TOOL" interpolate "$T/parts-4" --constraints "$T/cons.csv" -o "$T/x"
+# A constraint on a vertex the mesh does not have, and a position instead of an index.
+printf "vertex,value\n0,1\n999999999,2\n" >"$T/bad.csv"
+expect_failure "a constraint out of range" "999999999 does not exist" \
+  run 2 "$MPI_TOOL" interpolate "$T/parts-2" --constraints "$T/bad.csv" -o "$T/x"
+echo '{"constraints": [{"vertex": "@0,0,1", "value": 1}]}' >"$T/at.json"
+expect_failure "a constraint at @X,Y,Z" "vertex indices of the input mesh" \
+  run 2 "$MPI_TOOL" interpolate "$T/parts-2" --constraints "$T/at.json" -o "$T/x"
+# meshpde partition's own checks.
+expect_failure "--parts 0" "at least 1" "$M" partition "$T/sphere.off" --parts 0 -o "$T/p0"
+expect_failure "more parts than vertices" "at most one part a vertex" "$M" partition "$T/sphere.off" --parts 100000 -o "$T/p1"
+echo "distributed: all checks passed"
