@@ -25,6 +25,7 @@ import csv
 import dataclasses
 import hashlib
 import json
+import math
 import os
 import pathlib
 import sys
@@ -91,13 +92,16 @@ _FIELD_NAME = {"curvature": "mean_curvature", "interpolate": "interpolated", "ve
 
 
 def _jsonable(value):
-    """value as JSON data (numpy scalars and small arrays to Python), or None if it isn't."""
-    if isinstance(value, (str, bool, int, float)) or value is None:
-        return value
+    """value as JSON data (numpy scalars and small arrays to Python), or None if it
+    isn't (NaN and infinities included: JSON has no such numbers)."""
     if isinstance(value, np.generic):
-        return value.item()
+        value = value.item()
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, (str, bool, int)) or value is None:
+        return value
     if isinstance(value, np.ndarray):
-        return value.tolist() if value.size <= 16 else None
+        return [_jsonable(v) for v in value.tolist()] if value.size <= 16 else None
     if isinstance(value, Mapping):
         out = {str(k): _jsonable(v) for k, v in value.items()}
         return {k: v for k, v in out.items() if v is not None}
