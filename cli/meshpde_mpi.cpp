@@ -1,6 +1,7 @@
 // meshpde-mpi: distributed solves over MPI (target meshpde::distributed).
 //   meshpde partition MESH --parts N -o DIR
 //   mpirun -n N meshpde-mpi interpolate DIR --constraints FILE -o OUTDIR [--json]
+//   mpirun -n N meshpde-mpi fair DIR --fixed boundary|halfspace:NX,NY,NZ:D|all --order 1|2 -o OUTDIR [--json]
 // Every process reads only its own part (DIR/part-RANK.ply). Exit codes as meshpde's:
 // 0 success, 1 bad input or failed solve (on every rank: a part one rank cannot read
 // stops them all), 2 usage error.
@@ -41,13 +42,16 @@ std::string read_text(const std::filesystem::path& path) {
 }
 
 struct Args {
-  std::string dir, constraints, out;
+  std::string command, dir, constraints, out;
+  std::vector<std::string> fixed;
+  int order = 2;
   double g1 = 0, g2 = 1, rtol = 1e-12;
   int max_iterations = 5000;
   bool json = false;
 };
 
-int run_interpolate(const Args& a, MPI_Comm comm) {
+int run(const Args& a, MPI_Comm comm) {
+  const bool fair = a.command == "fair";
   int rank = 0, size = 1;
   MPI_Comm_rank(comm, &rank);
   MPI_Comm_size(comm, &size);
@@ -63,20 +67,21 @@ int run_interpolate(const Args& a, MPI_Comm comm) {
       throw InputError(fmt::format("{}: the partition has {} parts; run it with mpirun -n {} (not {})", a.dir,
                                    part.parts, part.parts, size));
     const long long n = part.global_vertices;
-    cons = parse_constraints(
-        [n](const std::string& spec) {
-          int v = -1;
-          const auto [end, ec] = std::from_chars(spec.data(), spec.data() + spec.size(), v);
-          if (ec != std::errc() || end != spec.data() + spec.size())
-            throw InputError(
-                fmt::format("vertex \"{}\": a distributed run takes vertex indices of the input mesh "
-                            "(no @X,Y,Z: no process holds the whole mesh)",
-                            spec));
-          if (v < 0 || v >= n)
-            throw InputError(fmt::format("vertex {} does not exist (the mesh has {} vertices)", v, n));
-          return v;
-        },
-        read_text(a.constraints), 1, a.constraints);
+    if (!fair)
+      cons = parse_constraints(
+          [n](const std::string& spec) {
+            int v = -1;
+            const auto [end, ec] = std::from_chars(spec.data(), spec.data() + spec.size(), v);
+            if (ec != std::errc() || end != spec.data() + spec.size())
+              throw InputError(
+                  fmt::format("vertex \"{}\": a distributed run takes vertex indices of the input mesh "
+                              "(no @X,Y,Z: no process holds the whole mesh)",
+                              spec));
+            if (v < 0 || v >= n)
+              throw InputError(fmt::format("vertex {} does not exist (the mesh has {} vertices)", v, n));
+            return v;
+          },
+          read_text(a.constraints), 1, a.constraints);
   } catch (const std::exception& e) {
     error = e.what();
   }
@@ -86,9 +91,10 @@ int run_interpolate(const Args& a, MPI_Comm comm) {
   }
   DistributedResult r;
   try {
-    r = distributed_interpolate(
-        part, cons,
-        DistributedSolveParams{.g1 = a.g1, .g2 = a.g2, .tolerance = a.rtol, .max_iterations = a.max_iterations}, comm);
+    const DistributedSolveParams params{
+        .g1 = a.g1, .g2 = a.g2, .tolerance = a.rtol, .max_iterations = a.max_iterations};
+    r = fair ? distributed_fair(part, a.fixed, a.order, params, comm)
+             : distributed_interpolate(part, cons, params, comm);
   } catch (const Error& e) {
     // The solve's own errors (bad constraints, no convergence) are the same on every
     // rank; anything else ends the whole run rather than leave the others waiting.
@@ -103,9 +109,13 @@ int run_interpolate(const Args& a, MPI_Comm comm) {
   error.clear();
   try {
     std::filesystem::create_directories(out);
-    std::string text = "vertex,u\n";
-    for (int i = 0; i < part.owned; ++i) text += fmt::format("{},{:.17g}\n", part.original_id[i], r.values[i]);
-    write_file_atomically(out / fmt::format("u-{}.csv", rank), text);
+    std::string text = fair ? "vertex,x,y,z\n" : "vertex,u\n";
+    for (int i = 0; i < part.owned; ++i) {
+      text += fmt::format("{}", part.original_id[i]);
+      for (Eigen::Index c = 0; c < r.values.cols(); ++c) text += fmt::format(",{:.17g}", r.values(i, c));
+      text += '\n';
+    }
+    write_file_atomically(out / fmt::format("{}-{}.csv", fair ? "positions" : "u", rank), text);
   } catch (const std::exception& e) {
     error = e.what();
   }
@@ -141,29 +151,34 @@ int run_interpolate(const Args& a, MPI_Comm comm) {
     ghosts += x[1];
   }
   if (a.json) {
-    std::cout << nlohmann::json{{"constraints", cons.size()},
-                                {"g1", a.g1},
-                                {"g2", a.g2},
-                                {"laplacian", "cotan"},
-                                {"vertices", part.global_vertices},
-                                {"ranks", size},
-                                {"preconditioner", r.preconditioner},
-                                {"ghost_fraction", ghosts / static_cast<double>(part.global_vertices)},
-                                {"result",
-                                 {{"seconds", total},
-                                  {"setup_seconds", setup},
-                                  {"solve_seconds", solve},
-                                  {"cg_iterations", r.iterations},
-                                  {"relative_residual", r.relative_residual}}},
-                                {"per_rank", per_rank},
-                                {"output", out.string()}}
-                     .dump(2)
-              << std::endl;
+    nlohmann::json report{{"laplacian", "cotan"},
+                          {"vertices", part.global_vertices},
+                          {"ranks", size},
+                          {"preconditioner", r.preconditioner},
+                          {"ghost_fraction", ghosts / static_cast<double>(part.global_vertices)},
+                          {"result",
+                           {{"seconds", total},
+                            {"setup_seconds", setup},
+                            {"solve_seconds", solve},
+                            {"cg_iterations", r.iterations},
+                            {"relative_residual", r.relative_residual}}},
+                          {"per_rank", per_rank},
+                          {"output", out.string()}};
+    if (fair) {
+      report["order"] = a.order;
+      report["fixed"] = a.fixed;
+    } else {
+      report["constraints"] = cons.size();
+      report["g1"] = a.g1;
+      report["g2"] = a.g2;
+    }
+    std::cout << report.dump(2) << std::endl;
   } else {
     fmt::print(
         "{} vertices on {} ranks: {} CG iterations ({}), relative residual {:.2g}, set-up {:.3f} s, solve "
-        "{:.3f} s; values in {}/u-RANK.csv\n",
-        part.global_vertices, size, r.iterations, r.preconditioner, r.relative_residual, setup, solve, out.string());
+        "{:.3f} s; {} in {}/{}-RANK.csv\n",
+        part.global_vertices, size, r.iterations, r.preconditioner, r.relative_residual, setup, solve,
+        fair ? "positions" : "values", out.string(), fair ? "positions" : "u");
   }
   return 0;
 }
@@ -180,19 +195,26 @@ int main(int argc, char** argv) {
     app.allow_extras();
     app.require_subcommand(1);
     Args a;
-    auto* cmd =
+    auto common = [&a](CLI::App* cmd, const std::string& output) {
+      cmd->allow_extras();
+      cmd->add_option("DIR", a.dir, "The partitioned folder (meshpde partition MESH --parts N -o DIR)")->required();
+      cmd->add_option("--rtol", a.rtol, "CG's relative residual")->capture_default_str();
+      cmd->add_option("--max-iterations", a.max_iterations, "CG's limit")->capture_default_str();
+      cmd->add_option("-o,--output", a.out, "Output folder: " + output)->required();
+      cmd->add_flag("--json", a.json, "Print a JSON report (rank 0)");
+      cmd->callback([&a, cmd] { a.command = cmd->get_name(); });
+    };
+    auto* interp =
         app.add_subcommand("interpolate", "Spread scalar values given at a few vertices: (g1 K + g2 K D K) u = 0");
-    cmd->allow_extras();
-    cmd->add_option("DIR", a.dir, "The partitioned folder (meshpde partition MESH --parts N -o DIR)")->required();
-    cmd->add_option("--constraints", a.constraints, "CSV (vertex,value) or JSON, vertex indices of the input mesh")
+    common(interp, "u-RANK.csv, \"vertex,u\" for each rank's vertices (the input's numbering)");
+    interp->add_option("--constraints", a.constraints, "CSV (vertex,value) or JSON, vertex indices of the input mesh")
         ->required();
-    cmd->add_option("--g1", a.g1, "Laplacian weight")->capture_default_str();
-    cmd->add_option("--g2", a.g2, "bi-Laplacian weight")->capture_default_str();
-    cmd->add_option("--rtol", a.rtol, "CG's relative residual")->capture_default_str();
-    cmd->add_option("--max-iterations", a.max_iterations, "CG's limit")->capture_default_str();
-    cmd->add_option("-o,--output", a.out, "Output folder: u-RANK.csv, \"vertex,u\" for each rank's vertices")
-        ->required();
-    cmd->add_flag("--json", a.json, "Print a JSON report (rank 0)");
+    interp->add_option("--g1", a.g1, "Laplacian weight")->capture_default_str();
+    interp->add_option("--g2", a.g2, "bi-Laplacian weight")->capture_default_str();
+    auto* fair = app.add_subcommand("fair", "Membrane (order 1) or thin-plate (order 2) fairing with vertices held");
+    common(fair, "positions-RANK.csv, \"vertex,x,y,z\" for each rank's vertices (the input's numbering)");
+    fair->add_option("--fixed", a.fixed, "boundary, halfspace:NX,NY,NZ:D or all (repeatable: their union)")->required();
+    fair->add_option("--order", a.order, "1: membrane, 2: thin plate")->capture_default_str();
     try {
       app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {
@@ -200,7 +222,7 @@ int main(int argc, char** argv) {
       if (code != 0) code = 2;
       return code;
     }
-    code = run_interpolate(a, MPI_COMM_WORLD);
+    code = run(a, MPI_COMM_WORLD);
   } catch (const std::exception& e) {
     fmt::print(stderr, "meshpde-mpi: error: {}\n", e.what());
     return 1;

@@ -1,9 +1,10 @@
 #!/usr/bin/env bash
 # The distributed component end to end (ctest distributed.mpi): `meshpde partition`
-# and `mpirun -n 1|2|4 meshpde-mpi interpolate` against the single-process
-# `meshpde interpolate --laplacian cotan` on a generated sphere, a real mesh and a
-# non-manifold one (1e-8 relative), every vertex's value written by exactly one rank,
-# and bad parts failing the whole run with a message and no hang.
+# and `mpirun -n 1|2|4 meshpde-mpi interpolate|fair` against the single-process
+# `meshpde interpolate|fair --laplacian cotan` (interpolation on a generated sphere, a
+# real mesh and a non-manifold one; fairing with a halfspace or the boundary held), to
+# 1e-8 relative, every vertex's value written by exactly one rank, and bad parts and
+# arguments failing the whole run with a message and no hang.
 #   distributed_test.sh MESHPDE MESHPDE_MPI PYTHON DATA_DIR
 set -euo pipefail
 M="$1"; MPI_TOOL="$2"; PY="$3"; DATA="$4"
@@ -23,10 +24,11 @@ for mesh in bunny-3k.off nonmanifold-vierbein.obj; do
 done
 "$M" generate icosphere --level 4 -o "$T/sphere.off" >/dev/null
 
-compare() {  # compare SERIAL.ply OUTDIR N: the ranks' values against the serial u
-  "$PY" - "$1" "$2" "$3" <<'PY'
+compare() {  # compare SERIAL.ply OUTDIR N PREFIX: the ranks' PREFIX-RANK.csv against the serial answer
+  "$PY" - "$1" "$2" "$3" "${4:-u}" <<'PY'
 import csv, glob, math, sys
-serial, outdir, n = sys.argv[1], sys.argv[2], int(sys.argv[3])
+serial, outdir, n, prefix = sys.argv[1], sys.argv[2], int(sys.argv[3]), sys.argv[4]
+columns = ["u"] if prefix == "u" else ["x", "y", "z"]
 # The serial answer: the PLY's property u (ascii or binary: read through the tool's Python-free route below).
 import struct
 data = open(serial, "rb").read()
@@ -45,20 +47,20 @@ codes = {"float": "f", "double": "d", "float32": "f", "float64": "d", "int": "i"
 assert fmt == "binary_little_endian", fmt
 rec = "<" + "".join(codes[t] for t, _ in props)
 size = struct.calcsize(rec)
-k = [name for _, name in props].index("u")
-u = [struct.unpack_from(rec, body, i * size)[k] for i in range(nv)]
+names = [name for _, name in props]
+u = [[struct.unpack_from(rec, body, i * size)[names.index(c)] for c in columns] for i in range(nv)]
 got = [None] * nv
-files = sorted(glob.glob(f"{outdir}/u-*.csv"))
+files = sorted(glob.glob(f"{outdir}/{prefix}-*.csv"))
 assert len(files) == n, f"{len(files)} value files for {n} ranks"
 for f in files:
     for row in csv.DictReader(open(f)):
         v = int(row["vertex"])
         assert got[v] is None, f"vertex {v} written twice"
-        got[v] = float(row["u"])
+        got[v] = [float(row[c]) for c in columns]
 missing = [v for v in range(nv) if got[v] is None]
 assert not missing, f"{len(missing)} vertices without a value, e.g. {missing[:5]}"
-scale = max(abs(x) for x in u)
-rel = max(abs(a - b) for a, b in zip(got, u)) / scale
+scale = max(abs(x) for r in u for x in r)
+rel = max(abs(a - b) for r, s in zip(got, u) for a, b in zip(r, s)) / scale
 assert rel < 1e-8, f"{outdir}: relative difference {rel:.3g} to the single-process answer"
 print(f"  {outdir}: {n} ranks, relative difference {rel:.2g}")
 PY
@@ -82,6 +84,22 @@ assert r["result"]["relative_residual"] < 1e-8 and r["result"]["cg_iterations"] 
 assert all(x["peak_rss_mb"] > 0 and x["solve_seconds"] >= 0 for x in r["per_rank"]), r["per_rank"]
 PY
     compare "$T/serial.ply" "$T/out-$n" $n
+  done
+done
+
+echo "fair"
+# Thin plate with half a sphere held, membrane with the bunny's bottom held, thin plate
+# with a tube's rims (its boundary) held.
+"$M" generate tube --radius 3 --length 20 --rings 30 --segments 24 -o "$T/tube.off" >/dev/null
+for job in "sphere.off 2 halfspace:0,1,0:0" "bunny-3k.off 1 halfspace:0,1,0:0.11" "tube.off 2 boundary"; do
+  set -- $job
+  [ -f "$T/$1" ] || continue
+  echo "$1, order $2, --fixed $3"
+  "$M" fair "$T/$1" --fixed "$3" --order "$2" --laplacian cotan -o "$T/serial-fair.ply" >/dev/null
+  for n in 1 2 4; do
+    "$M" partition "$T/$1" --parts $n -o "$T/fair-parts-$n" >/dev/null
+    run $n "$MPI_TOOL" fair "$T/fair-parts-$n" --fixed "$3" --order "$2" -o "$T/fair-$n" --json >"$T/report.json"
+    compare "$T/serial-fair.ply" "$T/fair-$n" $n positions
   done
 done
 
@@ -117,6 +135,8 @@ expect_failure "a constraint out of range" "999999999 does not exist" \
 echo '{"constraints": [{"vertex": "@0,0,1", "value": 1}]}' >"$T/at.json"
 expect_failure "a constraint at @X,Y,Z" "vertex indices of the input mesh" \
   run 2 "$MPI_TOOL" interpolate "$T/parts-2" --constraints "$T/at.json" -o "$T/x"
+expect_failure "fair --fixed rings:0:2" "need the whole mesh" \
+  run 2 "$MPI_TOOL" fair "$T/parts-2" --fixed rings:0:2 -o "$T/x"
 # meshpde partition's own checks.
 expect_failure "--parts 0" "at least 1" "$M" partition "$T/sphere.off" --parts 0 -o "$T/p0"
 expect_failure "more parts than vertices" "at most one part a vertex" "$M" partition "$T/sphere.off" --parts 100000 -o "$T/p1"

@@ -7,6 +7,7 @@
 #include <chrono>
 #include <unordered_map>
 
+#include "meshpde/apps/selection.h"
 #include "meshpde/core/errors.h"
 #include "meshpde/operators/fem_operators.h"
 
@@ -109,26 +110,16 @@ PetscScope::~PetscScope() {
   if (started_) PetscFinalize();
 }
 
-DistributedResult distributed_interpolate(const MeshPart& part, const std::vector<InterpolationConstraint>& constraints,
-                                          const DistributedSolveParams& p, MPI_Comm comm) {
+namespace {
+
+// The steady solve (g1 K + g2 K D K) u = 0 on the free vertices, u held at the owned
+// vertices `held` marks (held_values: one row an owned vertex, one column a component;
+// the same constraint set for every component, so one K_c and one AMG serve them all).
+DistributedResult solve_held(const MeshPart& part, const std::vector<char>& held, const Eigen::MatrixXd& held_values,
+                             const DistributedSolveParams& p, MPI_Comm comm) {
   const auto t0 = std::chrono::steady_clock::now();
   if (!(p.g1 >= 0) || !(p.g2 >= 0) || p.g1 + p.g2 == 0)
     throw InputError(fmt::format("g1 and g2 must be >= 0 and not both 0 (got {} and {})", p.g1, p.g2));
-  if (constraints.empty()) throw InputError("no constraint: give at least one vertex and value");
-  // Every process has the same list: these checks throw on all of them alike.
-  {
-    std::unordered_map<int, int> seen;
-    for (std::size_t k = 0; k < constraints.size(); ++k) {
-      const int v = constraints[k].vertex;
-      if (v < 0 || v >= part.global_vertices)
-        throw InputError(fmt::format("constraint {}: vertex {} does not exist (the mesh has {} vertices)", k + 1, v,
-                                     part.global_vertices));
-      if (constraints[k].value.size() != 1)
-        throw InputError(fmt::format("constraint {}: one value expected (scalar interpolation)", k + 1));
-      if (!seen.emplace(v, static_cast<int>(k)).second)
-        throw InputError(fmt::format("constraints {} and {} both hold vertex {}", seen[v] + 1, k + 1, v));
-    }
-  }
   const PetscInt n = static_cast<PetscInt>(part.global_vertices), nl = part.owned;
   const Mesh& mesh = part.mesh;
   // The local operators: rows of the owned vertices are whole (the part holds every
@@ -166,37 +157,22 @@ DistributedResult distributed_interpolate(const MeshPart& part, const std::vecto
   check(MatCreateVecs(o.K, &o.x, &o.b), "MatCreateVecs");
   for (Vec* v : {&o.D, &o.Mv, &o.mask, &o.uc, &o.t1, &o.t2, &o.t3}) check(VecDuplicate(o.x, v), "VecDuplicate");
   // D, the mask and the held values, each process setting its own entries.
-  std::unordered_map<long long, int> owned_local;  // original id -> local index, owned vertices
-  for (int i = 0; i < nl; ++i) owned_local.emplace(part.original_id[i], i);
   std::vector<PetscInt> held_rows;  // global rows of the constrained vertices this process owns
   {
-    PetscScalar *d = nullptr, *mv = nullptr, *m = nullptr, *u = nullptr;
+    PetscScalar *d = nullptr, *mv = nullptr, *m = nullptr;
     check(VecGetArray(o.D, &d), "VecGetArray");
     check(VecGetArray(o.Mv, &mv), "VecGetArray");
     check(VecGetArray(o.mask, &m), "VecGetArray");
-    check(VecGetArray(o.uc, &u), "VecGetArray");
     for (int i = 0; i < nl; ++i) {
       d[i] = ops.D(i);
       mv[i] = ops.mass[i];
-      m[i] = 1.0;
-      u[i] = 0.0;
-    }
-    for (const auto& c : constraints) {
-      if (const auto it = owned_local.find(c.vertex); it != owned_local.end()) {
-        m[it->second] = 0.0;
-        u[it->second] = c.value[0];
-        held_rows.push_back(static_cast<PetscInt>(part.global_id[it->second]));
-      }
+      m[i] = held[static_cast<std::size_t>(i)] ? 0.0 : 1.0;
+      if (held[static_cast<std::size_t>(i)]) held_rows.push_back(static_cast<PetscInt>(part.global_id[i]));
     }
     VecRestoreArray(o.D, &d);
     VecRestoreArray(o.Mv, &mv);
     VecRestoreArray(o.mask, &m);
-    VecRestoreArray(o.uc, &u);
   }
-  // b = -P A u_c (zero on the constrained rows).
-  check(apply_operator(o, o.uc, o.b), "the operator's apply");
-  check(VecPointwiseMult(o.b, o.mask, o.b), "VecPointwiseMult");
-  check(VecScale(o.b, -1.0), "VecScale");
   // K_c and its AMG.
   check(MatDuplicate(o.K, MAT_COPY_VALUES, &o.Kc), "MatDuplicate");
   check(MatZeroRowsColumns(o.Kc, static_cast<PetscInt>(held_rows.size()), held_rows.data(), 1.0, nullptr, nullptr),
@@ -235,28 +211,42 @@ DistributedResult distributed_interpolate(const MeshPart& part, const std::vecto
   check(KSPSetFromOptions(o.ksp), "KSPSetFromOptions");
   r.rank.setup_seconds = seconds_since(t0);
   const auto t1 = std::chrono::steady_clock::now();
-  check(KSPSolve(o.ksp, o.b, o.x), "KSPSolve");
+  r.values.resize(nl, held_values.cols());
+  for (Eigen::Index c = 0; c < held_values.cols(); ++c) {
+    // b = -P A u_c (zero on the constrained rows), u_c the held values of component c.
+    PetscScalar* u = nullptr;
+    check(VecGetArray(o.uc, &u), "VecGetArray");
+    for (int i = 0; i < nl; ++i) u[i] = held[static_cast<std::size_t>(i)] ? held_values(i, c) : 0.0;
+    VecRestoreArray(o.uc, &u);
+    check(apply_operator(o, o.uc, o.b), "the operator's apply");
+    check(VecPointwiseMult(o.b, o.mask, o.b), "VecPointwiseMult");
+    check(VecScale(o.b, -1.0), "VecScale");
+    check(VecZeroEntries(o.x), "VecZeroEntries");
+    check(KSPSolve(o.ksp, o.b, o.x), "KSPSolve");
+    KSPConvergedReason reason;
+    PetscInt its = 0;
+    check(KSPGetConvergedReason(o.ksp, &reason), "KSPGetConvergedReason");
+    check(KSPGetIterationNumber(o.ksp, &its), "KSPGetIterationNumber");
+    r.iterations = std::max(r.iterations, static_cast<int>(its));
+    // The true residual of the constrained system.
+    PetscReal bn = 0, rn = 0;
+    check(MatMult(o.A, o.x, o.t1), "MatMult");
+    check(VecAYPX(o.t1, -1.0, o.b), "VecAYPX");
+    check(VecNorm(o.t1, NORM_2, &rn), "VecNorm");
+    check(VecNorm(o.b, NORM_2, &bn), "VecNorm");
+    const double residual = bn > 0 ? static_cast<double>(rn / bn) : static_cast<double>(rn);
+    r.relative_residual = std::max(r.relative_residual, residual);
+    if (reason < 0)
+      throw SolverError(
+          fmt::format("distributed CG did not converge: {} after {} iterations (relative residual {:.3g})",
+                      KSPConvergedReasons[reason], its, residual));
+    check(VecAXPY(o.x, 1.0, o.uc), "VecAXPY");  // u = u_free + u_held
+    const PetscScalar* xs = nullptr;
+    check(VecGetArrayRead(o.x, &xs), "VecGetArrayRead");
+    r.values.col(c) = Eigen::Map<const Eigen::VectorXd>(xs, nl);
+    VecRestoreArrayRead(o.x, &xs);
+  }
   r.rank.solve_seconds = seconds_since(t1);
-  KSPConvergedReason reason;
-  PetscInt its = 0;
-  check(KSPGetConvergedReason(o.ksp, &reason), "KSPGetConvergedReason");
-  check(KSPGetIterationNumber(o.ksp, &its), "KSPGetIterationNumber");
-  r.iterations = static_cast<int>(its);
-  // The true residual of the constrained system.
-  PetscReal bn = 0, rn = 0;
-  check(MatMult(o.A, o.x, o.t1), "MatMult");
-  check(VecAYPX(o.t1, -1.0, o.b), "VecAYPX");
-  check(VecNorm(o.t1, NORM_2, &rn), "VecNorm");
-  check(VecNorm(o.b, NORM_2, &bn), "VecNorm");
-  r.relative_residual = bn > 0 ? static_cast<double>(rn / bn) : static_cast<double>(rn);
-  if (reason < 0)
-    throw SolverError(fmt::format("distributed CG did not converge: {} after {} iterations (relative residual {:.3g})",
-                                  KSPConvergedReasons[reason], its, r.relative_residual));
-  check(VecAXPY(o.x, 1.0, o.uc), "VecAXPY");  // u = u_free + u_held
-  const PetscScalar* xs = nullptr;
-  check(VecGetArrayRead(o.x, &xs), "VecGetArrayRead");
-  r.values = Eigen::Map<const Eigen::VectorXd>(xs, nl);
-  VecRestoreArrayRead(o.x, &xs);
   int rank = 0;
   MPI_Comm_rank(comm, &rank);
   r.rank.rank = rank;
@@ -265,6 +255,57 @@ DistributedResult distributed_interpolate(const MeshPart& part, const std::vecto
   r.rank.ghost_fraction = nl ? static_cast<double>(r.rank.ghosts) / nl : 0.0;
   r.rank.peak_rss_mb = peak_rss_mb();
   return r;
+}
+
+}  // namespace
+
+DistributedResult distributed_interpolate(const MeshPart& part, const std::vector<InterpolationConstraint>& constraints,
+                                          const DistributedSolveParams& p, MPI_Comm comm) {
+  if (constraints.empty()) throw InputError("no constraint: give at least one vertex and value");
+  // Every process has the same list: these checks throw on all of them alike.
+  std::unordered_map<int, int> seen;
+  for (std::size_t k = 0; k < constraints.size(); ++k) {
+    const int v = constraints[k].vertex;
+    if (v < 0 || v >= part.global_vertices)
+      throw InputError(fmt::format("constraint {}: vertex {} does not exist (the mesh has {} vertices)", k + 1, v,
+                                   part.global_vertices));
+    if (constraints[k].value.size() != 1)
+      throw InputError(fmt::format("constraint {}: one value expected (scalar interpolation)", k + 1));
+    if (!seen.emplace(v, static_cast<int>(k)).second)
+      throw InputError(fmt::format("constraints {} and {} both hold vertex {}", seen[v] + 1, k + 1, v));
+  }
+  std::unordered_map<long long, int> owned_local;  // original id -> local index, owned vertices
+  for (int i = 0; i < part.owned; ++i) owned_local.emplace(part.original_id[i], i);
+  std::vector<char> held(static_cast<std::size_t>(part.owned), 0);
+  Eigen::MatrixXd values = Eigen::MatrixXd::Zero(part.owned, 1);
+  for (const auto& c : constraints)
+    if (const auto it = owned_local.find(c.vertex); it != owned_local.end()) {
+      held[static_cast<std::size_t>(it->second)] = 1;
+      values(it->second, 0) = c.value[0];
+    }
+  return solve_held(part, held, values, p, comm);
+}
+
+DistributedResult distributed_fair(const MeshPart& part, const std::vector<std::string>& fixed, int order,
+                                   const DistributedSolveParams& params, MPI_Comm comm) {
+  if (order != 1 && order != 2) throw InputError(fmt::format("fairing order must be 1 or 2, got {}", order));
+  if (fixed.empty()) throw InputError("give the fixed vertices (--fixed)");
+  for (const auto& spec : fixed)
+    if (spec != "boundary" && spec != "all" && spec.rfind("halfspace:", 0) != 0)
+      throw InputError(
+          fmt::format("--fixed {}: a distributed run takes boundary, halfspace:NX,NY,NZ:D or all (the "
+                      "others name vertices or distances that need the whole mesh)",
+                      spec));
+  // Boundary edges of an owned vertex are whole in its part (it holds every triangle
+  // around the vertex), so the local selection is right for the owned vertices.
+  std::vector<char> held(static_cast<std::size_t>(part.owned), 0);
+  for (const int v : select_vertices(part.mesh, fixed))
+    if (v < part.owned) held[static_cast<std::size_t>(v)] = 1;
+  const Eigen::MatrixXd X = part.mesh.positions().topRows(part.owned);
+  DistributedSolveParams p = params;
+  p.g1 = order == 1 ? 1.0 : 0.0;
+  p.g2 = order == 2 ? 1.0 : 0.0;
+  return solve_held(part, held, X, p, comm);
 }
 
 }  // namespace meshpde

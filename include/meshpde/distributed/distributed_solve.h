@@ -50,9 +50,9 @@ struct RankReport {
 };
 
 struct DistributedResult {
-  Eigen::VectorXd values;  ///< one value per owned vertex of the part (in its local order)
-  int iterations = 0;
-  double relative_residual = 0;  ///< true residual |b - A x| / |b| after the solve
+  Eigen::MatrixXd values;        ///< one row per owned vertex of the part (its local order), one column a component
+  int iterations = 0;            ///< CG's, the most over the components
+  double relative_residual = 0;  ///< true residual |b - A x| / |b| after the solve, the worst component
   std::string preconditioner;    ///< "hypre-boomeramg" or "gamg"
   RankReport rank;
 };
@@ -65,5 +65,15 @@ struct DistributedResult {
 ///        on failure first (front ends check every rank's part before solving).
 DistributedResult distributed_interpolate(const MeshPart& part, const std::vector<InterpolationConstraint>& constraints,
                                           const DistributedSolveParams& params, MPI_Comm comm);
+
+/// Fairing, as `meshpde fair` without --regularize: the free vertices' positions solve
+/// the membrane (order 1: K x = 0) or thin plate (order 2: K D K x = 0) with the `fixed`
+/// vertices held, collectively over `comm`. `fixed`: the selections a part can evaluate
+/// on its own, "boundary", "halfspace:NX,NY,NZ:D" and "all" (others name vertices or
+/// distances that need the whole mesh). values: #owned x 3 positions. Of `params`, the
+/// tolerance and iteration limit are used (order sets g1 and g2).
+/// \throw InputError for a bad order or selection (on every process alike), SolverError.
+DistributedResult distributed_fair(const MeshPart& part, const std::vector<std::string>& fixed, int order,
+                                   const DistributedSolveParams& params, MPI_Comm comm);
 
 }  // namespace meshpde
