@@ -10,14 +10,13 @@
 #include "meshpde/apps/selection.h"
 #include "meshpde/core/errors.h"
 #include "meshpde/operators/fem_operators.h"
+#include "petsc_check.h"
 
 namespace meshpde {
 
 namespace {
 
-void check(PetscErrorCode e, const char* what) {
-  if (e != 0) throw SolverError(fmt::format("PETSc: {} failed (error {})", what, static_cast<int>(e)));
-}
+constexpr auto check = detail::petsc_check;
 
 double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

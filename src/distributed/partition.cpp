@@ -10,14 +10,13 @@
 #include <sstream>
 
 #include "meshpde/core/errors.h"
+#include "petsc_check.h"
 
 namespace meshpde {
 
 namespace {
 
-void check(PetscErrorCode e, const char* what) {
-  if (e != 0) throw SolverError(fmt::format("PETSc: {} failed (error {})", what, static_cast<int>(e)));
-}
+constexpr auto check = detail::petsc_check;
 
 // An id held in a double vertex field: an integer in [0, limit), exactly.
 long long id_from(double x, long long limit, const std::string& file, const char* field, int v) {
