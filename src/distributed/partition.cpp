@@ -107,37 +107,40 @@ PartitionSummary write_partition(const MeshData& data, const std::vector<int>& p
       if (w > v && part_of[v] != part_of[w]) ++s.cut_edges;
   std::filesystem::create_directories(dir);
   nlohmann::json files = nlohmann::json::array();
+  // Each part's vertices and triangles in one pass over the mesh (a triangle whose
+  // corners lie in several parts goes to each), so that the cost does not grow with
+  // the number of parts.
+  std::vector<std::vector<int>> mine_of(static_cast<std::size_t>(parts)), tris_of(static_cast<std::size_t>(parts));
+  for (int v = 0; v < n; ++v) mine_of[static_cast<std::size_t>(part_of[v])].push_back(v);
+  for (int f = 0; f < mesh.num_faces(); ++f) {
+    const int a = part_of[mesh.triangles()(f, 0)], b = part_of[mesh.triangles()(f, 1)],
+              c = part_of[mesh.triangles()(f, 2)];
+    tris_of[static_cast<std::size_t>(a)].push_back(f);
+    if (b != a) tris_of[static_cast<std::size_t>(b)].push_back(f);
+    if (c != a && c != b) tris_of[static_cast<std::size_t>(c)].push_back(f);
+  }
+  std::vector<int> local_of(static_cast<std::size_t>(n), -1);  // reset after each part
   for (int p = 0; p < parts; ++p) {
-    // The triangles with a corner in p, the vertices they touch: p's first, in global
-    // order, then the ghosts in global order.
-    std::vector<int> tris;
-    for (int f = 0; f < mesh.num_faces(); ++f)
-      for (int c = 0; c < 3; ++c)
-        if (part_of[mesh.triangles()(f, c)] == p) {
-          tris.push_back(f);
-          break;
-        }
-    std::vector<int> mine, ghosts;
-    std::vector<char> in(static_cast<std::size_t>(n), 0);
-    for (int v = 0; v < n; ++v)
-      if (part_of[v] == p) {
-        mine.push_back(v);
-        in[v] = 1;
-      }
+    // p's vertices first, in global order, then the ghosts its triangles touch, in
+    // global order.
+    const std::vector<int>& tris = tris_of[static_cast<std::size_t>(p)];
+    const std::vector<int>& mine = mine_of[static_cast<std::size_t>(p)];
+    for (std::size_t k = 0; k < mine.size(); ++k) local_of[mine[k]] = static_cast<int>(k);
+    std::vector<int> ghosts;
     for (int f : tris)
       for (int c = 0; c < 3; ++c)
-        if (const int v = mesh.triangles()(f, c); !in[v]) {
-          in[v] = 1;
+        if (const int v = mesh.triangles()(f, c); local_of[v] < 0) {
+          local_of[v] = 0;  // seen; numbered below
           ghosts.push_back(v);
         }
     std::sort(ghosts.begin(), ghosts.end(), [&](int a, int b) { return global[a] < global[b]; });
-    std::vector<int> local_of(static_cast<std::size_t>(n), -1);
+    const std::vector<int>* const lists[] = {&mine, &ghosts};
     MeshData out;
     out.V.resize(static_cast<Eigen::Index>(mine.size() + ghosts.size()), 3);
     Eigen::VectorXd gid(out.V.rows()), oid(out.V.rows());
     int k = 0;
-    for (const auto* list : {&mine, &ghosts})
-      for (int v : *list) {
+    for (const std::vector<int>* list : lists)
+      for (const int v : *list) {
         local_of[v] = k;
         out.V.row(k) = data.V.row(v);
         gid[k] = static_cast<double>(global[v]);
@@ -154,6 +157,8 @@ PartitionSummary write_partition(const MeshData& data, const std::vector<int>& p
     files.push_back(name);
     s.ghosts.push_back(static_cast<int>(ghosts.size()));
     s.faces.push_back(static_cast<int>(tris.size()));
+    for (const std::vector<int>* list : lists)
+      for (const int v : *list) local_of[v] = -1;
   }
   nlohmann::json index = {{"format", "meshpde-partition"},
                           {"version", 1},
