@@ -1,5 +1,5 @@
 // meshpde-mpi: distributed solves over MPI (target meshpde::distributed).
-//   meshpde partition MESH --parts N -o DIR
+//   meshpde partition MESH --parts N -o DIR        (runs meshpde-mpi partition: one process)
 //   mpirun -n N meshpde-mpi interpolate DIR --constraints FILE -o OUTDIR [--json]
 //   mpirun -n N meshpde-mpi fair DIR --fixed boundary|halfspace:NX,NY,NZ:D|all --order 1|2 -o OUTDIR [--json]
 // Every process reads only its own part (DIR/part-RANK.ply). Exit codes as meshpde's:
@@ -21,6 +21,9 @@
 #include "meshpde/distributed/distributed_solve.h"
 #include "meshpde/distributed/partition.h"
 #include "meshpde/io/mesh_io.h"
+#ifdef MESHPDE_HAVE_MEDICAL
+#include "meshpde/io/medical_io.h"
+#endif
 
 namespace {
 
@@ -42,13 +45,55 @@ std::string read_text(const std::filesystem::path& path) {
 }
 
 struct Args {
-  std::string command, dir, constraints, out;
+  std::string command, dir, constraints, out, mesh;
   std::vector<std::string> fixed;
-  int order = 2;
+  int order = 2, parts = 0;
   double g1 = 0, g2 = 1, rtol = 1e-12;
   int max_iterations = 5000;
   bool json = false;
 };
+
+// meshpde partition MESH --parts N -o DIR: one process reads the whole mesh.
+int run_partition(const Args& a) {
+#ifdef MESHPDE_HAVE_MEDICAL
+  MeshData d = read_any_mesh(a.mesh);
+#else
+  MeshData d = read_mesh(a.mesh);
+#endif
+  for (const auto& w : d.warnings) fmt::print(stderr, "warning: {}\n", w);
+  Mesh mesh;
+  try {
+    mesh = Mesh(d.V, d.F);
+  } catch (const InputError& e) {
+    throw InputError(fmt::format("{}: {}", a.mesh, e.what()));
+  }
+  const std::vector<int> part_of = partition_vertices(mesh, a.parts);
+  const PartitionSummary s = write_partition(d, part_of, a.out, a.mesh);
+  int most = 0, ghosts = 0;
+  for (int k = 0; k < s.parts; ++k) {
+    most = std::max(most, s.owned[k]);
+    ghosts += s.ghosts[k];
+  }
+  const double imbalance = most * s.parts / static_cast<double>(mesh.num_vertices());
+  if (a.json) {
+    std::cout << nlohmann::json{{"parts", s.parts},
+                                {"vertices", mesh.num_vertices()},
+                                {"owned", s.owned},
+                                {"ghosts", s.ghosts},
+                                {"part_faces", s.faces},
+                                {"cut_edges", s.cut_edges},
+                                {"imbalance", imbalance},
+                                {"ghost_fraction", static_cast<double>(ghosts) / mesh.num_vertices()},
+                                {"output", a.out}}
+                     .dump(2)
+              << std::endl;
+  } else {
+    fmt::print("{}: {} parts of {} vertices ({} to {} each, imbalance {:.3f}), {} cut edges, {} ghosts in all\n", a.out,
+               s.parts, mesh.num_vertices(), *std::min_element(s.owned.begin(), s.owned.end()), most, imbalance,
+               s.cut_edges, ghosts);
+  }
+  return 0;
+}
 
 int run(const Args& a, MPI_Comm comm) {
   const bool fair = a.command == "fair";
@@ -215,6 +260,14 @@ int main(int argc, char** argv) {
     common(fair, "positions-RANK.csv, \"vertex,x,y,z\" for each rank's vertices (the input's numbering)");
     fair->add_option("--fixed", a.fixed, "boundary, halfspace:NX,NY,NZ:D or all (repeatable: their union)")->required();
     fair->add_option("--order", a.order, "1: membrane, 2: thin plate")->capture_default_str();
+    auto* part = app.add_subcommand("partition",
+                                    "Cut a mesh into N parts for mpirun -n N (one process; as `meshpde "
+                                    "partition`)");
+    part->add_option("MESH", a.mesh, "Input mesh")->required();
+    part->add_option("--parts", a.parts, "Number of parts (one a process of the run)")->required();
+    part->add_option("-o,--output", a.out, "Output folder (created)")->required();
+    part->add_flag("--json", a.json, "Print a JSON report");
+    part->callback([&a] { a.command = "partition"; });
     try {
       app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {
@@ -222,7 +275,7 @@ int main(int argc, char** argv) {
       if (code != 0) code = 2;
       return code;
     }
-    code = run(a, MPI_COMM_WORLD);
+    code = a.command == "partition" ? run_partition(a) : run(a, MPI_COMM_WORLD);
   } catch (const std::exception& e) {
     fmt::print(stderr, "meshpde-mpi: error: {}\n", e.what());
     return 1;
