@@ -282,11 +282,7 @@ void add_fair_command(CLI::App& app) {
 
 /// Reads an interpolation constraints file (CSV or JSON: parse_constraints).
 std::vector<InterpolationConstraint> read_constraints(const std::string& path, const Mesh& mesh, int m) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError(fmt::format("{}: cannot open", path));
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return parse_constraints(mesh, ss.str(), m, path);
+  return parse_constraints(mesh, read_file(path), m, path);
 }
 
 void add_interpolate_command(CLI::App& app) {

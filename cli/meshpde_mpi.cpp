@@ -12,10 +12,8 @@
 #include <charconv>
 #include <chrono>
 #include <filesystem>
-#include <fstream>
 #include <iostream>
 #include <nlohmann/json.hpp>
-#include <sstream>
 
 #include "meshpde/core/errors.h"
 #include "meshpde/distributed/distributed_solve.h"
@@ -34,14 +32,6 @@ bool any_rank(bool mine, MPI_Comm comm) {
   int in = mine ? 1 : 0, out = 0;
   MPI_Allreduce(&in, &out, 1, MPI_INT, MPI_MAX, comm);
   return out != 0;
-}
-
-std::string read_text(const std::filesystem::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError(fmt::format("{}: cannot read the file", path.string()));
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
 }
 
 struct Args {
@@ -126,7 +116,7 @@ int run(const Args& a, MPI_Comm comm) {
               throw InputError(fmt::format("vertex {} does not exist (the mesh has {} vertices)", v, n));
             return v;
           },
-          read_text(a.constraints), 1, a.constraints);
+          read_file(a.constraints), 1, a.constraints);
   } catch (const std::exception& e) {
     error = e.what();
   }

@@ -4,10 +4,8 @@
 #include <petscmat.h>
 
 #include <algorithm>
-#include <fstream>
 #include <nlohmann/json.hpp>
 #include <numeric>
-#include <sstream>
 
 #include "meshpde/core/errors.h"
 #include "petsc_check.h"
@@ -178,16 +176,14 @@ PartitionSummary write_partition(const MeshData& data, const std::vector<int>& p
 
 MeshPart read_partition_part(const std::filesystem::path& dir, int part) {
   const auto index_path = dir / "partition.json";
-  std::ifstream in(index_path);
-  if (!in)
+  if (!std::filesystem::is_regular_file(index_path))
     throw InputError(fmt::format("{}: cannot read the partition's index (is {} a folder `meshpde partition` wrote?)",
                                  index_path.string(), dir.string()));
-  std::stringstream text;
-  text << in.rdbuf();
+  const std::string text = read_file(index_path);
   MeshPart m;
   std::string file;
   try {
-    const auto j = nlohmann::json::parse(text.str());
+    const auto j = nlohmann::json::parse(text);
     if (j.value("format", "") != "meshpde-partition")
       throw InputError(fmt::format("{}: not a meshpde partition index (\"format\" is not \"meshpde-partition\")",
                                    index_path.string()));

@@ -42,14 +42,18 @@ MeshData read_mesh_from_memory(const std::string& bytes, MeshFormat format, cons
   return d;
 }
 
-MeshData read_mesh(const std::filesystem::path& path) {
-  const auto format = format_from_path(path);
+std::string read_file(const std::filesystem::path& path) {
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(fmt::format("{}: cannot open for reading", path.string()));
   std::ostringstream ss;
   ss << in.rdbuf();
   if (in.bad()) throw InputError(fmt::format("{}: read error", path.string()));
-  return read_mesh_from_memory(ss.str(), format, path.string());
+  return ss.str();
+}
+
+MeshData read_mesh(const std::filesystem::path& path) {
+  const auto format = format_from_path(path);
+  return read_mesh_from_memory(read_file(path), format, path.string());
 }
 
 std::string write_mesh_to_memory(const MeshData& data, MeshFormat format, const WriteOptions& options) {

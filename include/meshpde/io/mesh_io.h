@@ -72,4 +72,7 @@ std::string write_mesh_to_memory(const MeshData& data, MeshFormat format, const 
 /// Writes `contents` to `path` through a temporary file and a rename.
 void write_file_atomically(const std::filesystem::path& path, const std::string& contents);
 
+/// The whole file's bytes. \throw InputError naming the file when it cannot be opened or read.
+std::string read_file(const std::filesystem::path& path);
+
 }  // namespace meshpde
