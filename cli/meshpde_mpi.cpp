@@ -2,6 +2,7 @@
 //   meshpde partition MESH --parts N -o DIR        (runs meshpde-mpi partition: one process)
 //   mpirun -n N meshpde-mpi interpolate DIR --constraints FILE -o OUTDIR [--json]
 //   mpirun -n N meshpde-mpi fair DIR --fixed boundary|halfspace:NX,NY,NZ:D|all --order 1|2 -o OUTDIR [--json]
+//   meshpde-mpi join DIR OUTDIR -o MESH           (one process: the results as one mesh)
 // Every process reads only its own part (DIR/part-RANK.ply). Exit codes as meshpde's:
 // 0 success, 1 bad input or failed solve (on every rank: a part one rank cannot read
 // stops them all), 2 usage error.
@@ -11,6 +12,8 @@
 #include <CLI/CLI.hpp>
 #include <charconv>
 #include <chrono>
+#include <cmath>
+#include <cstdlib>
 #include <filesystem>
 #include <iostream>
 #include <nlohmann/json.hpp>
@@ -35,7 +38,7 @@ bool any_rank(bool mine, MPI_Comm comm) {
 }
 
 struct Args {
-  std::string command, dir, constraints, out, mesh;
+  std::string command, dir, constraints, out, mesh, results;
   std::vector<std::string> fixed;
   int order = 2, parts = 0;
   double g1 = 0, g2 = 1, rtol = 1e-12;
@@ -82,6 +85,113 @@ int run_partition(const Args& a) {
                s.parts, mesh.num_vertices(), *std::min_element(s.owned.begin(), s.owned.end()), most, imbalance,
                s.cut_edges, ghosts);
   }
+  return 0;
+}
+
+// One rank's result file, PREFIX-P.csv: a header "vertex,COLUMNS..." and a row a
+// vertex. Each value lands in row `vertex` of `into`; `seen` catches a vertex given twice.
+void read_result_csv(const std::filesystem::path& path, const std::vector<std::string>& columns, Eigen::MatrixXd& into,
+                     std::vector<char>& seen) {
+  const std::string text = read_file(path);
+  std::size_t at = 0;
+  int line = 0;
+  const auto fail = [&](const std::string& what) {
+    throw InputError(fmt::format("{}:{}: {}", path.string(), line, what));
+  };
+  while (at < text.size()) {
+    std::size_t end = text.find('\n', at);
+    if (end == std::string::npos) end = text.size();
+    std::string row = text.substr(at, end - at);
+    at = end + 1;
+    ++line;
+    if (!row.empty() && row.back() == '\r') row.pop_back();
+    std::vector<std::string> cells;
+    for (std::size_t b = 0;;) {
+      const std::size_t c = row.find(',', b);
+      cells.push_back(row.substr(b, c == std::string::npos ? std::string::npos : c - b));
+      if (c == std::string::npos) break;
+      b = c + 1;
+    }
+    if (line == 1) {
+      std::vector<std::string> want{"vertex"};
+      want.insert(want.end(), columns.begin(), columns.end());
+      if (cells != want) fail(fmt::format("the header should be \"{}\"", fmt::join(want, ",")));
+      continue;
+    }
+    if (row.empty()) continue;
+    if (cells.size() != columns.size() + 1)
+      fail(fmt::format("{} values where \"vertex,{}\" needs {}", cells.size(), fmt::join(columns, ","),
+                       columns.size() + 1));
+    long long v = -1;
+    if (const auto [e, ec] = std::from_chars(cells[0].data(), cells[0].data() + cells[0].size(), v);
+        ec != std::errc() || e != cells[0].data() + cells[0].size() || v < 0 || v >= into.rows())
+      fail(fmt::format("\"{}\" is not a vertex of the mesh (0 to {})", cells[0], into.rows() - 1));
+    if (seen[static_cast<std::size_t>(v)]) fail(fmt::format("vertex {} has a value already", v));
+    seen[static_cast<std::size_t>(v)] = 1;
+    for (std::size_t c = 0; c < columns.size(); ++c) {
+      const std::string& cell = cells[c + 1];
+      char* e = nullptr;
+      const double x = std::strtod(cell.c_str(), &e);
+      if (cell.empty() || e != cell.c_str() + cell.size() || !std::isfinite(x))
+        fail(fmt::format("{} \"{}\" is not a finite number", columns[c], cell));
+      into(static_cast<Eigen::Index>(v), static_cast<Eigen::Index>(c)) = x;
+    }
+  }
+}
+
+// meshpde-mpi join DIR RESULTS -o MESH: the parts and the ranks' result files as one
+// mesh (one process): interpolate's u-RANK.csv becomes the vertex field "u", fair's
+// positions-RANK.csv the vertex positions.
+int run_join(const Args& a) {
+  const std::filesystem::path results(a.results);
+  const bool has_u = std::filesystem::exists(results / "u-0.csv");
+  const bool has_positions = std::filesystem::exists(results / "positions-0.csv");
+  if (has_u == has_positions)
+    throw InputError(
+        fmt::format("{}: expected the output of one meshpde-mpi run: u-0.csv (interpolate) or "
+                    "positions-0.csv (fair), {}",
+                    results.string(), has_u ? "found both" : "found neither"));
+  const std::string prefix = has_u ? "u" : "positions";
+  const std::vector<std::string> columns =
+      has_u ? std::vector<std::string>{"u"} : std::vector<std::string>{"x", "y", "z"};
+  MeshData d = read_partitioned_mesh(a.dir);
+  const int parts = read_partition_part(a.dir, 0).parts;
+  Eigen::MatrixXd values(d.V.rows(), static_cast<Eigen::Index>(columns.size()));
+  std::vector<char> seen(static_cast<std::size_t>(d.V.rows()), 0);
+  for (int p = 0; p < parts; ++p) {
+    const auto file = results / fmt::format("{}-{}.csv", prefix, p);
+    if (!std::filesystem::exists(file))
+      throw InputError(
+          fmt::format("{}: missing (the partition has {} parts, one result file each)", file.string(), parts));
+    read_result_csv(file, columns, values, seen);
+  }
+  if (std::filesystem::exists(results / fmt::format("{}-{}.csv", prefix, parts)))
+    throw InputError(fmt::format("{}: more result files than the partition's {} parts (results of another partition?)",
+                                 results.string(), parts));
+  if (const auto gap = std::find(seen.begin(), seen.end(), 0); gap != seen.end())
+    throw InputError(
+        fmt::format("{}: vertex {} has no value in any {}-RANK.csv", results.string(), gap - seen.begin(), prefix));
+  if (has_u)
+    d.vertex_scalars["u"] = values.col(0);
+  else
+    d.V = values;
+#ifdef MESHPDE_HAVE_MEDICAL
+  const auto warnings = write_any_mesh(a.out, d);
+#else
+  const auto warnings = write_mesh(a.out, d);
+#endif
+  for (const auto& w : warnings) fmt::print(stderr, "warning: {}\n", w);
+  if (a.json)
+    std::cout << nlohmann::json{{"vertices", d.V.rows()},
+                                {"faces", d.F.rows()},
+                                {"parts", parts},
+                                {"field", has_u ? "u" : "positions"},
+                                {"output", a.out}}
+                     .dump(2)
+              << std::endl;
+  else
+    fmt::print("{}: {} vertices, {} triangles, {} from {} parts\n", a.out, d.V.rows(), d.F.rows(),
+               has_u ? "field u" : "positions", parts);
   return 0;
 }
 
@@ -258,6 +368,15 @@ int main(int argc, char** argv) {
     part->add_option("-o,--output", a.out, "Output folder (created)")->required();
     part->add_flag("--json", a.json, "Print a JSON report");
     part->callback([&a] { a.command = "partition"; });
+    auto* join = app.add_subcommand("join",
+                                    "Join a run's result files into one mesh (one process): u-RANK.csv as the vertex "
+                                    "field u, positions-RANK.csv as the positions");
+    join->add_option("DIR", a.dir, "The partitioned folder the run read")->required();
+    join->add_option("RESULTS", a.results, "The run's output folder (its -o)")->required();
+    join->add_option("-o,--output", a.out, "Output mesh (.ply keeps the field u; .vtp too with meshpde::medical)")
+        ->required();
+    join->add_flag("--json", a.json, "Print a JSON report");
+    join->callback([&a] { a.command = "join"; });
     try {
       app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {
@@ -265,7 +384,7 @@ int main(int argc, char** argv) {
       if (code != 0) code = 2;
       return code;
     }
-    code = a.command == "partition" ? run_partition(a) : run(a, MPI_COMM_WORLD);
+    code = a.command == "partition" ? run_partition(a) : a.command == "join" ? run_join(a) : run(a, MPI_COMM_WORLD);
   } catch (const std::exception& e) {
     fmt::print(stderr, "meshpde-mpi: error: {}\n", e.what());
     return 1;

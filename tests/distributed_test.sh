@@ -3,8 +3,9 @@
 # and `mpirun -n 1|2|4 meshpde-mpi interpolate|fair` against the single-process
 # `meshpde interpolate|fair --laplacian cotan` (interpolation on a generated sphere, a
 # real mesh and a non-manifold one; fairing with a halfspace or the boundary held), to
-# 1e-8 relative, every vertex's value written by exactly one rank, and bad parts and
-# arguments failing the whole run with a message and no hang.
+# 1e-8 relative, every vertex's value written by exactly one rank, `meshpde-mpi join`'s
+# mesh (the input's triangles, the field or positions) equal to the serial output, and
+# bad parts, arguments and result folders failing with a message and no hang.
 #   distributed_test.sh MESHPDE MESHPDE_MPI PYTHON DATA_DIR
 set -euo pipefail
 M="$1"; MPI_TOOL="$2"; PY="$3"; DATA="$4"
@@ -66,6 +67,27 @@ print(f"  {outdir}: {n} ranks, relative difference {rel:.2g}")
 PY
 }
 
+joined() {  # joined SERIAL.ply PARTS OUTDIR u|positions: meshpde-mpi join's mesh against the serial answer
+  "$MPI_TOOL" join "$2" "$3" -o "$T/joined.ply" >/dev/null
+  "$PY" - "$1" "$T/joined.ply" "$4" <<'PY'
+import sys
+import meshio, numpy as np
+serial, joined, kind = meshio.read(sys.argv[1]), meshio.read(sys.argv[2]), sys.argv[3]
+def oriented(mesh):  # each triangle from its smallest corner, orientation kept
+    F = mesh.cells_dict["triangle"]
+    r = np.argmin(F, axis=1)
+    return {tuple(F[i, (r[i] + k) % 3] for k in range(3)) for i in range(len(F))}
+assert len(joined.cells_dict["triangle"]) == len(serial.cells_dict["triangle"]), "triangle count"
+assert oriented(joined) == oriented(serial), "the joined triangles differ from the input's"
+a, b = (joined.point_data["u"], serial.point_data["u"]) if kind == "u" else (joined.points, serial.points)
+rel = np.abs(a - b).max() / np.abs(b).max()
+assert rel < 1e-8, f"joined {kind}: relative difference {rel:.3g}"
+if kind == "u":
+    assert np.array_equal(joined.points, serial.points), "the joined positions are not the input's"
+print(f"  joined: {len(joined.points)} vertices, {kind} within {rel:.2g}")
+PY
+}
+
 for mesh in sphere.off bunny-3k.off nonmanifold-vierbein.obj; do
   [ -f "$T/$mesh" ] || continue
   nv=$("$M" info "$T/$mesh" --json | "$PY" -c "import json,sys; print(json.load(sys.stdin)['vertices'])")
@@ -84,6 +106,7 @@ assert r["result"]["relative_residual"] < 1e-8 and r["result"]["cg_iterations"] 
 assert all(x["peak_rss_mb"] > 0 and x["solve_seconds"] >= 0 for x in r["per_rank"]), r["per_rank"]
 PY
     compare "$T/serial.ply" "$T/out-$n" $n
+    joined "$T/serial.ply" "$T/parts-$n" "$T/out-$n" u
   done
 done
 
@@ -100,6 +123,7 @@ for job in "sphere.off 2 halfspace:0,1,0:0" "bunny-3k.off 1 halfspace:0,1,0:0.11
     "$M" partition "$T/$1" --parts $n -o "$T/fair-parts-$n" >/dev/null
     run $n "$MPI_TOOL" fair "$T/fair-parts-$n" --fixed "$3" --order "$2" -o "$T/fair-$n" --json >"$T/report.json"
     compare "$T/serial-fair.ply" "$T/fair-$n" $n positions
+    joined "$T/serial-fair.ply" "$T/fair-parts-$n" "$T/fair-$n" positions
   done
 done
 
@@ -137,6 +161,16 @@ expect_failure "a constraint at @X,Y,Z" "vertex indices of the input mesh" \
   run 2 "$MPI_TOOL" interpolate "$T/parts-2" --constraints "$T/at.json" -o "$T/x"
 expect_failure "fair --fixed rings:0:2" "need the whole mesh" \
   run 2 "$MPI_TOOL" fair "$T/parts-2" --fixed rings:0:2 -o "$T/x"
+# join: result files that do not match the partition.
+expect_failure "join without result files" "found neither" "$MPI_TOOL" join "$T/parts-2" "$T/parts-2" -o "$T/x.ply"
+expect_failure "join of 4 ranks' results over 2 parts" "more result files" \
+  "$MPI_TOOL" join "$T/parts-2" "$T/out-4" -o "$T/x.ply"
+expect_failure "join of 2 ranks' results over 4 parts" "u-2.csv: missing" \
+  "$MPI_TOOL" join "$T/parts-4" "$T/out-2" -o "$T/x.ply"
+cp -r "$T/out-2" "$T/badout"
+sed -i '3s/,.*/,not-a-number/' "$T/badout/u-1.csv"
+expect_failure "join of a malformed result" "u-1.csv:3: u \"not-a-number\" is not a finite number" "$MPI_TOOL" join "$T/parts-2" "$T/badout" -o "$T/x.ply"
+[ ! -e "$T/x.ply" ] || fail "a failed join left $T/x.ply"
 # meshpde partition's own checks.
 expect_failure "--parts 0" "at least 1" "$M" partition "$T/sphere.off" --parts 0 -o "$T/p0"
 expect_failure "more parts than vertices" "at most one part a vertex" "$M" partition "$T/sphere.off" --parts 100000 -o "$T/p1"

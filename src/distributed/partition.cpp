@@ -235,4 +235,35 @@ MeshPart read_partition_part(const std::filesystem::path& dir, int part) {
   return m;
 }
 
+MeshData read_partitioned_mesh(const std::filesystem::path& dir) {
+  MeshPart first = read_partition_part(dir, 0);
+  const long long n = first.global_vertices;
+  MeshData out;
+  out.V.resize(static_cast<Eigen::Index>(n), 3);
+  std::vector<char> seen(static_cast<std::size_t>(n), 0);
+  std::vector<Eigen::Vector3i> tris;
+  for (int p = 0; p < first.parts; ++p) {
+    const MeshPart part = p == 0 ? std::move(first) : read_partition_part(dir, p);
+    for (int v = 0; v < part.owned; ++v) {
+      const long long o = part.original_id[static_cast<std::size_t>(v)];
+      if (seen[static_cast<std::size_t>(o)])
+        throw InputError(fmt::format("{}: part {}'s vertex {} has original_id {}, which an earlier part owns",
+                                     dir.string(), p, v, o));
+      seen[static_cast<std::size_t>(o)] = 1;
+      out.V.row(static_cast<Eigen::Index>(o)) = part.mesh.positions().row(v);
+    }
+    const auto& F = part.mesh.triangles();
+    for (Eigen::Index f = 0; f < F.rows(); ++f)
+      if (F(f, 0) < part.owned)
+        tris.emplace_back(static_cast<int>(part.original_id[static_cast<std::size_t>(F(f, 0))]),
+                          static_cast<int>(part.original_id[static_cast<std::size_t>(F(f, 1))]),
+                          static_cast<int>(part.original_id[static_cast<std::size_t>(F(f, 2))]));
+  }
+  if (const auto gap = std::find(seen.begin(), seen.end(), 0); gap != seen.end())
+    throw InputError(fmt::format("{}: no part owns the input's vertex {}", dir.string(), gap - seen.begin()));
+  out.F.resize(static_cast<Eigen::Index>(tris.size()), 3);
+  for (std::size_t t = 0; t < tris.size(); ++t) out.F.row(static_cast<Eigen::Index>(t)) = tris[t].transpose();
+  return out;
+}
+
 }  // namespace meshpde

@@ -66,4 +66,13 @@ struct MeshPart {
 /// \throw InputError naming the file and what is wrong.
 MeshPart read_partition_part(const std::filesystem::path& dir, int part);
 
+/// The whole mesh again from the parts of `dir`, in the input's vertex numbering (each
+/// part's `original_id`), each triangle once (kept by the part that owns its first
+/// corner), grouped by part: the input's triangles, perhaps in another order. One
+/// process reads every part: the inverse of write_partition, for joining a run's
+/// results into one mesh.
+/// \throw InputError naming the part file when a part is unreadable or the parts
+/// disagree (a vertex owned twice or by none).
+MeshData read_partitioned_mesh(const std::filesystem::path& dir);
+
 }  // namespace meshpde
