@@ -15,6 +15,7 @@
 #include <limits>
 
 #include "meshpde/core/errors.h"
+#include "meshpde/image/volume_slice.h"
 #include "meshpde/io/medical_io.h"
 #include "meshpde/mesh/mesh.h"
 #include "test_data.h"
@@ -396,6 +397,51 @@ TEST(Volume, AortaMeshLiesOnTheZeroLevelOfItsSegmentation) {
   EXPECT_LT(worst, 1e-3);
   // Reading the RAS mesh as LPS puts it outside the image: the option matters.
   EXPECT_EQ(outside_lps, aorta.V.rows());
+}
+
+// The editor's slices on the registered pair (RAS mesh, LPS image): an axial slice
+// through a vertex, read back at the vertex's place in the slice's pixels, gives the
+// level set's zero, so the planes and the mesh line up.
+TEST(Volume, AortaSlicesThroughVerticesShowTheZeroLevel) {
+  if (!test::have_data("aorta-levelset.mha") || !test::have_data("aorta-closed-6k.vtp")) return;
+  const Volume phi = read_volume(test::data_dir() / "aorta-levelset.mha");
+  const MeshData aorta = read_any_mesh(test::data_dir() / "aorta-closed-6k.vtp");
+  // The largest distance from the zero level, in mm, read off the slices when the
+  // mesh is taken to be in `space`.
+  const auto worst_in = [&](Space space) {
+    SliceParams p;
+    p.window = 7.0;  // the level set's range, +-3.5 mm: 36 grey levels a millimetre
+    p.level = 0.0;
+    double worst = 0;
+    int checked = 0;
+    for (Eigen::Index i = 0; i < aorta.V.rows(); i += 97)
+      for (const SliceAxis axis : {SliceAxis::Axial, SliceAxis::Coronal, SliceAxis::Sagittal}) {
+        const Eigen::Vector3d x = aorta.V.row(i).transpose();
+        const int n = static_cast<int>(axis) == 0 ? 2 : static_cast<int>(axis) == 1 ? 1 : 0;
+        p.axis = axis;
+        p.position = x[n];
+        const Slice s = slice_volume(phi, space, p);
+        // The vertex in pixel coordinates, and the slice's bilinear value there.
+        const double a = (x - s.origin).dot(s.u) / s.u.squaredNorm(), b = (x - s.origin).dot(s.v) / s.v.squaredNorm();
+        const int a0 = std::clamp(static_cast<int>(a), 0, s.width - 2),
+                  b0 = std::clamp(static_cast<int>(b), 0, s.height - 2);
+        const double fa = a - a0, fb = b - b0;
+        const auto px = [&](int da, int db) {
+          return static_cast<double>(s.pixels[static_cast<std::size_t>((b0 + db) * s.width + a0 + da)]);
+        };
+        const double grey =
+            (1 - fb) * ((1 - fa) * px(0, 0) + fa * px(1, 0)) + fb * ((1 - fa) * px(0, 1) + fa * px(1, 1));
+        worst = std::max(worst, std::abs((grey / 255.0 - 0.5) * p.window));
+        ++checked;
+      }
+    EXPECT_GT(checked, 150);
+    return worst;
+  };
+  // Quantization (half a grey level, 0.014 mm) and the pixel grid's resampling of
+  // the slab's 1.5 mm layers (up to 0.15 mm in coronal and sagittal slices).
+  EXPECT_LT(worst_in(Space::RAS), 0.25) << "mm off the zero level";
+  // Taken as LPS, the mesh lies off the volume: the slices show it nowhere near.
+  EXPECT_GT(worst_in(Space::LPS), 3.0);
 }
 
 TEST(Volume, MetaImageWithRotatedDirectionAndDetachedData) {
