@@ -10,6 +10,7 @@
 
 #include "meshpde/apps/vessel_correction.h"
 #include "meshpde/core/errors.h"
+#include "meshpde/image/volume_slice.h"
 #include "meshpde/mesh/generators.h"
 #include "meshpde/mesh/regions.h"
 #ifdef MESHPDE_HAVE_MEDICAL
@@ -104,8 +105,25 @@ Loaded generated(const std::string& requested) {
   return l;
 }
 
-EditorPage::EditorPage(PageSink sink, std::shared_ptr<const Volume> edges, Space space, LaplacianKind laplacian)
-    : sink_(std::move(sink)), edges_(std::move(edges)), space_(space), laplacian_(laplacian) {}
+std::shared_ptr<const EditorImage> load_editor_image(const std::string& path) {
+#ifdef MESHPDE_HAVE_MEDICAL
+  auto image = std::make_shared<EditorImage>();
+  image->volume = std::make_shared<const Volume>(read_volume(path));
+  image->edges = std::make_shared<const Volume>(gradient_magnitude(*image->volume, 1.0));
+  const auto q = volume_quantiles(*image->volume, {0.0, 0.01, 0.99, 1.0});
+  image->min = q[0];
+  image->low = q[1];
+  image->high = q[2] > q[1] ? q[2] : q[1] + 1;
+  image->max = std::max(q[3], image->high);
+  image->name = fs::path(path).filename().string();
+  return image;
+#else
+  throw InputError(fmt::format("{}: --image needs meshpde built with meshpde::medical", path));
+#endif
+}
+
+EditorPage::EditorPage(PageSink sink, std::shared_ptr<const EditorImage> image, Space space, LaplacianKind laplacian)
+    : sink_(std::move(sink)), image_(std::move(image)), space_(space), laplacian_(laplacian) {}
 
 // Names in messages come from the user's files (field and file names) and need not be
 // UTF-8; they are sent with U+FFFD in place of the bad bytes rather than thrown on.
@@ -117,7 +135,7 @@ void EditorPage::send_binary(std::string bytes) {
 }
 
 void EditorPage::load(Loaded l) {
-  session_ = std::make_unique<EditorSession>(l.data, edges_, space_, laplacian_);
+  session_ = std::make_unique<EditorSession>(l.data, image_ ? image_->edges : nullptr, space_, laplacian_);
   source_ = std::move(l);
   tissue_ = CorrectionParams{};
   intersections_ = 0;
@@ -128,6 +146,20 @@ void EditorPage::load(Loaded l) {
              {"faces", m.num_faces()},
              {"mean_edge", session_->mean_edge_length()},
              {"has_image", session_->has_image()},
+             {"image",
+              [&]() -> nlohmann::json {
+                if (!image_) return nullptr;
+                const Volume& v = *image_->volume;
+                const auto [lo, hi] = volume_bounds(v, space_);
+                return {{"name", image_->name},
+                        {"dims", v.dims},
+                        {"spacing", {v.spacing.x(), v.spacing.y(), v.spacing.z()}},
+                        {"space", to_string(space_)},
+                        {"bounds", {{lo.x(), lo.y(), lo.z()}, {hi.x(), hi.y(), hi.z()}}},
+                        {"range", {image_->min, image_->max}},
+                        {"window", image_->high - image_->low},
+                        {"level", (image_->high + image_->low) / 2}};
+              }()},
              {"fields", [&] {
                 std::vector<std::string> names;
                 for (const auto& [k, v] : source_.data.vertex_scalars) names.push_back(k);
@@ -235,6 +267,9 @@ void EditorPage::handle(const std::string& payload, bool binary) {
       s.play(j.value("kind", std::string("heat")));
     } else if (type == "pause") {
       s.pause();
+    } else if (type == "slice") {
+      send_slice(j);
+      return;  // the SLC frame is the answer
     } else if (type == "ping") {
     } else {
       throw InputError(fmt::format("unknown request '{}'", type));
@@ -251,6 +286,31 @@ void EditorPage::handle(const std::string& payload, bool binary) {
     // for it), and the page goes on.
     send_json({{"type", "error"}, {"request", type}, {"message", std::string("internal error: ") + e.what()}});
   }
+}
+
+// A slice of the image, as the page's sliders ask for it: the pixels after
+// window/level, never the volume itself.
+void EditorPage::send_slice(const nlohmann::json& j) {
+  if (!image_) throw InputError("no image: start meshpde serve with --image VOLUME");
+  SliceParams p;
+  p.axis = parse_slice_axis(j.value("axis", std::string("axial")));
+  p.position = number(j, "position", 0);
+  p.window = number(j, "window", image_->high - image_->low);
+  p.level = number(j, "level", (image_->high + image_->low) / 2);
+  if (!(p.window > 0)) throw InputError("window must be > 0");
+  const double seq = number(j, "seq", 0);
+  const Slice s = slice_volume(*image_->volume, space_, p);
+  std::string b = "SLC ";
+  b.reserve(60 + s.pixels.size());
+  put<std::uint32_t>(b, static_cast<std::uint32_t>(s.axis));
+  put<std::uint32_t>(b, static_cast<std::uint32_t>(s.width));
+  put<std::uint32_t>(b, static_cast<std::uint32_t>(s.height));
+  put<std::uint32_t>(b, seq >= 0 && seq < 4294967296.0 ? static_cast<std::uint32_t>(seq) : 0u);
+  put<float>(b, static_cast<float>(s.position));
+  for (const Eigen::Vector3d* x : {&s.origin, &s.u, &s.v})
+    for (int k = 0; k < 3; ++k) put<float>(b, static_cast<float>((*x)[k]));
+  b.append(reinterpret_cast<const char*>(s.pixels.data()), s.pixels.size());
+  send_binary(std::move(b));
 }
 
 void EditorPage::send_stats(bool now) {

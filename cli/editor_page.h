@@ -10,6 +10,9 @@
 //   "POS " u32 n, u32 ids[n], f32 positions[3 n]
 //   "FLD " u32 nv, f32 values[nv]
 //   "VEC " u32 n, u32 ids[n], f32 vectors[3 n]   (arrows; n = 0 clears them)
+//   "SLC " u32 axis (0 axial, 1 coronal, 2 sagittal), u32 width, u32 height, u32 seq,
+//          f32 position, f32 origin[3], f32 u[3], f32 v[3], u8 pixels[width * height]
+//          (a slice of the image: pixel (a, b) at origin + a u + b v, row b at b * width)
 // Text frames are JSON objects with a "type" (see docs/editor.md).
 #pragma once
 
@@ -42,6 +45,20 @@ std::string mesh_bytes(const MeshData& d, const std::string& name);
 /// \throw InputError for an unknown kind.
 Loaded generated(const std::string& requested);
 
+/// The volume beside the meshes (meshpde serve --image), shared read-only by every
+/// page: shown as slices, and its edge map guides corrections.
+struct EditorImage {
+  std::shared_ptr<const Volume> volume;  ///< as read: the slices
+  std::shared_ptr<const Volume> edges;   ///< |grad| of the smoothed volume: guides corrections
+  double low = 0, high = 1;              ///< 1st and 99th percentiles of the values: the default window
+  double min = 0, max = 1;               ///< the values' range (the window sliders' limits)
+  std::string name;                      ///< file name, for the page
+};
+
+/// Reads `path` and prepares it for pages (edge map, default window).
+/// \throw InputError naming the file.
+std::shared_ptr<const EditorImage> load_editor_image(const std::string& path);
+
 /// Where a page's frames go: JSON text and binary.
 struct PageSink {
   std::function<void(std::string)> text;
@@ -50,9 +67,9 @@ struct PageSink {
 
 class EditorPage {
  public:
-  /// A page with no mesh yet; `edges` (may be null) guides corrections, `space` is
-  /// the frame of the meshes' coordinates.
-  EditorPage(PageSink sink, std::shared_ptr<const Volume> edges, Space space,
+  /// A page with no mesh yet; `image` (may be null) is shown and guides corrections,
+  /// `space` is the frame of the meshes' coordinates.
+  EditorPage(PageSink sink, std::shared_ptr<const EditorImage> image, Space space,
              LaplacianKind laplacian = LaplacianKind::Auto);
 
   /// Opens `l` (a new session) and sends it: a "mesh" message and a MESH frame.
@@ -74,9 +91,10 @@ class EditorPage {
   void send_json(const nlohmann::json& j);
   void send_binary(std::string bytes);
   void send_stats(bool now);
+  void send_slice(const nlohmann::json& request);
 
   PageSink sink_;
-  std::shared_ptr<const Volume> edges_;
+  std::shared_ptr<const EditorImage> image_;
   Space space_;
   LaplacianKind laplacian_;
   Loaded source_;

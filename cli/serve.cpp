@@ -225,13 +225,7 @@ class EditorServer {
     }
     space_ = mesh_space(a.space, initial_.data);
     laplacian_ = parse_laplacian_kind(a.laplacian);
-    if (!a.image.empty()) {
-#ifdef MESHPDE_HAVE_MEDICAL
-      edges_ = std::make_shared<const Volume>(gradient_magnitude(read_volume(a.image), 1.0));
-#else
-      throw InputError("--image needs meshpde built with meshpde::medical");
-#endif
-    }
+    if (!a.image.empty()) image_ = load_editor_image(a.image);
   }
 
   // Runs until SIGINT or SIGTERM.
@@ -261,16 +255,14 @@ class EditorServer {
   static std::string dump(const nlohmann::json& j) {
     return j.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
   }
-  void send_json(Hdl h, const nlohmann::json& j) {
-    server_.send_text(h, dump(j));
-  }
+  void send_json(Hdl h, const nlohmann::json& j) { server_.send_text(h, dump(j)); }
 
   void on_open(Hdl h) {
     Page page;
     page.editor = std::make_shared<EditorPage>(
         PageSink{.text = [this, h](std::string s) { server_.send_text(h, std::move(s)); },
                  .binary = [this, h](std::string s) { server_.send_binary(h, std::move(s)); }},
-        edges_, space_, laplacian_);
+        image_, space_, laplacian_);
     page.worker = std::make_unique<PageWorker>();
     send_json(h, {{"type", "hello"}, {"client", h}});
     EditorPage* c = page.editor.get();
@@ -420,7 +412,7 @@ class EditorServer {
   Loaded initial_;
   Space space_ = Space::LPS;
   LaplacianKind laplacian_ = LaplacianKind::Auto;
-  std::shared_ptr<const Volume> edges_;
+  std::shared_ptr<const EditorImage> image_;
   std::map<Hdl, Page> pages_;  // the I/O thread's
   std::vector<Page> retired_;  // closed, their workers finishing
 };

@@ -109,8 +109,10 @@ Slice slice_volume(const Volume& volume, Space space, const SliceParams& p) {
       const double c11 = val[base + oz + oy] + fx * (val[base + oz + oy + ox] - val[base + oz + oy]);
       const double c0 = c00 + fy * (c10 - c00), c1 = c01 + fy * (c11 - c01);
       const double value = c0 + fz * (c1 - c0);
-      if (!std::isfinite(value)) continue;
-      out[a] = static_cast<std::uint8_t>(std::lround(std::clamp((value - wlo) * scale, 0.0, 255.0)));
+      // A window so narrow or wide that the scale overflows maps NaN to black.
+      const double t = (value - wlo) * scale;
+      if (!(t > 0)) continue;
+      out[a] = static_cast<std::uint8_t>(std::lround(std::min(t, 255.0)));
     }
   }
   return s;

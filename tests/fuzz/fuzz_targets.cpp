@@ -2,6 +2,7 @@
 
 #include <unistd.h>
 
+#include <Eigen/Geometry>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -202,11 +203,35 @@ const cli::Loaded& small_sphere() {
   return l;
 }
 
+// A small oblique volume around the sphere (its signed distance), so that slices and
+// image-guided corrections are fuzzed too.
+std::shared_ptr<const cli::EditorImage> small_image() {
+  static const auto image = [] {
+    Volume v;
+    v.dims = {9, 7, 5};
+    v.spacing = Eigen::Vector3d(3.0, 3.5, 5.0);
+    v.origin = Eigen::Vector3d(-12, -11, -10);
+    v.direction = Eigen::AngleAxisd(0.3, Eigen::Vector3d(1, 1, 0).normalized()).toRotationMatrix();
+    for (int k = 0; k < v.dims[2]; ++k)
+      for (int j = 0; j < v.dims[1]; ++j)
+        for (int i = 0; i < v.dims[0]; ++i)
+          v.values.push_back(static_cast<float>(v.index_to_lps(Eigen::Vector3d(i, j, k)).norm() - 10.0));
+    auto out = std::make_shared<cli::EditorImage>();
+    out->volume = std::make_shared<const Volume>(v);
+    out->edges = std::make_shared<const Volume>(gradient_magnitude(v, 1.0));
+    out->low = -5;
+    out->high = 5;
+    out->name = "sphere-distance";
+    return out;
+  }();
+  return image;
+}
+
 // The editor's WebSocket requests, in process: up to eight messages, one a line, to a
-// fresh page on a small sphere, a frame after each.
+// fresh page on a small sphere with a volume beside it, a frame after each.
 int editor_message(const std::uint8_t* data, std::size_t size) {
   return guarded([&] {
-    cli::EditorPage page(checking_sink(), nullptr, Space::LPS);
+    cli::EditorPage page(checking_sink(), small_image(), Space::LPS);
     page.load(small_sphere());
     const std::string text = bytes(data, size);
     std::size_t at = 0;

@@ -3,6 +3,7 @@
 // server. window.meshpde exposes the state for tests and for the curious.
 import * as THREE from 'three';
 import { OrbitControls } from 'three/addons/OrbitControls.js';
+import { createImageView } from './image-view.js';
 
 const $ = (id) => document.getElementById(id);
 const state = {
@@ -28,6 +29,14 @@ sun.position.set(0.5, 1, 1);
 scene.add(camera);
 const controls = new OrbitControls(camera, renderer.domElement);
 controls.enableDamping = false;
+// The scene is drawn when something changed, not every animation frame: an idle page
+// then costs nothing, and a software-rendered page (no GPU) answers the server's
+// frames instead of queueing them behind its own drawing.
+let dirty = true;
+const invalidate = () => { dirty = true; };
+controls.addEventListener('change', invalidate);
+document.addEventListener('input', invalidate);
+document.addEventListener('change', invalidate);
 
 const material = new THREE.MeshStandardMaterial({
   vertexColors: true, side: THREE.DoubleSide, roughness: 0.65, metalness: 0.0, flatShading: false,
@@ -51,7 +60,7 @@ function resize() {
   camera.aspect = w / Math.max(h, 1);
   camera.updateProjectionMatrix();
 }
-window.addEventListener('resize', resize);
+window.addEventListener('resize', () => { resize(); invalidate(); });
 
 // Viridis, as the server's renderer draws it.
 const VIRIDIS = [[68, 1, 84], [59, 82, 139], [33, 144, 141], [93, 201, 99], [253, 231, 37]];
@@ -102,6 +111,7 @@ function buildMesh(buf) {
   scene.add(mesh, wire);
   state.vertexCount = nv; state.faceCount = nf;
   state.positions = pos; state.rest = pos.slice(); state.field = null; state.fieldName = '';
+  state.triangles = idx;
   $('legend').hidden = true;
   paintColors();
   const s = geometry.boundingSphere;
@@ -112,6 +122,7 @@ function buildMesh(buf) {
   camera.near = s.radius / 100; camera.far = s.radius * 100;
   camera.updateProjectionMatrix();
   controls.update();
+  imageView.onPositions();
   state.ready = true;
 }
 
@@ -129,6 +140,7 @@ function applyPositions(buf) {
   geometry.computeVertexNormals();
   if (!state.poking) state.rest = P.slice();  // a correction, undo or redo: the new rest shape
   paintColors();
+  imageView.onPositions();
 }
 
 // Arrows for a vector field: a shaft and two barbs each, longest = 8 % of the mesh size.
@@ -175,21 +187,25 @@ window.meshpde.socket = ws;
 ws.onclose = () => status('disconnected from the server', true);
 ws.onmessage = (ev) => {
   if (typeof ev.data !== 'string') {
+    invalidate();
     const tag = new TextDecoder().decode(new Uint8Array(ev.data, 0, 4));
     if (tag === 'MESH') buildMesh(ev.data);
     else if (tag === 'POS ') applyPositions(ev.data);
     else if (tag === 'FLD ') applyField(ev.data);
     else if (tag === 'VEC ') applyVectors(ev.data);
+    else if (tag === 'SLC ') imageView.onSlice(ev.data);
     state.updates += 1;
     return;
   }
   const m = JSON.parse(ev.data);
+  if (m.type !== 'stats') invalidate();
   if (m.type === 'hello') state.client = m.client;
   else if (m.type === 'mesh') {
     state.ready = false; state.name = m.name; state.meanEdge = m.mean_edge;
     $('mesh-name').textContent = `${m.name}: ${m.vertices.toLocaleString()} vertices`;
     $('image').disabled = !m.has_image;
     if (!m.has_image) $('image').checked = false;
+    imageView.onMeshMessage(m);
   } else if (m.type === 'field') {
     state.fieldName = m.name;
     if (!m.name) { state.field = null; $('legend').hidden = true; paintColors(); return; }
@@ -203,9 +219,11 @@ ws.onmessage = (ev) => {
     state.lastOk = m.request; state.oks += 1;
     if (m.request === 'drag_begin')
       status(`dragging: region of ${m.region_vertices} vertices ready in ${m.setup_ms.toFixed(1)} ms`);
+    if (m.request === 'correct') state.lastCorrect = m;
     if (m.request === 'correct')
       status(`corrected: ${m.moved_vertices} vertices moved in ${m.time_ms.toFixed(1)} ms, ` +
-             `${m.new_self_intersections} new self-intersections (${m.intersection_action})`);
+             `${m.new_self_intersections} new self-intersections (${m.intersection_action})` +
+             (m.region_warning ? `\n${m.region_warning}` : ''));
   } else if (m.type === 'error') {
     state.lastError = m.message; state.errors += 1;
     status(m.message, true);
@@ -234,6 +252,7 @@ function updateStats(s) {
   const f = new THREE.Vector3(...s.force);
   $('stat-force').textContent = f.length().toPrecision(3);
   const show = s.poking && s.contact >= 0 && f.length() > 0 && state.positions;
+  if (show || arrow.visible) invalidate();
   arrow.visible = !!show;
   state.forceVisible = !!show;
   if (show) {
@@ -245,6 +264,11 @@ function updateStats(s) {
   }
 }
 let forceScale = 1e-30;
+
+// The correct tool's options, shared by the 3D drag and the 2D slice view's drag.
+const correctOptions = () => ({ radius: +$('radius').value, method: $('method').value, image: $('image').checked,
+  dynamic: $('dynamic').checked });
+const imageView = createImageView({ scene, state, send, $, correctOptions, invalidate });
 
 // ---------------------------------------------------------------- gestures
 const raycaster = new THREE.Raycaster();
@@ -313,6 +337,7 @@ renderer.domElement.addEventListener('pointermove', (ev) => {
   } else {
     dragLine.geometry.setFromPoints([drag.start, p]);
     dragLine.visible = true;
+    invalidate();
     if (tool() === 'correct' && $('method').value === 'fem') {
       const now = performance.now();
       if (now - lastMove < 8) return;
@@ -329,12 +354,12 @@ function endDrag(ev) {
   else if (tool() === 'paint' && offset.length() > 0)
     send({ type: 'paint_vector', vertex: drag.vertex, vector: offset.toArray(), g1: +$('g1').value, g2: +$('g2').value });
   else if (tool() === 'correct' && offset.length() > 0)
-    send({ type: 'correct', vertex: drag.vertex, move: offset.toArray(), radius: +$('radius').value,
-          method: $('method').value, image: $('image').checked, dynamic: $('dynamic').checked });  // replaces the preview
+    send({ type: 'correct', vertex: drag.vertex, move: offset.toArray(), ...correctOptions() });  // replaces the preview
   else if (tool() === 'correct') send({ type: 'drag_end' });
   state.poking = false;
   drag = null;
   dragLine.visible = false;
+  invalidate();
   controls.enabled = true;
 }
 renderer.domElement.addEventListener('pointerup', endDrag);
@@ -400,6 +425,8 @@ window.meshpde.screenOf = (i) => {
 
 function loop() {
   requestAnimationFrame(loop);
+  if (!dirty) return;
+  dirty = false;
   controls.update();
   renderer.render(scene, camera);
   fpsCount += 1;

@@ -3,7 +3,12 @@
 // receives, their sizes, the probe's active domain and the server's time per frame.
 //
 //   node web/test/throughput.mjs MESHPDE_BINARY MESH [--influence L] [--seconds S] [--warmup W]
+//   node web/test/throughput.mjs MESHPDE_BINARY MESH --slices [VOLUME] [--space ras|lps]
 //
+// --slices times the image view's slices: 30 slider positions along each of the three
+// planes, one request at a time, from the request to the whole SLC frame received
+// (the server's sampling and window/level, and the transfer). Without VOLUME it
+// generates a 512 x 512 x 300 CT (synthetic-ct.mjs) and removes it afterwards.
 // --warmup W pokes for W seconds before counting, so the probe's active domain has
 // grown to its full size when the measurement starts.
 //
@@ -11,6 +16,10 @@
 import { spawn } from 'node:child_process';
 import { randomBytes } from 'node:crypto';
 import net from 'node:net';
+import os from 'node:os';
+import { rmSync } from 'node:fs';
+import { join } from 'node:path';
+import { writeSyntheticCT } from './synthetic-ct.mjs';
 
 const [binary, meshPath, ...rest] = process.argv.slice(2);
 const opt = (name, fallback) => {
@@ -19,12 +28,25 @@ const opt = (name, fallback) => {
 };
 const influence = opt('--influence', 0), seconds = opt('--seconds', 4), warmup = opt('--warmup', 0);
 const simulation = rest.includes('--wave') ? 'wave' : rest.includes('--heat') ? 'heat' : '';
+const slices = rest.includes('--slices');
 if (!binary || !meshPath) {
-  console.error('usage: node web/test/throughput.mjs MESHPDE_BINARY MESH [--influence L] [--seconds S]');
+  console.error('usage: node web/test/throughput.mjs MESHPDE_BINARY MESH [--influence L] [--seconds S] [--slices [VOLUME]]');
   process.exit(2);
 }
-
-const server = spawn(binary, ['serve', meshPath, '--port', '0'], { stdio: ['ignore', 'pipe', 'inherit'] });
+let volume = null, generatedVolume = null;
+if (slices) {
+  const next = rest[rest.indexOf('--slices') + 1];
+  volume = next && !next.startsWith('--') ? next : null;
+  if (!volume) {
+    generatedVolume = volume = join(os.tmpdir(), `meshpde-ct-${process.pid}.mha`);
+    writeSyntheticCT(volume);
+  }
+}
+const spaceAt = rest.indexOf('--space');
+const serveArgs = ['serve', meshPath, '--port', '0', ...(volume ? ['--image', volume] : []),
+                   ...(spaceAt >= 0 ? ['--space', rest[spaceAt + 1]] : [])];
+const loadStart = performance.now();
+const server = spawn(binary, serveArgs, { stdio: ['ignore', 'pipe', 'inherit'] });
 const port = await new Promise((resolve, reject) => {
   let out = '';
   server.stdout.on('data', (d) => {
@@ -72,8 +94,12 @@ sock.on('data', (d) => {
   }
 });
 
-let mesh = null, stats = [], updates = [], started = 0;
+let mesh = null, stats = [], updates = [], started = 0, slice = null;
 onFrame = (op, p) => {
+  if (op === 2 && p.subarray(0, 4).toString() === 'SLC ') {
+    slice = { t: performance.now(), seq: p.readUInt32LE(16), width: p.readUInt32LE(8), height: p.readUInt32LE(12), bytes: p.length };
+    return;
+  }
   if (op === 1) {
     const m = JSON.parse(p.toString());
     if (m.type === 'mesh') mesh = m;
@@ -87,6 +113,32 @@ while (!mesh) await new Promise((r) => setTimeout(r, 20));
 await new Promise((r) => setTimeout(r, 300));
 
 const vertex = Math.floor(mesh.vertices / 2);
+if (slices) {
+  if (!mesh.image) { console.error('the server has no image'); process.exit(1); }
+  const im = mesh.image, out = { volume: im.dims.join('x'), server_start_s: +((performance.now() - loadStart) / 1000).toFixed(1) };
+  let seq = 0;
+  for (const [k, axis] of ['axial', 'coronal', 'sagittal'].entries()) {
+    const n = [2, 1, 0][k], [lo, hi] = [im.bounds[0][n], im.bounds[1][n]], ms = [];
+    let last = null;
+    for (let i = 0; i < 30; ++i) {
+      seq += 1;
+      slice = null;
+      const t = performance.now();
+      sendText({ type: 'slice', axis, position: lo + ((i + 0.5) / 30) * (hi - lo), window: im.window, level: im.level, seq });
+      while (!slice || slice.seq !== seq) await new Promise((r) => setImmediate(r));
+      ms.push(slice.t - t);
+      last = slice;
+    }
+    ms.sort((a, b) => a - b);
+    out[axis] = { pixels: `${last.width}x${last.height}`, bytes: last.bytes, p50_ms: +ms[15].toFixed(2),
+                  p90_ms: +ms[27].toFixed(2), max_ms: +ms[29].toFixed(2) };
+  }
+  sock.end();
+  server.kill('SIGINT');
+  if (generatedVolume) rmSync(generatedVolume, { force: true });
+  console.log(JSON.stringify(out, null, 2));
+  process.exit(0);
+}
 if (simulation) {
   // --heat / --wave: a source at the middle vertex, played; the updates are whole fields.
   sendText({ type: 'source', vertex });
