@@ -43,6 +43,7 @@ from ._meshpde import (  # noqa: F401  (re-exported)
     read_mesh,
     render,
     ring_ball,
+    hausdorff_distance,
     self_intersections,
     stiffness,
     vertex_normals,
@@ -61,7 +62,7 @@ __all__ = [
     "CorrectionResult", "CorrectionSession", "DragSession", "Error", "GlobalBilaplacianSolver", "HapticSession",
     "InputError", "PdeSession", "SolverError", "check_units", "correct", "curvature", "fair", "from_vtk", "generate",
     "geodesic_ball", "heat", "info", "interpolate", "intrinsic_delaunay", "mass", "read_mesh", "read_volume",
-    "render", "ring_ball", "self_intersections", "stiffness", "to_vtk", "vertex_normals", "wave", "wave_energy",
+    "hausdorff_distance", "render", "ring_ball", "self_intersections", "stiffness", "to_vtk", "vertex_normals", "wave", "wave_energy",
     "write_mesh",
 ]
 

@@ -35,6 +35,8 @@ def geodesic_ball(V: ArrayLike, F: ArrayLike, vertex: int, radius: float) -> np.
     """Vertices within edge-path distance `radius` of `vertex`, nearest first."""
 def ring_ball(V: ArrayLike, F: ArrayLike, vertex: int, rings: int) -> np.ndarray:
     """Vertices within `rings` edges of `vertex`."""
+def hausdorff_distance(VA: ArrayLike, FA: ArrayLike, VB: ArrayLike, FB: ArrayLike, directed: bool = False) -> float:
+    """Symmetric (or, directed=True, A to B) Hausdorff distance between two triangle surfaces."""
 def self_intersections(V: ArrayLike, F: ArrayLike) -> np.ndarray:
     """(p, 2) pairs of intersecting triangles."""
 def render(V: ArrayLike, F: ArrayLike, field: ArrayLike | None = None, vectors: ArrayLike | None = None,

@@ -16,6 +16,7 @@
 #include "meshpde/mesh/generators.h"
 #include "meshpde/mesh/regions.h"
 #include "meshpde/mesh/self_intersections.h"
+#include "meshpde/mesh/surface_distance.h"
 #include "meshpde/mesh/topology.h"
 #include "meshpde/mesh/units.h"
 #include "meshpde/viz/render.h"
@@ -332,6 +333,21 @@ triangles, coplanar overlaps, triangles of one corner meeting elsewhere, and two
 of an edge folded onto each other (mesh/self_intersections.h; CGAL's
 Polygon_mesh_processing::self_intersections counts the same pairs).)doc",
       py::arg("V"), py::arg("F"));
+
+  m.def(
+      "hausdorff_distance",
+      [](const py::handle& VA, const py::handle& FA, const py::handle& VB, const py::handle& FB, bool directed) {
+        const Mesh a = mesh_arg(VA, FA), b = mesh_arg(VB, FB);
+        py::gil_scoped_release release;
+        return directed ? directed_hausdorff(a.positions(), a.triangles(), b.positions(), b.triangles())
+                        : hausdorff_distance(a.positions(), a.triangles(), b.positions(), b.triangles());
+      },
+      R"doc(hausdorff_distance(VA, FA, VB, FB, directed=False) -> float
+
+The symmetric Hausdorff distance between two triangle surfaces (with directed=True,
+from A to B only): sampled at every vertex and triangle centroid of a surface and
+measured exactly to the other (mesh/surface_distance.h). Units of the positions.)doc",
+      py::arg("VA"), py::arg("FA"), py::arg("VB"), py::arg("FB"), py::arg("directed") = false);
 
   m.def(
       "render",

@@ -98,6 +98,26 @@ def test_self_intersections_finds_a_pushed_through_vertex(sphere):
     assert all(i in touched or j in touched for i, j in pairs)
 
 
+def test_hausdorff_distance_between_offset_and_nested_planes():
+    V, F = meshpde.generate.plane(nx=8, ny=8, size=2.0)
+    W = V.copy()
+    W[:, 2] += 0.3
+    assert meshpde.hausdorff_distance(V, F, W, F) == pytest.approx(0.3, abs=1e-12)
+    # The same surface, finer: no distance either way.
+    Vs, Fs = meshpde.generate.subdivide(V, F)
+    assert meshpde.hausdorff_distance(V, F, Vs, Fs) == pytest.approx(0.0, abs=1e-12)
+    # A quarter of the plane lies on the whole (directed 0), not the other way round.
+    small = (V[:, 0] <= V[:, 0].mean() + 1e-9) & (V[:, 1] <= V[:, 1].mean() + 1e-9)
+    keep = small[F].all(axis=1)
+    idx = np.flatnonzero(small)
+    remap = -np.ones(len(V), dtype=np.int64)
+    remap[idx] = np.arange(len(idx))
+    Vq, Fq = V[idx], remap[F[keep]]
+    assert meshpde.hausdorff_distance(Vq, Fq, V, F, directed=True) == pytest.approx(0.0, abs=1e-12)
+    assert meshpde.hausdorff_distance(V, F, Vq, Fq, directed=True) == pytest.approx(np.sqrt(2.0), rel=1e-9)
+    assert meshpde.hausdorff_distance(V, F, Vq, Fq) == pytest.approx(np.sqrt(2.0), rel=1e-9)
+
+
 def test_render_to_array_and_file(tmp_path, sphere):
     V, F = sphere
     img = meshpde.render(V, F, field=V[:, 2], width=64, height=48)

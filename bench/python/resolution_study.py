@@ -1,0 +1,176 @@
+#!/usr/bin/python3
+"""Does a correction converge with the mesh? (issue 20, part 1)
+
+The same correction on three resolutions of the same surface: a mesh (level 0), its
+1-to-4 midpoint subdivision (level 1, half the edge) and its 1-to-16 (level 2). The
+subdivision keeps the coarse vertices first, at the same places, so the handle is the
+same vertex on every level and the displacements can be compared vertex by vertex.
+
+For each case and region radius R (in coarse mean edges h):
+  s01 = Hausdorff distance between the corrected level-0 and level-1 surfaces / |drag|
+  s12 = the same between levels 1 and 2
+  order = log2(s01 / s12)      (the edge halves from level to level)
+s01 is "the distance from the fine result to the coarse one" of the issue's targets
+(<= 1 % at R >= 5 h, <= 0.5 % at R >= 10 h). Also reported: v01 and v12, the largest
+difference of the displacement at the coarse vertices (tangential slip included, so
+stricter than the surface distance).
+
+    /usr/bin/python3 bench/python/resolution_study.py [--data ../shared/data]
+        [--out docs/images/resolution.png] [--json out.json] [--quick]
+
+Needs the meshpde Python module (PYTHONPATH=build/release/python) and matplotlib.
+"""
+import argparse
+import json
+import math
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+import meshpde
+
+
+def levels(V, F, n=3):
+    out = [(np.asarray(V, float), np.asarray(F, np.int64))]
+    for _ in range(n - 1):
+        V1, F1 = meshpde.generate.subdivide(*out[-1])
+        assert np.array_equal(V1[: len(out[-1][0])], out[-1][0]), "subdivision moved a coarse vertex"
+        out.append((V1, F1))
+    return out
+
+
+def mean_edge(V, F):
+    e = np.concatenate([V[F[:, 0]] - V[F[:, 1]], V[F[:, 1]] - V[F[:, 2]], V[F[:, 2]] - V[F[:, 0]]])
+    return float(np.linalg.norm(e, axis=1).mean())
+
+
+def nearest(V, p):
+    return int(np.argmin(np.linalg.norm(V - np.asarray(p), axis=1)))
+
+
+def cases(data, quick):
+    """(name, levels, handles: [(vertex, move)], image or None, space)"""
+    out = []
+    # A generated tube, radius 5 mm, edges about 1.1 mm, long enough that no region
+    # reaches its open ends: a handle half way along, 3 mm in.
+    V, F = meshpde.generate.tube(radius=5.0, length=100.0, rings=88, segments=32)
+    L = levels(V, F)
+    axis = int(np.argmax(V.max(0) - V.min(0)))
+    mid = V.mean(0)
+    ring = np.abs(V[:, axis] - mid[axis]) < 0.6
+    v = int(np.flatnonzero(ring)[0])
+    n = meshpde.vertex_normals(V, F)[v]
+    out.append((f"tube r=5 ({len(V) / 1000:.1f}k)", L, [(v, -3.0 * n)], None, "lps"))
+    if quick:
+        return out
+    # The generated bifurcation: a handle on the trunk, and two handles.
+    V, F = meshpde.generate.bifurcation(cell=1.0)
+    L = levels(V, F)
+    N = meshpde.vertex_normals(V, F)
+    c = V.mean(0)
+    top = V[:, 2].max()
+    v = nearest(V, [c[0] + 4.0, c[1], top - 0.35 * (top - V[:, 2].min())])
+    out.append(("bifurcation (cell 1 mm)", L, [(v, -3.0 * N[v])], None, "lps"))
+    w = nearest(V, V[v] + np.array([0.0, 0.0, -12.0]))
+    out.append(("bifurcation, two handles", L, [(v, -3.0 * N[v]), (w, 2.0 * N[w])], None, "lps"))
+    # The real aorta (RAS mm, inward oriented): a trunk vertex 3 mm in, with and
+    # without the MRA's guidance.
+    mesh = Path(data) / "aorta-closed-6k.vtp"
+    if mesh.exists():
+        V, F, _ = meshpde.read_mesh(mesh)
+        L = levels(V, F)
+        N = meshpde.vertex_normals(V, F, outward=True)
+        lo, hi = V.min(0), V.max(0)
+        long_axis = int(np.argmax(hi - lo))
+        p = (lo + hi) / 2
+        p[long_axis] = lo[long_axis] + 0.7 * (hi[long_axis] - lo[long_axis])
+        v = nearest(V, p)
+        out.append(("aorta-closed-6k", L, [(v, -3.0 * N[v])], None, "ras"))
+        mra = Path(data) / "aorta-mra.mha"
+        if mra.exists():
+            out.append(("aorta-closed-6k, MRA guidance", L, [(v, -3.0 * N[v])], str(mra), "ras"))
+    else:
+        print(f"note: {mesh} not found: the aorta rows are left out", file=sys.stderr)
+    return out
+
+
+def run_case(name, L, handles, image, space, R, method):
+    h = mean_edge(*L[0])
+    drag = max(np.linalg.norm(m) for _, m in handles)
+    ds = []
+    for V, F in L:
+        kw = dict(method=method, allow_intersections=True)
+        if method == "springs":
+            kw["rings"] = max(1, round(R))  # rings of the coarse mesh: the thesis's level of influence
+            if len(ds) > 0:  # the same reach in mm on the finer mesh: twice, four times the rings
+                kw["rings"] = max(1, round(R * h / mean_edge(V, F)))
+        else:
+            kw["radius"] = R * h
+        if image:
+            kw.update(image=image, space=space)
+        r = meshpde.correct(V, F, [v for v, _ in handles], [list(m) for _, m in handles], **kw)
+        ds.append(np.asarray(r.displacement))
+    n0 = len(L[0][0])
+    v01 = float(np.linalg.norm(ds[1][:n0] - ds[0][:n0], axis=1).max() / drag)
+    v12 = float(np.linalg.norm(ds[2][:n0] - ds[1][:n0], axis=1).max() / drag)
+    moved = [(V + d, F) for (V, F), d in zip(L, ds)]
+    s01 = meshpde.hausdorff_distance(*moved[0], *moved[1]) / drag
+    s12 = meshpde.hausdorff_distance(*moved[1], *moved[2]) / drag
+    return {"case": name, "method": method, "R_over_h": R, "R_mm": R * h, "h_mm": h, "drag_mm": drag,
+            "s01": s01, "s12": s12, "order": math.log2(s01 / s12) if s12 > 0 and s01 > 0 else None,
+            "v01": v01, "v12": v12, "vertices": [len(V) for V, _ in L]}
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--data", default=str(Path(__file__).resolve().parents[3] / "shared" / "data"))
+    ap.add_argument("--out", default="", help="PNG of the error against h")
+    ap.add_argument("--json", default="", help="the table as JSON")
+    ap.add_argument("--quick", action="store_true", help="the tube only")
+    a = ap.parse_args()
+    rows = []
+    t0 = time.time()
+    for name, L, handles, image, space in cases(a.data, a.quick):
+        for method in ("fem", "springs"):
+            if image and method == "springs":
+                continue  # the springs' image step is its own (issue 20 part 4)
+            for R in (5, 10, 20):
+                r = run_case(name, L, handles, image, space, R, method)
+                rows.append(r)
+                order = f"{r['order']:.2f}" if r["order"] is not None else "-"
+                print(f"{name:32s} {method:8s} R = {R:2d} h ({r['R_mm']:5.1f} mm): "
+                      f"s01 {100 * r['s01']:6.2f} %  s12 {100 * r['s12']:6.2f} %  order {order}   "
+                      f"(vertices: v01 {100 * r['v01']:6.2f} %  v12 {100 * r['v12']:6.2f} %)", flush=True)
+    print(f"({time.time() - t0:.0f} s)")
+    if a.json:
+        Path(a.json).write_text(json.dumps(rows, indent=1))
+    if a.out:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+        fig, axes = plt.subplots(1, 2, figsize=(10, 4), sharey=True)
+        for ax, method in zip(axes, ("fem", "springs")):
+            for r in rows:
+                if r["method"] != method:
+                    continue
+                h = r["h_mm"]
+                # s01 belongs to the coarse pair (h, h/2), s12 to (h/2, h/4): plotted at
+                # the finer edge of each pair.
+                ax.loglog([h / 2, h / 4], [100 * r["s01"], 100 * r["s12"]], "o-",
+                          label=f"{r['case']}, R={r['R_over_h']}h")
+            ax.axhline(1.0, color="k", lw=0.8, ls="--")
+            ax.axhline(0.5, color="k", lw=0.8, ls=":")
+            ax.set_title(f"{method}: change from one level to the next")
+            ax.set_xlabel("finer mean edge of the pair (mm)")
+            ax.grid(True, which="both", alpha=0.3)
+        axes[0].set_ylabel("Hausdorff distance between the results / drag (%)")
+        axes[1].legend(fontsize=6, loc="upper left", bbox_to_anchor=(1.02, 1))
+        fig.tight_layout()
+        fig.savefig(a.out, dpi=110)
+        print(f"plot {a.out}")
+
+
+if __name__ == "__main__":
+    main()
