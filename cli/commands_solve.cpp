@@ -80,7 +80,8 @@ std::map<std::string, Eigen::VectorXd> displacement_fields(const DragResult& r) 
 }
 
 struct CorrectArgs {
-  std::string mesh, out, method = "fem", laplacian = "auto", stiffness, image, space, solver = "direct", units = "mm";
+  std::string mesh, out, method = "fem", boundary = "clamp", laplacian = "auto", stiffness, image, space,
+                         solver = "direct", units = "mm";
   std::vector<std::string> vertices, moves, brushes;
   int rings = 0, steps = 50, cube = 0, passes = 4;
   double radius = 0, g1 = 0, g2 = 1, tol = 1e-10, image_weight = 30.0, image_sigma = 1.0, search = 3.0;
@@ -186,6 +187,7 @@ void run_correct(const CorrectArgs& a) {
   p.radius = a.radius;
   p.rings = a.rings;
   p.method = parse_correction_method(a.method);
+  p.boundary = parse_region_boundary(a.boundary);
   p.g1 = a.g1;
   p.g2 = a.g2;
   p.laplacian = parse_laplacian_kind(a.laplacian);
@@ -227,6 +229,7 @@ void run_correct(const CorrectArgs& a) {
          {"new_self_intersections", r.new_self_intersections},
          {"time_ms", r.time_ms},
          {"method", a.method},
+         {"boundary", a.boundary},
          {"dynamic", a.dynamic},
          {"laplacian", to_string(r.laplacian)},
          {"laplacian_reason", r.laplacian_reason},
@@ -298,6 +301,11 @@ void add_solve_commands(CLI::App& app) {
     radius->excludes(rings);
     cmd->add_option("--method", a->method, "fem (bi-Laplacian, ours) | springs (the thesis's mass-spring baseline)")
         ->check(CLI::IsMember({"fem", "springs"}))
+        ->capture_default_str();
+    cmd->add_option("--boundary", a->boundary,
+                    "How a fem region ends: clamp (held at the radius) | fade (an elastic foundation from 0.6 R, "
+                    "free to 2 R: closer agreement between resolutions)")
+        ->check(CLI::IsMember({"clamp", "fade"}))
         ->capture_default_str();
     cmd->add_flag("--dynamic", a->dynamic,
                   "Settle like tissue (mass, viscosity, elasticity) instead of a static solve (springs: the thesis's "

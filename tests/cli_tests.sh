@@ -171,6 +171,16 @@ import sys
 v = lambda f: [list(map(float, l.split()[1:4])) for l in open(f) if l.startswith('v ')]
 a, b = v('$T/umm.obj'), v('$T/ucm.obj')
 sys.exit(not (len(a) == len(b) and max(abs(x - 10 * y) for p, q in zip(a, b) for x, y in zip(p, q)) < 1e-9))"
+# correct --boundary fade: reported, and refused with rings
+"$M" correct "$T/tmm.obj" --vertex 600 --move 1,0,0.5 --radius 8 --boundary fade -o "$T/ufade.obj" --json \
+  >"$T/ufade.json" 2>"$T/err" || bad "correct --boundary fade"
+check "correct --boundary fade reports it" [ "$(json "$T/ufade.json" "d['boundary']")" = fade ]
+check "the fade's region reaches twice the radius" python3 -c "
+import json, sys
+sys.exit(not json.load(open('$T/ufade.json'))['region_vertices'] > 2 * json.load(open('$T/umm.json'))['region_vertices'])"
+"$M" correct "$T/tmm.obj" --vertex 600 --move 1,0,0.5 --rings 4 --boundary fade -o "$T/x.obj" 2>"$T/err" >/dev/null
+check "--boundary fade with --rings exits 1" [ $? -eq 1 ]
+check "--boundary fade with --rings explained" grep -q "fade takes the fem method with a radius" "$T/err"
 check "the same region either way" [ "$(json "$T/ucm.json" "d['region_vertices']")" = "$(json "$T/umm.json" "d['region_vertices']")" ]
 "$M" correct "$T/tcm.obj" --vertex 600 --move 0.1,0,0 --radius 1 -o "$T/x.obj" 2>"$T/err" >/dev/null ||
   bad "correct on the cm tube read as mm"

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <functional>
 #include <limits>
+#include <map>
 #include <queue>
 #include <set>
 
@@ -38,6 +39,42 @@ TEST(Regions, RingBallHoldsExactlyTheVerticesWithinKEdges) {
   for (int v = 0; v < m.num_vertices(); ++v)
     if (hops[static_cast<std::size_t>(v)] >= 0) expected.insert(v);
   EXPECT_EQ(std::set<int>(ball.begin(), ball.end()), expected);
+}
+
+// Multi-source distances: each vertex's distance is the least over the sources of
+// the single-source ball's, the vertex set is the union of the balls, and the order is
+// by distance.
+TEST(Regions, GeodesicDistancesFromSeveralSourcesAreTheNearestBalls) {
+  const Mesh m = bumpy_sphere(4);
+  const int a = 0, b = m.num_vertices() / 2;
+  const double radius = 0.9;
+  const auto got = geodesic_distances(m, std::vector<int>{a, b}, radius);
+  std::set<int> union_of;
+  for (int s : {a, b})
+    for (int v : geodesic_ball(m, s, radius)) union_of.insert(v);
+  std::set<int> seen;
+  double last = 0;
+  for (const auto& [v, d] : got) {
+    EXPECT_TRUE(seen.insert(v).second) << "vertex " << v << " twice";
+    EXPECT_GE(d, last);
+    last = d;
+    EXPECT_LT(d, radius);
+  }
+  EXPECT_EQ(seen, union_of);
+  // Single source: the distance of the path through the neighbour that gives the least.
+  const auto one = geodesic_distances(m, std::vector<int>{a}, radius);
+  std::map<int, double> dist(one.begin(), one.end());
+  for (const auto& [v, d] : one) {
+    if (v == a) {
+      EXPECT_EQ(d, 0.0);
+      continue;
+    }
+    double best = std::numeric_limits<double>::infinity();
+    for (int w : m.neighbors(v))
+      if (dist.count(w)) best = std::min(best, dist[w] + (m.positions().row(v) - m.positions().row(w)).norm());
+    EXPECT_NEAR(d, best, 1e-12);
+  }
+  EXPECT_THROW(geodesic_distances(m, std::vector<int>{-1}, 1.0), InputError);
 }
 
 TEST(Regions, RegionAroundTakesARadiusOrRingsNeverBoth) {

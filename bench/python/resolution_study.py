@@ -13,7 +13,10 @@ For each case and region radius R (in coarse mean edges h):
 s01 is "the distance from the fine result to the coarse one" of the issue's targets
 (<= 1 % at R >= 5 h, <= 0.5 % at R >= 10 h). Also reported: v01 and v12, the largest
 difference of the displacement at the coarse vertices (tangential slip included, so
-stricter than the surface distance).
+stricter than the surface distance), and interp01: the coarse mesh's triangles through
+the level-1 result's own values at the coarse vertices, against the level-1 result
+(what the coarse mesh misses of the finer answer even when its vertices are exactly
+right: its flat triangles cannot follow the bend in between).
 
     /usr/bin/python3 bench/python/resolution_study.py [--data ../shared/data]
         [--out docs/images/resolution.png] [--json out.json] [--quick]
@@ -96,7 +99,7 @@ def cases(data, quick):
     return out
 
 
-def run_case(name, L, handles, image, space, R, method):
+def run_case(name, L, handles, image, space, R, method, boundary="clamp"):
     h = mean_edge(*L[0])
     drag = max(np.linalg.norm(m) for _, m in handles)
     ds = []
@@ -108,6 +111,7 @@ def run_case(name, L, handles, image, space, R, method):
                 kw["rings"] = max(1, round(R * h / mean_edge(V, F)))
         else:
             kw["radius"] = R * h
+            kw["boundary"] = boundary
         if image:
             kw.update(image=image, space=space)
         r = meshpde.correct(V, F, [v for v, _ in handles], [list(m) for _, m in handles], **kw)
@@ -118,9 +122,13 @@ def run_case(name, L, handles, image, space, R, method):
     moved = [(V + d, F) for (V, F), d in zip(L, ds)]
     s01 = meshpde.hausdorff_distance(*moved[0], *moved[1]) / drag
     s12 = meshpde.hausdorff_distance(*moved[1], *moved[2]) / drag
-    return {"case": name, "method": method, "R_over_h": R, "R_mm": R * h, "h_mm": h, "drag_mm": drag,
+    # What the coarse mesh's triangles miss of the fine result even through its own
+    # values: the coarse triangles through the level-1 displacement at the coarse
+    # vertices, against the level-1 result (the interpolation error).
+    interp01 = meshpde.hausdorff_distance(L[0][0] + ds[1][:n0], L[0][1], *moved[1]) / drag
+    return {"case": name, "method": method if method == "springs" else f"fem {boundary}", "R_over_h": R, "R_mm": R * h, "h_mm": h, "drag_mm": drag,
             "s01": s01, "s12": s12, "order": math.log2(s01 / s12) if s12 > 0 and s01 > 0 else None,
-            "v01": v01, "v12": v12, "vertices": [len(V) for V, _ in L]}
+            "v01": v01, "v12": v12, "interp01": interp01, "vertices": [len(V) for V, _ in L]}
 
 
 def main():
@@ -133,16 +141,17 @@ def main():
     rows = []
     t0 = time.time()
     for name, L, handles, image, space in cases(a.data, a.quick):
-        for method in ("fem", "springs"):
+        for method, boundary in (("fem", "clamp"), ("fem", "fade"), ("springs", "")):
             if image and method == "springs":
                 continue  # the springs' image step is its own (issue 20 part 4)
             for R in (5, 10, 20):
-                r = run_case(name, L, handles, image, space, R, method)
+                r = run_case(name, L, handles, image, space, R, method, boundary)
                 rows.append(r)
                 order = f"{r['order']:.2f}" if r["order"] is not None else "-"
-                print(f"{name:32s} {method:8s} R = {R:2d} h ({r['R_mm']:5.1f} mm): "
+                print(f"{name:32s} {r['method']:10s} R = {R:2d} h ({r['R_mm']:5.1f} mm): "
                       f"s01 {100 * r['s01']:6.2f} %  s12 {100 * r['s12']:6.2f} %  order {order}   "
-                      f"(vertices: v01 {100 * r['v01']:6.2f} %  v12 {100 * r['v12']:6.2f} %)", flush=True)
+                      f"(vertices: v01 {100 * r['v01']:6.2f} %  v12 {100 * r['v12']:6.2f} %; "
+                      f"interpolation {100 * r['interp01']:5.2f} %)", flush=True)
     print(f"({time.time() - t0:.0f} s)")
     if a.json:
         Path(a.json).write_text(json.dumps(rows, indent=1))
@@ -150,23 +159,30 @@ def main():
         import matplotlib
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
-        fig, axes = plt.subplots(1, 2, figsize=(10, 4), sharey=True)
-        for ax, method in zip(axes, ("fem", "springs")):
+        fig, axes = plt.subplots(1, 3, figsize=(15, 4.4), sharey=True)
+        names = list(dict.fromkeys(r["case"] for r in rows))
+        colour = {n: f"C{k}" for k, n in enumerate(names)}
+        marker = {5: "o", 10: "s", 20: "^"}
+        for ax, method in zip(axes, ("fem clamp", "fem fade", "springs")):
             for r in rows:
                 if r["method"] != method:
                     continue
                 h = r["h_mm"]
                 # s01 belongs to the coarse pair (h, h/2), s12 to (h/2, h/4): plotted at
                 # the finer edge of each pair.
-                ax.loglog([h / 2, h / 4], [100 * r["s01"], 100 * r["s12"]], "o-",
-                          label=f"{r['case']}, R={r['R_over_h']}h")
+                ax.loglog([h / 2, h / 4], [100 * r["s01"], 100 * r["s12"]], "-", color=colour[r["case"]],
+                          marker=marker[r["R_over_h"]])
             ax.axhline(1.0, color="k", lw=0.8, ls="--")
             ax.axhline(0.5, color="k", lw=0.8, ls=":")
             ax.set_title(f"{method}: change from one level to the next")
             ax.set_xlabel("finer mean edge of the pair (mm)")
             ax.grid(True, which="both", alpha=0.3)
         axes[0].set_ylabel("Hausdorff distance between the results / drag (%)")
-        axes[1].legend(fontsize=6, loc="upper left", bbox_to_anchor=(1.02, 1))
+        from matplotlib.lines import Line2D
+        handles = [Line2D([], [], color=colour[n], label=n) for n in names]
+        handles += [Line2D([], [], color="grey", marker=m, ls="", label=f"R = {R} h") for R, m in marker.items()]
+        handles += [Line2D([], [], color="k", ls="--", label="1 %"), Line2D([], [], color="k", ls=":", label="0.5 %")]
+        axes[2].legend(handles=handles, fontsize=7, loc="upper left", bbox_to_anchor=(1.02, 1))
         fig.tight_layout()
         fig.savefig(a.out, dpi=110)
         print(f"plot {a.out}")

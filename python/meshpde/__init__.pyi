@@ -111,6 +111,7 @@ class CorrectionResult:
     new_self_intersections: int
     time_ms: float
     method: str
+    boundary: str
     dynamic: bool
     laplacian: str
     laplacian_reason: str
@@ -134,7 +135,7 @@ def correct(V: ArrayLike, F: ArrayLike, vertices: ArrayLike, moves: Sequence[Mov
             mass: float | ArrayLike = 0.1, elasticity: float | ArrayLike = 0.9, viscosity: float | ArrayLike = 0.6,
             allow_intersections: bool = False, max_substeps: int = 8, image: Union[Path, tuple[ArrayLike, ArrayLike], None] = None, space: str = "lps",
             image_weight: float = 30.0, image_sigma: float = 1.0, search_radius: float = 3.0, cube: int = 0,
-            passes: int = 4, solver: str = "direct", units: str = "mm") -> CorrectionResult: ...
+            passes: int = 4, solver: str = "direct", units: str = "mm", boundary: str = "clamp") -> CorrectionResult: ...
 
 class CorrectionSession:
     V: np.ndarray
@@ -149,7 +150,7 @@ class CorrectionSession:
               mass: float | ArrayLike = 0.1, elasticity: float | ArrayLike = 0.9, viscosity: float | ArrayLike = 0.6,
               allow_intersections: bool = False, max_substeps: int = 8, image: Union[Path, tuple[ArrayLike, ArrayLike], None] = None,
               space: str = "lps", image_weight: float = 30.0, image_sigma: float = 1.0, search_radius: float = 3.0,
-              cube: int = 0, passes: int = 4, solver: str = "direct", units: str = "mm") -> CorrectionResult: ...
+              cube: int = 0, passes: int = 4, solver: str = "direct", units: str = "mm", boundary: str = "clamp") -> CorrectionResult: ...
     def undo(self) -> None: ...
     def redo(self) -> None: ...
     def new_self_intersections(self) -> int: ...

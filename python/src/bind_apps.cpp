@@ -188,6 +188,7 @@ CorrectionOptions correction_options(const Mesh& mesh, const py::handle& vertice
   if (p.radius > 0 && p.rings > 0) throw py::value_error("give radius or rings, not both");
   if (const py::object v = get("method"); !v.is_none()) c.method = v.cast<std::string>();
   p.method = parse_correction_method(c.method);
+  if (const py::object v = get("boundary"); !v.is_none()) p.boundary = parse_region_boundary(v.cast<std::string>());
   num("g1", p.g1);
   num("g2", p.g2);
   if (const py::object v = get("laplacian"); !v.is_none()) p.laplacian = parse_laplacian_kind(v.cast<std::string>());
@@ -240,6 +241,7 @@ struct PyCorrectionResult {
   std::optional<std::string> image_space;
   std::string solver;
   std::string units;
+  std::string boundary = "clamp";
 
   py::object image() const {
     if (!image_space) return py::none();
@@ -261,6 +263,7 @@ struct PyCorrectionResult {
     j["new_self_intersections"] = r.new_self_intersections;
     j["time_ms"] = r.time_ms;
     j["method"] = method;
+    j["boundary"] = boundary;
     j["dynamic"] = dynamic;
     j["laplacian"] = to_string(r.laplacian);
     j["laplacian_reason"] = r.laplacian_reason;
@@ -281,8 +284,8 @@ struct PyCorrectionResult {
 };
 
 PyCorrectionResult wrap(CorrectionResult r, const CorrectionOptions& c) {
-  PyCorrectionResult out{std::move(r),  c.method, c.params.dynamic,         static_cast<int>(c.params.handles.size()),
-                         c.image_space, c.solver, to_string(c.params.units)};
+  PyCorrectionResult out{std::move(r),  c.method, c.params.dynamic,          static_cast<int>(c.params.handles.size()),
+                         c.image_space, c.solver, to_string(c.params.units), to_string(c.params.boundary)};
   if (!c.units_warning.empty()) PyErr_WarnEx(PyExc_UserWarning, c.units_warning.c_str(), 1);
   if (!out.r.region_warning.empty()) PyErr_WarnEx(PyExc_UserWarning, out.r.region_warning.c_str(), 1);
   if (!out.r.accuracy_warning.empty()) PyErr_WarnEx(PyExc_RuntimeWarning, out.r.accuracy_warning.c_str(), 1);
@@ -435,6 +438,7 @@ void bind_apps(py::module_& m) {
                              [](const PyCorrectionResult& c) { return c.r.new_self_intersections; })
       .def_property_readonly("time_ms", [](const PyCorrectionResult& c) { return c.r.time_ms; })
       .def_readonly("method", &PyCorrectionResult::method)
+      .def_readonly("boundary", &PyCorrectionResult::boundary)
       .def_readonly("dynamic", &PyCorrectionResult::dynamic)
       .def_property_readonly("laplacian",
                              [](const PyCorrectionResult& c) { return std::string(to_string(c.r.laplacian)); })

@@ -109,12 +109,13 @@ def test_fair_equals_the_cli(cli, tmp_path):
     assert r.after["min_angle_deg"] > 0
 
 
-CORRECT_KEYS = ["moved_vertices", "max_displacement", "region_vertices", "new_self_intersections", "method",
+CORRECT_KEYS = ["moved_vertices", "max_displacement", "region_vertices", "new_self_intersections", "method", "boundary",
                 "dynamic", "laplacian", "laplacian_reason", "relative_residual", "applied_fraction", "substeps",
                 "intersection_action", "handles", "units"]
 
 
-@pytest.mark.parametrize("extra", [[], ["--method", "springs", "--rings", 3], ["--dynamic", "--steps", 20]])
+@pytest.mark.parametrize("extra", [[], ["--method", "springs", "--rings", 3], ["--dynamic", "--steps", 20],
+                                   ["--boundary", "fade"]])
 def test_correct_equals_the_cli(cli, data, tmp_path, extra):
     path = data("aorta-closed-6k.vtp")
     out = tmp_path / "c.vtp"
@@ -127,6 +128,8 @@ def test_correct_equals_the_cli(cli, data, tmp_path, extra):
         kwargs.update(method="springs", rings=3)
     if "--dynamic" in extra:
         kwargs.update(dynamic=True, steps=20)
+    if "--boundary" in extra:
+        kwargs.update(boundary="fade")
     r = meshpde.correct(V, F, [500], ["normal:2"], **kwargs)
     for key in CORRECT_KEYS:
         ours, theirs = getattr(r, key), report[key]
@@ -151,6 +154,22 @@ def test_correct_moves_the_handle_and_holds_the_outside():
     outside = np.setdiff1d(np.arange(len(V)), r.region)
     assert np.array_equal(r.V[outside], V[outside])
     assert r.handles == 2 and r.new_self_intersections == 0
+
+
+def test_correct_with_the_fade_boundary_reaches_beyond_the_radius():
+    V, F = meshpde.generate.tube(radius=5.0, length=60.0, rings=50, segments=32)
+    v = int(np.argmin(np.linalg.norm(V - [5.0, 0.0, 30.0], axis=1)))
+    clamp = meshpde.correct(V, F, [v], [(-2.0, 0, 0)], radius=6.0)
+    fade = meshpde.correct(V, F, [v], [(-2.0, 0, 0)], radius=6.0, boundary="fade")
+    assert clamp.boundary == "clamp" and fade.boundary == "fade"
+    assert np.allclose(fade.V[v] - V[v], [-2.0, 0, 0], atol=1e-12)
+    rho = np.linalg.norm(V - V[v], axis=1)
+    moved = np.linalg.norm(fade.displacement, axis=1)
+    assert moved[rho > 12.0].max() == 0.0              # nothing beyond twice the radius
+    assert 0 < moved[(rho > 6.5) & (rho < 9.0)].max() < 0.2  # a little between R and 2R
+    assert np.linalg.norm(clamp.displacement, axis=1)[rho > 6.5].max() == 0.0
+    with pytest.raises(meshpde.InputError, match="fade"):
+        meshpde.correct(V, F, [v], [(-2.0, 0, 0)], rings=4, boundary="fade")
 
 
 @pytest.mark.parametrize("units,scale", [("cm", 10.0), ("m", 1000.0)])

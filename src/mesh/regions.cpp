@@ -7,6 +7,7 @@
 #include <bit>
 #include <cmath>
 #include <cstdint>
+#include <queue>
 #include <unordered_map>
 
 #include "../core/index_map.h"
@@ -133,6 +134,35 @@ std::vector<int> region_around(const Mesh& mesh, int source, const RegionSpec& s
     throw InputError(fmt::format("give a region as a radius > 0 or as rings > 0, not both (radius {}, rings {})",
                                  spec.radius, spec.rings));
   return by_radius ? geodesic_ball(mesh, source, spec.radius) : ring_ball(mesh, source, spec.rings);
+}
+
+std::vector<std::pair<int, double>> geodesic_distances(const Mesh& mesh, std::span<const int> sources, double radius) {
+  std::unordered_map<int, double> best;
+  std::priority_queue<std::pair<double, int>, std::vector<std::pair<double, int>>, std::greater<>> queue;
+  for (const int s : sources) {
+    if (s < 0 || s >= mesh.num_vertices())
+      throw InputError(fmt::format("vertex {} does not exist (the mesh has {} vertices)", s, mesh.num_vertices()));
+    if (best.emplace(s, 0.0).second) queue.emplace(0.0, s);
+  }
+  std::vector<std::pair<int, double>> out;
+  std::unordered_map<int, char> done;
+  while (!queue.empty()) {
+    const auto [d, v] = queue.top();
+    queue.pop();
+    if (done.count(v) || d > best.at(v)) continue;
+    done.emplace(v, 1);
+    out.emplace_back(v, d);
+    for (const int w : mesh.neighbors(v)) {
+      const double dw = d + (mesh.positions().row(v) - mesh.positions().row(w)).norm();
+      if (dw >= radius || done.count(w)) continue;
+      const auto it = best.find(w);
+      if (it == best.end() || dw < it->second) {
+        best[w] = dw;
+        queue.emplace(dw, w);
+      }
+    }
+  }
+  return out;
 }
 
 double mean_edge_length_among(const Mesh& mesh, const std::vector<int>& vertices) {

@@ -90,6 +90,21 @@ enum class CorrectionMethod { Fem, Springs };
 /// "fem" or "springs". \throw InputError otherwise.
 CorrectionMethod parse_correction_method(const std::string& text);
 
+/// How a Fem correction's region ends (`--boundary`).
+///  - Clamp (default): the free set ends at radius - h and the rings beyond are held at
+///    zero (mesh/regions.h's influence_region): nothing beyond the radius moves.
+///  - Fade: the free set reaches twice the radius and an elastic foundation, zero up to
+///    0.6 R and growing as the cube of the distance beyond, takes the displacement
+///    down smoothly: a property of the surface, not of where the mesh's vertices fall,
+///    so results on two resolutions of a surface agree about three times better at 5
+///    to 20 edges (docs/vessel-correction.md, "Resolution independence"). Vertices
+///    between R and 2 R move a little (a few % of the drag at 1.2 R). Static or
+///    dynamic, with or without image guidance; the direct solver only.
+enum class RegionBoundary { Clamp, Fade };
+/// "clamp" or "fade". \throw InputError otherwise.
+RegionBoundary parse_region_boundary(const std::string& text);
+const char* to_string(RegionBoundary boundary);
+
 /// A handle: a vertex moved by a prescribed displacement.
 struct CorrectionHandle {
   int vertex = 0;                                          ///< index into the mesh's vertices
@@ -164,6 +179,8 @@ struct CorrectionParams {
   /// makes the result independent of the resolution (see above). Default 0.
   double radius = 0;
   int rings = 0;  ///< region of influence in rings of neighbours (the thesis's level of influence); default 0
+  /// How a Fem region given by radius ends: Clamp (default) or Fade (see RegionBoundary).
+  RegionBoundary boundary = RegionBoundary::Clamp;
   CorrectionMethod method = CorrectionMethod::Fem;  ///< Fem (ours, default) or Springs (the thesis's baseline)
   double g1 = 0;  ///< membrane (Laplacian) stiffness of Fem, unit-free weight; default 0
   double g2 = 1;  ///< plate (bi-Laplacian) stiffness of Fem, unit-free weight; default 1

@@ -18,6 +18,11 @@ namespace meshpde {
 /// order they were reached (nearest first; the source first).
 std::vector<int> geodesic_ball(const Mesh& mesh, int source, double radius);
 
+/// Edge-path distance from the nearest of `sources` for every vertex nearer than
+/// `radius` (mesh units): (vertex, distance) pairs in the order Dijkstra reaches them
+/// (the sources first, at 0). Cost ~ the ball's size.
+std::vector<std::pair<int, double>> geodesic_distances(const Mesh& mesh, std::span<const int> sources, double radius);
+
 /// Vertices within k rings of `source` (the source included), ring by ring.
 std::vector<int> ring_ball(const Mesh& mesh, int source, int rings);
 
