@@ -292,3 +292,22 @@ def test_poke_with_either_laplacian_equals_the_python_session(cli, ico, tmp_path
     assert rel_diff(np.array(forces), cli_forces) <= 1e-9
     with pytest.raises(meshpde.InputError, match="laplacian|cotan"):
         meshpde.HapticSession(V, F, laplacian="spectral")
+
+
+def test_the_resolution_study_runs_and_the_fade_agrees_better(tmp_path):
+    # bench/python/resolution_study.py --quick (the tube only), as docs/vessel-correction.md runs it.
+    import json
+    import subprocess
+    import sys
+    from pathlib import Path
+    script = Path(__file__).resolve().parents[2] / "bench" / "python" / "resolution_study.py"
+    out = tmp_path / "study.json"
+    subprocess.run([sys.executable, str(script), "--quick", "--json", str(out), "--out", str(tmp_path / "r.png")],
+                   check=True, capture_output=True, timeout=600)
+    rows = json.loads(out.read_text())
+    by = {(r["method"], r["R_over_h"]): r for r in rows}
+    assert set(by) == {(m, R) for m in ("fem clamp", "fem fade", "springs") for R in (5, 10, 20)}
+    for R in (5, 10, 20):
+        assert by[("fem fade", R)]["s01"] < by[("fem clamp", R)]["s01"]
+        assert by[("fem fade", R)]["order"] > 1.0  # it converges
+    assert (tmp_path / "r.png").stat().st_size > 10000
