@@ -1,8 +1,10 @@
 #include "editor_page.h"
 
 #include <fmt/format.h>
+#include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cstdint>
 #include <filesystem>
 #include <nlohmann/json.hpp>
@@ -105,21 +107,40 @@ Loaded generated(const std::string& requested) {
   return l;
 }
 
-std::shared_ptr<const EditorImage> load_editor_image(const std::string& path) {
-#ifdef MESHPDE_HAVE_MEDICAL
+std::shared_ptr<const EditorImage> prepare_editor_image(Volume volume, const std::string& name) {
   auto image = std::make_shared<EditorImage>();
-  image->volume = std::make_shared<const Volume>(read_volume(path));
+  image->volume = std::make_shared<const Volume>(std::move(volume));
   image->edges = std::make_shared<const Volume>(gradient_magnitude(*image->volume, 1.0));
   const auto q = volume_quantiles(*image->volume, {0.0, 0.01, 0.99, 1.0});
   image->min = q[0];
   image->low = q[1];
   image->high = q[2] > q[1] ? q[2] : q[1] + 1;
   image->max = std::max(q[3], image->high);
-  image->name = fs::path(path).filename().string();
+  image->name = name;
   return image;
+}
+
+std::shared_ptr<const EditorImage> load_editor_image(const std::string& path) {
+#ifdef MESHPDE_HAVE_MEDICAL
+  return prepare_editor_image(read_volume(path), fs::path(path).filename().string());
 #else
   throw InputError(fmt::format("{}: --image needs meshpde built with meshpde::medical", path));
 #endif
+}
+
+namespace {
+std::string lower_name(const std::string& name) {
+  std::string s = fs::path(name).filename().string();
+  for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return s;
+}
+}  // namespace
+
+bool is_volume_upload(const std::string& name) {
+  const std::string n = lower_name(name);
+  for (const char* ext : {".mha", ".mhd", ".nii", ".nii.gz", ".nrrd", ".nhdr"})
+    if (n.ends_with(ext)) return true;
+  return false;
 }
 
 EditorPage::EditorPage(PageSink sink, std::shared_ptr<const EditorImage> image, Space space, LaplacianKind laplacian)
@@ -146,20 +167,7 @@ void EditorPage::load(Loaded l) {
              {"faces", m.num_faces()},
              {"mean_edge", session_->mean_edge_length()},
              {"has_image", session_->has_image()},
-             {"image",
-              [&]() -> nlohmann::json {
-                if (!image_) return nullptr;
-                const Volume& v = *image_->volume;
-                const auto [lo, hi] = volume_bounds(v, space_);
-                return {{"name", image_->name},
-                        {"dims", v.dims},
-                        {"spacing", {v.spacing.x(), v.spacing.y(), v.spacing.z()}},
-                        {"space", to_string(space_)},
-                        {"bounds", {{lo.x(), lo.y(), lo.z()}, {hi.x(), hi.y(), hi.z()}}},
-                        {"range", {image_->min, image_->max}},
-                        {"window", image_->high - image_->low},
-                        {"level", (image_->high + image_->low) / 2}};
-              }()},
+             {"image", image_json()},
              {"fields", [&] {
                 std::vector<std::string> names;
                 for (const auto& [k, v] : source_.data.vertex_scalars) names.push_back(k);
@@ -177,6 +185,41 @@ void EditorPage::load(Loaded l) {
   sent_vectors_.resize(0, 3);
   sent_field_.resize(0);
   sent_field_name_.clear();
+}
+
+void EditorPage::upload_image(const std::string& bytes, const std::string& name) {
+#ifdef MESHPDE_HAVE_MEDICAL
+  const std::string base = fs::path(name).filename().string(), lower = lower_name(name);
+  if (lower.ends_with(".mhd") || lower.ends_with(".nhdr"))
+    throw InputError(
+        fmt::format("{}: its voxels are in another file; upload one file: .mha, .nii, .nii.gz or .nrrd", base));
+  // The readers take a path: the bytes go to a private temporary file, removed at once.
+  static std::atomic<unsigned> serial{0};
+  const std::string ext = lower.ends_with(".nii.gz") ? ".nii.gz" : lower_ext(base);
+  const fs::path tmp = fs::temp_directory_path() / fmt::format("meshpde-upload-{}-{}{}", ::getpid(), ++serial, ext);
+  Volume v;
+  try {
+    write_file_atomically(tmp, bytes);
+    v = read_volume(tmp);
+  } catch (const InputError& e) {
+    std::error_code ec;
+    fs::remove(tmp, ec);
+    // Name the upload, not the temporary file.
+    std::string what = e.what();
+    for (std::size_t at; (at = what.find(tmp.string())) != std::string::npos;)
+      what.replace(at, tmp.string().size(), base);
+    throw InputError(what);
+  }
+  std::error_code ec;
+  fs::remove(tmp, ec);
+  v.name = base;
+  image_ = prepare_editor_image(std::move(v), base);
+  if (session_) session_->set_image_edges(image_->edges);
+  send_json({{"type", "image"}, {"image", image_json()}, {"has_image", true}});
+#else
+  (void)bytes;
+  throw InputError(fmt::format("{}: volumes need meshpde built with meshpde::medical", name));
+#endif
 }
 
 int EditorPage::upload(const std::string& bytes, const std::string& name) {
@@ -286,6 +329,21 @@ void EditorPage::handle(const std::string& payload, bool binary) {
     // for it), and the page goes on.
     send_json({{"type", "error"}, {"request", type}, {"message", std::string("internal error: ") + e.what()}});
   }
+}
+
+// What the page needs to show the image: null without one.
+nlohmann::json EditorPage::image_json() const {
+  if (!image_) return nullptr;
+  const Volume& v = *image_->volume;
+  const auto [lo, hi] = volume_bounds(v, space_);
+  return {{"name", image_->name},
+          {"dims", v.dims},
+          {"spacing", {v.spacing.x(), v.spacing.y(), v.spacing.z()}},
+          {"space", to_string(space_)},
+          {"bounds", {{lo.x(), lo.y(), lo.z()}, {hi.x(), hi.y(), hi.z()}}},
+          {"range", {image_->min, image_->max}},
+          {"window", image_->high - image_->low},
+          {"level", (image_->high + image_->low) / 2}};
 }
 
 // A slice of the image, as the page's sliders ask for it: the pixels after

@@ -58,6 +58,10 @@ struct EditorImage {
 /// Reads `path` and prepares it for pages (edge map, default window).
 /// \throw InputError naming the file.
 std::shared_ptr<const EditorImage> load_editor_image(const std::string& path);
+/// The same for a volume read already; `name` is shown on the page.
+std::shared_ptr<const EditorImage> prepare_editor_image(Volume volume, const std::string& name);
+/// Whether an upload named `name` is a volume (by its extension) rather than a mesh.
+bool is_volume_upload(const std::string& name);
 
 /// Where a page's frames go: JSON text and binary.
 struct PageSink {
@@ -83,6 +87,11 @@ class EditorPage {
   /// Parses, checks and opens an uploaded file; returns its vertex count.
   /// \throw InputError naming the file (the page keeps its mesh).
   int upload(const std::string& bytes, const std::string& name);
+  /// An uploaded volume (.mha, .nii, .nii.gz, .nrrd: one file) beside the page's mesh:
+  /// shown as slices and guiding corrections from now on, in the page's frame; the
+  /// page gets an {"type": "image"} message. Edits so far are kept.
+  /// \throw InputError naming the file (the page keeps its image, if any).
+  void upload_image(const std::string& bytes, const std::string& name);
   /// The current mesh in its own format, and the name to download it as.
   /// \throw InputError with no mesh loaded.
   std::pair<std::string, std::string> save() const;
@@ -92,6 +101,7 @@ class EditorPage {
   void send_binary(std::string bytes);
   void send_stats(bool now);
   void send_slice(const nlohmann::json& request);
+  nlohmann::json image_json() const;
 
   PageSink sink_;
   std::shared_ptr<const EditorImage> image_;

@@ -377,7 +377,10 @@ class EditorServer {
         auto task = [c, upload, respond, body = req.body,
                      name = query.count("name") ? query.at("name") : std::string("upload.ply")] {
           try {
-            if (upload) {
+            if (upload && is_volume_upload(name)) {
+              c->upload_image(body, name);
+              respond(json_response(200, {{"ok", true}, {"image", name}}));
+            } else if (upload) {
               const int vertices = c->upload(body, name);
               respond(json_response(200, {{"ok", true}, {"vertices", vertices}}));
             } else {

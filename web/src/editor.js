@@ -206,6 +206,10 @@ ws.onmessage = (ev) => {
     $('image').disabled = !m.has_image;
     if (!m.has_image) $('image').checked = false;
     imageView.onMeshMessage(m);
+  } else if (m.type === 'image') {  // a volume uploaded beside the mesh
+    $('image').disabled = false;
+    $('image').checked = true;
+    imageView.onMeshMessage(m);
   } else if (m.type === 'field') {
     state.fieldName = m.name;
     if (!m.name) { state.field = null; $('legend').hidden = true; paintColors(); return; }

@@ -497,6 +497,30 @@ try {
   check('uploads over the limit are refused', big === 413 || big === -1, `status ${big}`);
   check('the page survives a refused upload', (await page.evaluate(() => meshpde.vertexCount)) === 2562);
 
+  // ---------------------------------------------------------------- a volume uploaded beside the mesh
+  const levelsetPath = join(dataDir, 'aorta-levelset.mha');
+  if (existsSync(levelsetPath)) {
+    const shownBefore = await page.evaluate(() => meshpde.imageView.shown);
+    await page.setInputFiles('#file', levelsetPath);
+    await page.waitForFunction((n) => meshpde.imageView.shown >= n + 3, shownBefore, { timeout: 30000 }).catch(() => {});
+    check('an uploaded volume shows as three slices', (await page.evaluate(() => meshpde.imageView.shown)) >= shownBefore + 3);
+    check('the uploaded volume turns image guidance on', !(await page.isDisabled('#image')) && await page.isVisible('#image-options'));
+    check('the mesh stays after a volume upload', (await page.evaluate(() => meshpde.vertexCount)) === 2562);
+    const refused = await page.evaluate(async () => {
+      const r = await fetch(`/api/upload?client=${meshpde.client}&name=broken.mha`, { method: 'POST', body: 'ObjectType = Image\nNDims = 3\n' });
+      return { status: r.status, error: (await r.json()).error };
+    });
+    check('a broken volume upload is refused naming the file', refused.status === 400 && /broken\.mha/.test(refused.error) &&
+          !/meshpde-upload-/.test(refused.error), JSON.stringify(refused));
+    const detached = await page.evaluate(async () => {
+      const r = await fetch(`/api/upload?client=${meshpde.client}&name=scan.mhd`, { method: 'POST', body: 'x' });
+      return (await r.json()).error;
+    });
+    check('a detached-header volume upload says to upload one file', /one file/.test(detached), detached);
+  } else {
+    check(`${levelsetPath} present`, !ci);
+  }
+
   // ---------------------------------------------------------------- two pages, two meshes
   const contextB = await browser.newContext({ viewport: { width: 1000, height: 700 } });
   const pageB = await openPage(contextB);

@@ -86,6 +86,9 @@ class EditorSession {
   void redo();
   int self_intersections() const { return correction_.new_self_intersections(); }
   bool has_image() const { return edges_ != nullptr; }
+  /// Guides the corrections from now on by `edges` (an image's edge map, in the
+  /// session's frame); null turns guidance off. Edits so far stay as they are.
+  void set_image_edges(std::shared_ptr<const Volume> edges) { edges_ = std::move(edges); }
 
   // Paint: values at vertices, interpolated over the mesh.
   void paint(int vertex, double value, double g1, double g2);
