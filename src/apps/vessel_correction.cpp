@@ -395,9 +395,6 @@ Field fem_solve_local(const Mesh& mesh, const CorrectionParams& p, const std::ve
   // Stiffness of the region's slowest mode (wavelength about 2 L), per unit area.
   const double stiff = std::max(p.g2 * std::pow(M_PI / L, 4) + p.g1 * std::pow(M_PI / L, 2), 1e-300);
   Eigen::VectorXd extra = Eigen::VectorXd::Zero(nv);
-  // Image guidance: every free vertex of the region is tied to its target by a
-  // spring lambda M_i; weight 1 makes the pull as strong as the region's slowest
-  // bending mode, so edges win over smoothness at that scale and above.
   // The fade's foundation: kappa(r) M_i on the diagonal, r the edge-path distance from
   // the nearest handle.
   if (fades(p)) {
@@ -414,6 +411,9 @@ Field fem_solve_local(const Mesh& mesh, const CorrectionParams& p, const std::ve
       if (is_free[static_cast<std::size_t>(v)]) extra[v] += kappa0 * x * x * x * s.mo.ops.mass[v];
     }
   }
+  // Image guidance: every free vertex of the region is tied to its target by a
+  // spring lambda M_i; weight 1 makes the pull as strong as the region's slowest
+  // bending mode, so edges win over smoothness at that scale and above.
   std::vector<int> pulled;
   const double lambda = p.image.weight * stiff;
   if (guided)
