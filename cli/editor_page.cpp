@@ -197,21 +197,24 @@ void EditorPage::upload_image(const std::string& bytes, const std::string& name)
   static std::atomic<unsigned> serial{0};
   const std::string ext = lower.ends_with(".nii.gz") ? ".nii.gz" : lower_ext(base);
   const fs::path tmp = fs::temp_directory_path() / fmt::format("meshpde-upload-{}-{}{}", ::getpid(), ++serial, ext);
+  struct RemoveAtExit {  // whatever happens, the temporary file goes
+    fs::path path;
+    ~RemoveAtExit() {
+      std::error_code ec;
+      fs::remove(path, ec);
+    }
+  } remove_at_exit{tmp};
   Volume v;
   try {
     write_file_atomically(tmp, bytes);
     v = read_volume(tmp);
   } catch (const InputError& e) {
-    std::error_code ec;
-    fs::remove(tmp, ec);
     // Name the upload, not the temporary file.
     std::string what = e.what();
     for (std::size_t at; (at = what.find(tmp.string())) != std::string::npos;)
       what.replace(at, tmp.string().size(), base);
     throw InputError(what);
   }
-  std::error_code ec;
-  fs::remove(tmp, ec);
   v.name = base;
   image_ = prepare_editor_image(std::move(v), base);
   if (session_) session_->set_image_edges(image_->edges);
