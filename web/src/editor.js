@@ -230,6 +230,7 @@ ws.onmessage = (ev) => {
              (m.region_warning ? `\n${m.region_warning}` : ''));
   } else if (m.type === 'error') {
     state.lastError = m.message; state.errors += 1;
+    if (m.request === 'slice') imageView.onSliceError();
     status(m.message, true);
   }
 };

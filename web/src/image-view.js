@@ -59,6 +59,10 @@ export function createImageView({ scene, state, send, $, correctOptions, invalid
   }
   const askAll = () => { for (let k = 0; k < 3; ++k) ask(k); };
 
+  // A slice request the server refused (say, a window of 0): nothing is in flight any
+  // more, so the sliders ask again on their next move instead of waiting for ever.
+  view.onSliceError = () => { inflight.fill(false); };
+
   // ------------------------------------------------------------ the mesh message
   view.onMeshMessage = (m) => {
     view.image = m.image || null;
@@ -74,8 +78,9 @@ export function createImageView({ scene, state, send, $, correctOptions, invalid
       s.value = (lo[n] + hi[n]) / 2;
     }
     const [vmin, vmax] = im.range;
-    for (const id of ['img-window', 'img-level']) { $(id).min = id === 'img-window' ? 0 : vmin; $(id).max = vmax; }
-    $('img-window').step = $('img-level').step = (vmax - vmin) / 500 || 1;
+    const valueStep = (vmax - vmin) / 500 || 1;  // a window is never 0: the server refuses it
+    for (const id of ['img-window', 'img-level']) { $(id).min = id === 'img-window' ? valueStep : vmin; $(id).max = vmax; }
+    $('img-window').step = $('img-level').step = valueStep;
     $('img-window').value = im.window; $('img-level').value = im.level;
     $('img-name').textContent = `${im.name}: ${im.dims.join(' × ')} voxels, mesh in ${im.space}`;
     $('slice-box').hidden = $('img-2d').value === 'none';

@@ -152,6 +152,8 @@ async function imageChecks() {
     await page.waitForFunction(() => meshpde.ready && meshpde.imageView.shown >= 3, null, { timeout: 30000 });
     check('the image panel shows with --image', await page.isVisible('#image-options'));
     check('three planes arrive', await page.evaluate(() => meshpde.imageView.slices.every((s) => s && s.width > 1)));
+    check('the window slider stops above 0 (the server refuses a window of 0)',
+          await page.evaluate(() => +document.getElementById('img-window').min > 0));
     // Window 7 at level 0: grey g shows the level set's value (g / 255 - 0.5) * 7 mm.
     let shown = await page.evaluate(() => meshpde.imageView.shown);
     await setRange(page, 'img-window', 7);
