@@ -96,6 +96,18 @@ def cases(data, quick):
             out.append(("aorta-closed-6k, MRA guidance", L, [(v, -3.0 * N[v])], str(mra), "ras"))
     else:
         print(f"note: {mesh} not found: the aorta rows are left out", file=sys.stderr)
+    # The same aorta with its ends cut open (boundary loops; STL, welded on reading).
+    mesh = Path(data) / "aorta-open-6k.stl"
+    if mesh.exists():
+        V, F, _ = meshpde.read_mesh(mesh)
+        L = levels(V, F)
+        N = meshpde.vertex_normals(V, F, outward=True)
+        lo, hi = V.min(0), V.max(0)
+        long_axis = int(np.argmax(hi - lo))
+        p = (lo + hi) / 2
+        p[long_axis] = lo[long_axis] + 0.7 * (hi[long_axis] - lo[long_axis])
+        v = nearest(V, p)
+        out.append(("aorta-open-6k (open ends)", L, [(v, -3.0 * N[v])], None, "ras"))
     return out
 
 
