@@ -10,6 +10,7 @@
 #include <mpi.h>
 
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <charconv>
 #include <chrono>
 #include <cmath>
@@ -35,6 +36,47 @@ bool any_rank(bool mine, MPI_Comm comm) {
   int in = mine ? 1 : 0, out = 0;
   MPI_Allreduce(&in, &out, 1, MPI_INT, MPI_MAX, comm);
   return out != 0;
+}
+
+// Every rank's error message (empty: none) gathered on rank 0, which prints each
+// distinct one once with the ranks that gave it ("ranks 0-3, 7: ..."): a mistake every
+// rank makes alike (a constraint on a vertex the mesh lacks) is one line, not one a rank.
+void report_errors(const std::string& mine, MPI_Comm comm) {
+  int rank = 0, size = 1;
+  MPI_Comm_rank(comm, &rank);
+  MPI_Comm_size(comm, &size);
+  const int length = static_cast<int>(mine.size());
+  std::vector<int> lengths(static_cast<std::size_t>(size)), offsets(static_cast<std::size_t>(size), 0);
+  MPI_Gather(&length, 1, MPI_INT, lengths.data(), 1, MPI_INT, 0, comm);
+  std::string all;
+  if (rank == 0) {
+    for (int k = 1; k < size; ++k) offsets[k] = offsets[k - 1] + lengths[k - 1];
+    all.resize(static_cast<std::size_t>(offsets.back() + lengths.back()));
+  }
+  MPI_Gatherv(mine.data(), length, MPI_CHAR, all.data(), lengths.data(), offsets.data(), MPI_CHAR, 0, comm);
+  if (rank != 0) return;
+  std::vector<std::pair<std::string, std::vector<int>>> distinct;  // in order of the first rank
+  for (int k = 0; k < size; ++k) {
+    if (lengths[k] == 0) continue;
+    std::string text = all.substr(static_cast<std::size_t>(offsets[k]), static_cast<std::size_t>(lengths[k]));
+    auto it = std::find_if(distinct.begin(), distinct.end(), [&](const auto& d) { return d.first == text; });
+    if (it == distinct.end()) {
+      distinct.emplace_back(std::move(text), std::vector<int>{k});
+    } else {
+      it->second.push_back(k);
+    }
+  }
+  for (const auto& [text, ranks] : distinct) {
+    std::string who;
+    for (std::size_t i = 0; i < ranks.size();) {
+      std::size_t j = i;
+      while (j + 1 < ranks.size() && ranks[j + 1] == ranks[j] + 1) ++j;
+      who += fmt::format("{}{}", who.empty() ? "" : ", ",
+                         j == i ? fmt::format("{}", ranks[i]) : fmt::format("{}-{}", ranks[i], ranks[j]));
+      i = j + 1;
+    }
+    fmt::print(stderr, "meshpde-mpi: error: {} {}: {}\n", ranks.size() == 1 ? "rank" : "ranks", who, text);
+  }
 }
 
 struct Args {
@@ -231,7 +273,7 @@ int run(const Args& a, MPI_Comm comm) {
     error = e.what();
   }
   if (any_rank(!error.empty(), comm)) {
-    if (!error.empty()) fmt::print(stderr, "meshpde-mpi: error: rank {}: {}\n", rank, error);
+    report_errors(error, comm);
     return 1;
   }
   DistributedResult r;
@@ -265,7 +307,7 @@ int run(const Args& a, MPI_Comm comm) {
     error = e.what();
   }
   if (any_rank(!error.empty(), comm)) {
-    if (!error.empty()) fmt::print(stderr, "meshpde-mpi: error: rank {}: {}\n", rank, error);
+    report_errors(error, comm);
     return 1;
   }
   // The report: every rank's share gathered on rank 0.

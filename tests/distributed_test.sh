@@ -156,6 +156,9 @@ expect_failure "4 parts on 2 processes" "mpirun -n 4" \
 printf "vertex,value\n0,1\n999999999,2\n" >"$T/bad.csv"
 expect_failure "a constraint out of range" "999999999 does not exist" \
   run 2 "$MPI_TOOL" interpolate "$T/parts-2" --constraints "$T/bad.csv" -o "$T/x"
+# Said once for all the ranks that found it, not once a rank.
+[ "$(grep -c "does not exist" "$T/err")" = 1 ] || fail "the same error printed $(grep -c "does not exist" "$T/err") times"
+grep -q "ranks 0-1:" "$T/err" || fail "the error does not name the ranks: $(cat "$T/err")"
 echo '{"constraints": [{"vertex": "@0,0,1", "value": 1}]}' >"$T/at.json"
 expect_failure "a constraint at @X,Y,Z" "vertex indices of the input mesh" \
   run 2 "$MPI_TOOL" interpolate "$T/parts-2" --constraints "$T/at.json" -o "$T/x"
