@@ -69,6 +69,7 @@ export function createImageView({ scene, state, send, $, correctOptions, invalid
     $('image-options').hidden = !view.image;
     $('slice-box').hidden = true;
     for (let k = 0; k < 3; ++k) { planes[k].visible = false; lines[k].visible = false; view.slices[k] = null; }
+    for (let k = 0; k < 3; ++k) views[k] = { zoom: 1, ca: null, cb: null };
     if (!view.image) return;
     const im = view.image, [lo, hi] = im.bounds;
     const step = Math.min(...im.spacing);
@@ -182,11 +183,17 @@ export function createImageView({ scene, state, send, $, correctOptions, invalid
   // ------------------------------------------------------------ the 2D view
   const canvas = $('slice-view'), overlay = $('slice-overlay');
   const twoD = () => AXES.indexOf($('img-2d').value);  // -1: none
+  // Zoom and pan of each plane's 2D view: `zoom` times the fit, with slice pixel
+  // (ca, cb) at the canvas centre (null: the slice's centre). The wheel zooms about the
+  // cursor, a right-button (or shift) drag pans, a double click fits again.
+  const views = [0, 1, 2].map(() => ({ zoom: 1, ca: null, cb: null }));
   // Canvas placement of slice k: pixel (a, b) centre at (x0 + (a + 0.5) scale,
   // y0 + (height - b - 0.5) scale), v upwards.
   function fit(s) {
-    const scale = Math.min(canvas.width / s.width, canvas.height / s.height);
-    return { scale, x0: (canvas.width - scale * s.width) / 2, y0: (canvas.height - scale * s.height) / 2 };
+    const z = views[s.axis];
+    const scale = z.zoom * Math.min(canvas.width / s.width, canvas.height / s.height);
+    const ca = z.ca ?? (s.width / 2 - 0.5), cb = z.cb ?? (s.height / 2 - 0.5);
+    return { scale, x0: canvas.width / 2 - (ca + 0.5) * scale, y0: canvas.height / 2 - (s.height - cb - 0.5) * scale };
   }
   function toCanvas(s, p) {
     const { scale, x0, y0 } = fit(s);
@@ -267,6 +274,14 @@ export function createImageView({ scene, state, send, $, correctOptions, invalid
     const g = (da, db) => s.pixels[(b0 + db) * s.width + a0 + da];
     return (1 - fb) * ((1 - fa) * g(0, 0) + fa * g(1, 0)) + fb * ((1 - fa) * g(0, 1) + fa * g(1, 1));
   };
+  view.zoom2d = () => { const k = twoD(); return k >= 0 ? views[k].zoom : 0; };
+  // The slice pixel (a, b) under a canvas point of the 2D view (null without one).
+  view.slicePixelAt2d = (x, y) => {
+    const k = twoD(), s = k >= 0 ? view.slices[k] : null;
+    if (!s) return null;
+    const { scale, x0, y0 } = fit(s);
+    return [(x - x0) / scale - 0.5, s.height - (y - y0) / scale - 0.5];
+  };
   view.mmPerCanvasPixel = () => {
     const k = twoD(), s = k >= 0 ? view.slices[k] : null;
     return s ? Math.hypot(...s.u) / fit(s).scale : 0;
@@ -288,8 +303,38 @@ export function createImageView({ scene, state, send, $, correctOptions, invalid
     const r = overlay.getBoundingClientRect();
     return [(ev.clientX - r.left) * overlay.width / r.width, (ev.clientY - r.top) * overlay.height / r.height];
   };
+  let pan = null;  // {x, y}: the last pointer position of a pan
+  overlay.addEventListener('contextmenu', (ev) => ev.preventDefault());
+  overlay.addEventListener('wheel', (ev) => {
+    const k = twoD(), s = k >= 0 ? view.slices[k] : null;
+    if (!s) return;
+    ev.preventDefault();
+    const [x, y] = canvasXY(ev), before = fit(s);
+    const a = (x - before.x0) / before.scale - 0.5, b = s.height - (y - before.y0) / before.scale - 0.5;
+    const z = views[k];
+    z.zoom = Math.min(64, Math.max(1, z.zoom * Math.pow(1.2, -ev.deltaY / 100)));
+    // The slice pixel under the cursor stays under it.
+    const scale = z.zoom * Math.min(canvas.width / s.width, canvas.height / s.height);
+    z.ca = (canvas.width / 2 - (x - (a + 0.5) * scale)) / scale - 0.5;
+    z.cb = s.height - 0.5 - (canvas.height / 2 - (y - (s.height - b - 0.5) * scale)) / scale;
+    draw2d();
+  }, { passive: false });
+  overlay.addEventListener('dblclick', () => {
+    const k = twoD();
+    if (k < 0) return;
+    views[k] = { zoom: 1, ca: null, cb: null };
+    draw2d();
+  });
   overlay.addEventListener('pointerdown', (ev) => {
     const k = twoD();
+    if (k >= 0 && view.slices[k] && (ev.button === 2 || (ev.button === 0 && ev.shiftKey))) {
+      const s = view.slices[k], f = fit(s), z = views[k];
+      z.ca = (canvas.width / 2 - f.x0) / f.scale - 0.5;
+      z.cb = s.height - 0.5 - (canvas.height / 2 - f.y0) / f.scale;
+      pan = canvasXY(ev);
+      overlay.setPointerCapture(ev.pointerId);
+      return;
+    }
     if (k < 0 || !view.slices[k] || !cuts[k] || ev.button !== 0) return;
     const s = view.slices[k], [x, y] = canvasXY(ev), xyz = cuts[k].xyz;
     let best = -1, bestD = 10 * 10;  // within 10 canvas pixels of the line
@@ -308,8 +353,21 @@ export function createImageView({ scene, state, send, $, correctOptions, invalid
     drag2d = { k, x, y, at, vertex };
     overlay.setPointerCapture(ev.pointerId);
   });
-  overlay.addEventListener('pointermove', (ev) => { if (drag2d) drawOverlay(canvasXY(ev)); });
+  overlay.addEventListener('pointermove', (ev) => {
+    if (pan) {
+      const k = twoD(), s = k >= 0 ? view.slices[k] : null;
+      if (!s) return;
+      const [x, y] = canvasXY(ev), scale = fit(s).scale, z = views[k];
+      z.ca -= (x - pan[0]) / scale;
+      z.cb += (y - pan[1]) / scale;
+      pan = [x, y];
+      draw2d();
+      return;
+    }
+    if (drag2d) drawOverlay(canvasXY(ev));
+  });
   const end2d = (ev) => {
+    if (pan) { pan = null; return; }
     if (!drag2d) return;
     const s = view.slices[drag2d.k], [x, y] = canvasXY(ev), to = fromCanvas(s, x, y);
     const move = [0, 1, 2].map((c) => to[c] - drag2d.at[c]);

@@ -212,6 +212,35 @@ async function imageChecks() {
       if (process.env.VERBOSE) console.log(`${axis}: view ${medOn} / ${p90On}, held ${heldMed} / ${held90}, beside ${medOff}`);
     }
     await page.screenshot({ path: join(shots, 'editor-image.png') });
+    // Zoom: the wheel over the 2D view magnifies about the cursor; the cut line still
+    // lies on the zero level as drawn, now finer; a double click fits the slice again.
+    {
+      const box = await page.locator('#slice-overlay').boundingBox();
+      const [px, py] = (await page.evaluate(() => meshpde.imageView.cutLine2d()))[0].map(Math.round);
+      const pixelBefore = await page.evaluate(() => meshpde.imageView.mmPerCanvasPixel());
+      const under = (x, y) => page.evaluate(([a, b]) => meshpde.imageView.slicePixelAt2d(a, b), [x, y]);
+      const before = await under(px, py);
+      await page.mouse.move(box.x + px, box.y + py);
+      for (let k = 0; k < 4; ++k) { await page.mouse.wheel(0, -300); await page.waitForTimeout(50); }
+      const zoom = await page.evaluate(() => meshpde.imageView.zoom2d());
+      const after = await under(px, py);
+      check('the wheel zooms the 2D view about the cursor', zoom > 4 && Math.hypot(after[0] - before[0], after[1] - before[1]) < 1e-6,
+            `zoom ${zoom}, the slice pixel under the cursor ${before} -> ${after}`);
+      const r = await page.evaluate(() => {
+        const c = document.getElementById('slice-view'), img = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;
+        const out = [];
+        for (const [x, y] of meshpde.imageView.cutLine2d()) {
+          if (x < 2 || y < 2 || x > c.width - 3 || y > c.height - 3) continue;
+          out.push(Math.abs((img[4 * (Math.floor(y) * c.width + Math.floor(x))] / 255 - 0.5) * 7));
+        }
+        return { out, pixel: meshpde.imageView.mmPerCanvasPixel() };
+      });
+      const med = quantile(r.out, 0.5);
+      check('zoomed in, the rendered cut line still lies on the zero level', r.out.length > 5 && med < 0.3 &&
+            r.pixel < pixelBefore / 4, `median ${med?.toFixed(3)} mm over ${r.out.length} points, a canvas pixel ${r.pixel.toFixed(3)} mm`);
+      await page.mouse.dblclick(box.x + px, box.y + py);
+      check('a double click fits the slice again', (await page.evaluate(() => meshpde.imageView.zoom2d())) === 1);
+    }
     // Drag the axial cut line 3 canvas pixels (about 3 mm) across itself: a correction
     // moves the vertex nearest the pressed point by the drag, in the plane.
     await page.selectOption('#img-2d', 'axial');
