@@ -68,6 +68,21 @@ def cases(data, quick):
     out.append((f"tube r=5 ({len(V) / 1000:.1f}k)", L, [(v, -3.0 * n)], None, "lps"))
     if quick:
         return out
+    # The same tube remeshed, not subdivided: 32, 64 and 128 segments around, rings to
+    # match, so no vertex is shared. The handle is the vertex nearest one wall point,
+    # moved to the point 3 mm inside it at every level.
+    L = []
+    for seg in (32, 64, 128):
+        h = 2 * math.pi * 5.0 / seg
+        L.append(tuple(np.asarray(x) for x in meshpde.generate.tube(radius=5.0, length=100.0,
+                                                                     rings=int(round(100.0 / h)), segments=seg)))
+    zmid = float(L[0][0][:, 2].min() + L[0][0][:, 2].max()) / 2
+    wall, target = np.array([5.0, 0.0, zmid]), np.array([2.0, 0.0, zmid])
+
+    def remeshed_handles(V):
+        v = nearest(V, wall)
+        return [(v, target - V[v])]
+    out.append(("tube r=5, remeshed 32/64/128", L, remeshed_handles, None, "lps"))
     # The generated bifurcation: a handle on the trunk, and two handles.
     V, F = meshpde.generate.bifurcation(cell=1.0)
     L = levels(V, F)
@@ -112,10 +127,14 @@ def cases(data, quick):
 
 
 def run_case(name, L, handles, image, space, R, method, boundary="clamp"):
+    """handles: [(vertex, move)] for nested levels (subdivisions), or a function of a
+    level's V giving them (remeshed levels, whose vertices differ)."""
+    nested = not callable(handles)
+    per_level = [handles if nested else handles(V) for V, _ in L]
     h = mean_edge(*L[0])
-    drag = max(np.linalg.norm(m) for _, m in handles)
+    drag = max(np.linalg.norm(m) for _, m in per_level[0])
     ds = []
-    for V, F in L:
+    for (V, F), handles in zip(L, per_level):
         kw = dict(method=method, allow_intersections=True)
         if method == "springs":
             kw["rings"] = max(1, round(R))  # rings of the coarse mesh: the thesis's level of influence
@@ -129,15 +148,17 @@ def run_case(name, L, handles, image, space, R, method, boundary="clamp"):
         r = meshpde.correct(V, F, [v for v, _ in handles], [list(m) for _, m in handles], **kw)
         ds.append(np.asarray(r.displacement))
     n0 = len(L[0][0])
-    v01 = float(np.linalg.norm(ds[1][:n0] - ds[0][:n0], axis=1).max() / drag)
-    v12 = float(np.linalg.norm(ds[2][:n0] - ds[1][:n0], axis=1).max() / drag)
     moved = [(V + d, F) for (V, F), d in zip(L, ds)]
     s01 = meshpde.hausdorff_distance(*moved[0], *moved[1]) / drag
     s12 = meshpde.hausdorff_distance(*moved[1], *moved[2]) / drag
-    # What the coarse mesh's triangles miss of the fine result even through its own
-    # values: the coarse triangles through the level-1 displacement at the coarse
-    # vertices, against the level-1 result (the interpolation error).
-    interp01 = meshpde.hausdorff_distance(L[0][0] + ds[1][:n0], L[0][1], *moved[1]) / drag
+    v01 = v12 = interp01 = None  # defined where the levels share the coarse vertices
+    if nested:
+        v01 = float(np.linalg.norm(ds[1][:n0] - ds[0][:n0], axis=1).max() / drag)
+        v12 = float(np.linalg.norm(ds[2][:n0] - ds[1][:n0], axis=1).max() / drag)
+        # What the coarse mesh's triangles miss of the fine result even through its own
+        # values: the coarse triangles through the level-1 displacement at the coarse
+        # vertices, against the level-1 result (the interpolation error).
+        interp01 = meshpde.hausdorff_distance(L[0][0] + ds[1][:n0], L[0][1], *moved[1]) / drag
     return {"case": name, "method": method if method == "springs" else f"fem {boundary}", "R_over_h": R, "R_mm": R * h, "h_mm": h, "drag_mm": drag,
             "s01": s01, "s12": s12, "order": math.log2(s01 / s12) if s12 > 0 and s01 > 0 else None,
             "v01": v01, "v12": v12, "interp01": interp01, "vertices": [len(V) for V, _ in L]}
@@ -160,10 +181,11 @@ def main():
                 r = run_case(name, L, handles, image, space, R, method, boundary)
                 rows.append(r)
                 order = f"{r['order']:.2f}" if r["order"] is not None else "-"
+                pct = lambda x: f"{100 * x:6.2f} %" if x is not None else "     -  "
                 print(f"{name:32s} {r['method']:10s} R = {R:2d} h ({r['R_mm']:5.1f} mm): "
-                      f"s01 {100 * r['s01']:6.2f} %  s12 {100 * r['s12']:6.2f} %  order {order}   "
-                      f"(vertices: v01 {100 * r['v01']:6.2f} %  v12 {100 * r['v12']:6.2f} %; "
-                      f"interpolation {100 * r['interp01']:5.2f} %)", flush=True)
+                      f"s01 {pct(r['s01'])}  s12 {pct(r['s12'])}  order {order}   "
+                      f"(vertices: v01 {pct(r['v01'])}  v12 {pct(r['v12'])}; "
+                      f"interpolation {pct(r['interp01'])})", flush=True)
     print(f"({time.time() - t0:.0f} s)")
     if a.json:
         Path(a.json).write_text(json.dumps(rows, indent=1))
