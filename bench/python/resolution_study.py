@@ -53,6 +53,19 @@ def nearest(V, p):
     return int(np.argmin(np.linalg.norm(V - np.asarray(p), axis=1)))
 
 
+def trunk_handle(path):
+    """An aorta's three levels and its handle: the vertex nearest the point 70 % along
+    the bounding box's longest side, moved 3 mm inwards along its outward normal."""
+    V, F, _ = meshpde.read_mesh(path)
+    N = meshpde.vertex_normals(V, F, outward=True)
+    lo, hi = V.min(0), V.max(0)
+    long_axis = int(np.argmax(hi - lo))
+    p = (lo + hi) / 2
+    p[long_axis] = lo[long_axis] + 0.7 * (hi[long_axis] - lo[long_axis])
+    v = nearest(V, p)
+    return levels(V, F), [(v, -3.0 * N[v])]
+
+
 def cases(data, quick):
     """(name, levels, handles: [(vertex, move)], image or None, space)"""
     out = []
@@ -93,36 +106,18 @@ def cases(data, quick):
     out.append(("bifurcation (cell 1 mm)", L, [(v, -3.0 * N[v])], None, "lps"))
     w = nearest(V, V[v] + np.array([0.0, 0.0, -12.0]))
     out.append(("bifurcation, two handles", L, [(v, -3.0 * N[v]), (w, 2.0 * N[w])], None, "lps"))
-    # The real aorta (RAS mm, inward oriented): a trunk vertex 3 mm in, with and
-    # without the MRA's guidance.
-    mesh = Path(data) / "aorta-closed-6k.vtp"
-    if mesh.exists():
-        V, F, _ = meshpde.read_mesh(mesh)
-        L = levels(V, F)
-        N = meshpde.vertex_normals(V, F, outward=True)
-        lo, hi = V.min(0), V.max(0)
-        long_axis = int(np.argmax(hi - lo))
-        p = (lo + hi) / 2
-        p[long_axis] = lo[long_axis] + 0.7 * (hi[long_axis] - lo[long_axis])
-        v = nearest(V, p)
-        out.append(("aorta-closed-6k", L, [(v, -3.0 * N[v])], None, "ras"))
+    # The real aorta (RAS mm, inward oriented), closed and with its ends cut open: a
+    # trunk vertex 3 mm in; the closed one also with the MRA's guidance.
+    for name, label in (("aorta-closed-6k.vtp", "aorta-closed-6k"), ("aorta-open-6k.stl", "aorta-open-6k (open ends)")):
+        mesh = Path(data) / name
+        if not mesh.exists():
+            print(f"note: {mesh} not found: its rows are left out", file=sys.stderr)
+            continue
+        L, handles = trunk_handle(mesh)
+        out.append((label, L, handles, None, "ras"))
         mra = Path(data) / "aorta-mra.mha"
-        if mra.exists():
-            out.append(("aorta-closed-6k, MRA guidance", L, [(v, -3.0 * N[v])], str(mra), "ras"))
-    else:
-        print(f"note: {mesh} not found: the aorta rows are left out", file=sys.stderr)
-    # The same aorta with its ends cut open (boundary loops; STL, welded on reading).
-    mesh = Path(data) / "aorta-open-6k.stl"
-    if mesh.exists():
-        V, F, _ = meshpde.read_mesh(mesh)
-        L = levels(V, F)
-        N = meshpde.vertex_normals(V, F, outward=True)
-        lo, hi = V.min(0), V.max(0)
-        long_axis = int(np.argmax(hi - lo))
-        p = (lo + hi) / 2
-        p[long_axis] = lo[long_axis] + 0.7 * (hi[long_axis] - lo[long_axis])
-        v = nearest(V, p)
-        out.append(("aorta-open-6k (open ends)", L, [(v, -3.0 * N[v])], None, "ras"))
+        if name.startswith("aorta-closed") and mra.exists():
+            out.append((f"{label}, MRA guidance", L, handles, str(mra), "ras"))
     return out
 
 
