@@ -13,9 +13,8 @@
 #include <algorithm>
 #include <charconv>
 #include <chrono>
-#include <cmath>
-#include <cstdlib>
 #include <filesystem>
+#include <functional>
 #include <iostream>
 #include <nlohmann/json.hpp>
 
@@ -130,55 +129,20 @@ int run_partition(const Args& a) {
   return 0;
 }
 
-// One rank's result file, PREFIX-P.csv: a header "vertex,COLUMNS..." and a row a
-// vertex. Each value lands in row `vertex` of `into`; `seen` catches a vertex given twice.
-void read_result_csv(const std::filesystem::path& path, const std::vector<std::string>& columns, Eigen::MatrixXd& into,
-                     std::vector<char>& seen) {
-  const std::string text = read_file(path);
-  std::size_t at = 0;
-  int line = 0;
-  const auto fail = [&](const std::string& what) {
-    throw InputError(fmt::format("{}:{}: {}", path.string(), line, what));
+// A vertex given by its index in the input mesh of n vertices: what a distributed run
+// takes for a vertex (no @X,Y,Z, no process holds the whole mesh).
+std::function<int(const std::string&)> vertex_index(long long n) {
+  return [n](const std::string& spec) {
+    int v = -1;
+    const auto [end, ec] = std::from_chars(spec.data(), spec.data() + spec.size(), v);
+    if (ec != std::errc() || end != spec.data() + spec.size())
+      throw InputError(
+          fmt::format("vertex \"{}\": a distributed run takes vertex indices of the input mesh "
+                      "(no @X,Y,Z: no process holds the whole mesh)",
+                      spec));
+    if (v < 0 || v >= n) throw InputError(fmt::format("vertex {} does not exist (the mesh has {} vertices)", v, n));
+    return v;
   };
-  while (at < text.size()) {
-    std::size_t end = text.find('\n', at);
-    if (end == std::string::npos) end = text.size();
-    std::string row = text.substr(at, end - at);
-    at = end + 1;
-    ++line;
-    if (!row.empty() && row.back() == '\r') row.pop_back();
-    std::vector<std::string> cells;
-    for (std::size_t b = 0;;) {
-      const std::size_t c = row.find(',', b);
-      cells.push_back(row.substr(b, c == std::string::npos ? std::string::npos : c - b));
-      if (c == std::string::npos) break;
-      b = c + 1;
-    }
-    if (line == 1) {
-      std::vector<std::string> want{"vertex"};
-      want.insert(want.end(), columns.begin(), columns.end());
-      if (cells != want) fail(fmt::format("the header should be \"{}\"", fmt::join(want, ",")));
-      continue;
-    }
-    if (row.empty()) continue;
-    if (cells.size() != columns.size() + 1)
-      fail(fmt::format("{} values where \"vertex,{}\" needs {}", cells.size(), fmt::join(columns, ","),
-                       columns.size() + 1));
-    long long v = -1;
-    if (const auto [e, ec] = std::from_chars(cells[0].data(), cells[0].data() + cells[0].size(), v);
-        ec != std::errc() || e != cells[0].data() + cells[0].size() || v < 0 || v >= into.rows())
-      fail(fmt::format("\"{}\" is not a vertex of the mesh (0 to {})", cells[0], into.rows() - 1));
-    if (seen[static_cast<std::size_t>(v)]) fail(fmt::format("vertex {} has a value already", v));
-    seen[static_cast<std::size_t>(v)] = 1;
-    for (std::size_t c = 0; c < columns.size(); ++c) {
-      const std::string& cell = cells[c + 1];
-      char* e = nullptr;
-      const double x = std::strtod(cell.c_str(), &e);
-      if (cell.empty() || e != cell.c_str() + cell.size() || !std::isfinite(x))
-        fail(fmt::format("{} \"{}\" is not a finite number", columns[c], cell));
-      into(static_cast<Eigen::Index>(v), static_cast<Eigen::Index>(c)) = x;
-    }
-  }
 }
 
 // meshpde-mpi join DIR RESULTS -o MESH: the parts and the ranks' result files as one
@@ -194,18 +158,23 @@ int run_join(const Args& a) {
                     "positions-0.csv (fair), {}",
                     results.string(), has_u ? "found both" : "found neither"));
   const std::string prefix = has_u ? "u" : "positions";
-  const std::vector<std::string> columns =
-      has_u ? std::vector<std::string>{"u"} : std::vector<std::string>{"x", "y", "z"};
+  const int columns = has_u ? 1 : 3;
+  const int parts = read_partition_index(a.dir).parts;
   MeshData d = read_partitioned_mesh(a.dir);
-  const int parts = read_partition_part(a.dir, 0).parts;
-  Eigen::MatrixXd values(d.V.rows(), static_cast<Eigen::Index>(columns.size()));
+  // Each rank's file is the constraints format ("vertex,values", a header allowed):
+  // read by its parser, vertices as indices of the input.
+  Eigen::MatrixXd values(d.V.rows(), columns);
   std::vector<char> seen(static_cast<std::size_t>(d.V.rows()), 0);
   for (int p = 0; p < parts; ++p) {
     const auto file = results / fmt::format("{}-{}.csv", prefix, p);
     if (!std::filesystem::exists(file))
       throw InputError(
           fmt::format("{}: missing (the partition has {} parts, one result file each)", file.string(), parts));
-    read_result_csv(file, columns, values, seen);
+    for (const auto& c : parse_constraints(vertex_index(d.V.rows()), read_file(file), columns, file.string())) {
+      if (seen[static_cast<std::size_t>(c.vertex)]++)
+        throw InputError(fmt::format("{}: vertex {} has a value already", file.string(), c.vertex));
+      values.row(c.vertex) = c.value.transpose();
+    }
   }
   if (std::filesystem::exists(results / fmt::format("{}-{}.csv", prefix, parts)))
     throw InputError(fmt::format("{}: more result files than the partition's {} parts (results of another partition?)",
@@ -254,21 +223,7 @@ int run(const Args& a, MPI_Comm comm) {
       throw InputError(fmt::format("{}: the partition has {} parts; run it with mpirun -n {} (not {})", a.dir,
                                    part.parts, part.parts, size));
     const long long n = part.global_vertices;
-    if (!fair)
-      cons = parse_constraints(
-          [n](const std::string& spec) {
-            int v = -1;
-            const auto [end, ec] = std::from_chars(spec.data(), spec.data() + spec.size(), v);
-            if (ec != std::errc() || end != spec.data() + spec.size())
-              throw InputError(
-                  fmt::format("vertex \"{}\": a distributed run takes vertex indices of the input mesh "
-                              "(no @X,Y,Z: no process holds the whole mesh)",
-                              spec));
-            if (v < 0 || v >= n)
-              throw InputError(fmt::format("vertex {} does not exist (the mesh has {} vertices)", v, n));
-            return v;
-          },
-          read_file(a.constraints), 1, a.constraints);
+    if (!fair) cons = parse_constraints(vertex_index(n), read_file(a.constraints), 1, a.constraints);
   } catch (const std::exception& e) {
     error = e.what();
   }

@@ -174,36 +174,45 @@ PartitionSummary write_partition(const MeshData& data, const std::vector<int>& p
   return s;
 }
 
-MeshPart read_partition_part(const std::filesystem::path& dir, int part) {
+PartitionIndex read_partition_index(const std::filesystem::path& dir) {
   const auto index_path = dir / "partition.json";
   if (!std::filesystem::is_regular_file(index_path))
     throw InputError(fmt::format("{}: cannot read the partition's index (is {} a folder `meshpde partition` wrote?)",
                                  index_path.string(), dir.string()));
   const std::string text = read_file(index_path);
-  MeshPart m;
-  std::string file;
+  PartitionIndex x;
   try {
     const auto j = nlohmann::json::parse(text);
     if (j.value("format", "") != "meshpde-partition")
       throw InputError(fmt::format("{}: not a meshpde partition index (\"format\" is not \"meshpde-partition\")",
                                    index_path.string()));
-    m.parts = j.at("parts").get<int>();
-    m.global_vertices = j.at("vertices").get<long long>();
-    m.offsets = j.at("offsets").get<std::vector<long long>>();
-    const auto files = j.at("files").get<std::vector<std::string>>();
-    if (m.parts < 1 || static_cast<int>(m.offsets.size()) != m.parts + 1 || static_cast<int>(files.size()) != m.parts ||
-        m.offsets.front() != 0 || m.offsets.back() != m.global_vertices ||
-        !std::is_sorted(m.offsets.begin(), m.offsets.end()))
-      throw InputError(fmt::format("{}: parts, offsets, files and vertices do not agree", index_path.string()));
-    if (part < 0 || part >= m.parts)
-      throw InputError(fmt::format("{}: the partition has {} parts, not a part {} (run as many processes as parts)",
-                                   index_path.string(), m.parts, part));
-    file = files[static_cast<std::size_t>(part)];
-    if (file.find('/') != std::string::npos || file.find("..") != std::string::npos)
-      throw InputError(fmt::format("{}: part file \"{}\" is not a name in the folder", index_path.string(), file));
+    x.parts = j.at("parts").get<int>();
+    x.global_vertices = j.at("vertices").get<long long>();
+    x.offsets = j.at("offsets").get<std::vector<long long>>();
+    x.files = j.at("files").get<std::vector<std::string>>();
   } catch (const nlohmann::json::exception& e) {
     throw InputError(fmt::format("{}: {}", index_path.string(), e.what()));
   }
+  if (x.parts < 1 || static_cast<int>(x.offsets.size()) != x.parts + 1 || static_cast<int>(x.files.size()) != x.parts ||
+      x.offsets.front() != 0 || x.offsets.back() != x.global_vertices ||
+      !std::is_sorted(x.offsets.begin(), x.offsets.end()))
+    throw InputError(fmt::format("{}: parts, offsets, files and vertices do not agree", index_path.string()));
+  for (const auto& file : x.files)
+    if (file.find('/') != std::string::npos || file.find("..") != std::string::npos)
+      throw InputError(fmt::format("{}: part file \"{}\" is not a name in the folder", index_path.string(), file));
+  return x;
+}
+
+MeshPart read_partition_part(const std::filesystem::path& dir, int part) {
+  const PartitionIndex index = read_partition_index(dir);
+  if (part < 0 || part >= index.parts)
+    throw InputError(fmt::format("{}: the partition has {} parts, not a part {} (run as many processes as parts)",
+                                 (dir / "partition.json").string(), index.parts, part));
+  MeshPart m;
+  m.parts = index.parts;
+  m.global_vertices = index.global_vertices;
+  m.offsets = index.offsets;
+  const std::string& file = index.files[static_cast<std::size_t>(part)];
   m.part = part;
   m.first = m.offsets[static_cast<std::size_t>(part)];
   const long long owned = m.offsets[static_cast<std::size_t>(part) + 1] - m.first;

@@ -48,6 +48,17 @@ struct PartitionSummary {
 PartitionSummary write_partition(const MeshData& data, const std::vector<int>& part_of,
                                  const std::filesystem::path& dir, const std::string& source);
 
+/// A partitioned folder's index (DIR/partition.json), checked for agreement.
+struct PartitionIndex {
+  int parts = 0;
+  long long global_vertices = 0;
+  std::vector<long long> offsets;  ///< parts + 1 entries
+  std::vector<std::string> files;  ///< each part's file, a name in the folder
+};
+
+/// Reads and checks DIR/partition.json. \throw InputError naming it.
+PartitionIndex read_partition_index(const std::filesystem::path& dir);
+
 /// One part as a process of a distributed run reads it.
 struct MeshPart {
   int part = 0, parts = 0;
