@@ -114,14 +114,19 @@ TEST(AortaCorrection, IntrinsicOperatorsMakeTwoSolversAgree) {
     EXPECT_GT(slivers, 0);
     EXPECT_LT(rough_sliver, rough_all);
     if (std::string(name) == "aorta-103k.vtp") {
-      // The plain cotangent operator on the same mesh: the solvers disagree
-      // visibly and the residual stays high; the problem the operator fixes.
+      // The plain cotangent operator on the same mesh. Its assembled K D K is so
+      // ill-conditioned that the two factors' answers differed by 1.9e-3 mm while
+      // refinement measured residuals against the assembled matrix; refined against
+      // the products (CG, solvers/refinement.h) they agree again, but the residual
+      // stays four orders of magnitude above the intrinsic operator's: the products'
+      // own rounding, which the condition number turns into the error bound below.
       const MeshOperators plain = build_mesh_operators(mesh, LaplacianKind::Cotan);
       const TwoSolves p = drag_both_ways(mesh, plain, 1000);
       const double plain_diff = (p.cholmod - p.eigen).rowwise().norm().maxCoeff();
       std::printf("%s cotan: solvers differ by %.2e mm, residuals %.1e %.1e\n", name, plain_diff, p.residual_cholmod,
                   p.residual_eigen);
-      EXPECT_GT(plain_diff, 100 * diff);
+      EXPECT_LE(plain_diff, 1e-6 * 8.9);
+      EXPECT_GT(std::min(p.residual_cholmod, p.residual_eigen), 1e3 * std::max(t.residual_cholmod, t.residual_eigen));
       // ... and the solver layer says so by itself, before anyone compares solvers.
       std::printf("  cotan condition estimate %.1e, error bound %.1e\n", p.conditioning.condition_1,
                   p.conditioning.relative_error);

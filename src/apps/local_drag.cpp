@@ -295,8 +295,10 @@ Eigen::MatrixXd DragSession::solve(const Eigen::MatrixXd& b) {
     return x;
   };
   auto multiply_columns = [&](const Eigen::MatrixXd& x) { return f.multiply_leading(x); };
-  // Refined as SteadyDirectSolver refines: at most five steps while the relative
+  // Refined against the factored matrix itself: at most five steps while the relative
   // residual exceeds 1e-12, keeps falling and is above the backward-stable level.
+  // (SteadyDirectSolver refines against K D K's products by preconditioned CG instead,
+  // which also removes the assembled matrix's rounding; solvers/refinement.h.)
   RefinedSolve r = refined_solve(b, solve_columns, multiply_columns, f.norm_inf, 1e-12, 5);
   residual_ = r.relative_residual;
   ++solves_;

@@ -170,6 +170,31 @@ SteadyDirectSolver::SteadyDirectSolver(const Mesh& mesh, const FemOperators& ops
     detail::require_held_parts(
         mesh, free_, [&](int v) { return local_index(v); }, [&](int v) { return extra && extra_diagonal[v] > 0; });
   A_ = assemble_steady_matrix(mesh, ops, c, free_, extra_diagonal);
+  {
+    // K_SF, S = F and then its one ring (numbered from n on), for multiply().
+    const auto off = mesh.offsets();
+    const auto nbr = mesh.neighbors();
+    std::vector<int> S(free_);
+    std::unordered_map<int, int> ring;
+    for (int k = 0; k < n; ++k)
+      for (int q = off[free_[k]]; q < off[free_[k] + 1]; ++q)
+        if (local_index(nbr[q]) < 0 && ring.emplace(nbr[q], static_cast<int>(S.size())).second) S.push_back(nbr[q]);
+    std::vector<Eigen::Triplet<double>> entries;
+    entries.reserve(8 * S.size());
+    g2_D_S_.resize(static_cast<Eigen::Index>(S.size()));
+    for (std::size_t r = 0; r < S.size(); ++r) {
+      const int s = S[r];
+      const int row = static_cast<int>(r);
+      if (row < n) entries.emplace_back(row, row, ops.Kii[s]);
+      for (int q = off[s]; q < off[s + 1]; ++q)
+        if (const int j = local_index(nbr[q]); j >= 0) entries.emplace_back(row, j, ops.Kij[q]);
+      g2_D_S_[row] = c.g2 * ops.D(s);
+    }
+    K_SF_.resize(static_cast<Eigen::Index>(S.size()), n);
+    K_SF_.setFromTriplets(entries.begin(), entries.end());
+    diagonal_.resize(n);
+    for (int k = 0; k < n; ++k) diagonal_[k] = c.g0 * ops.mass[free_[k]] + (extra ? extra_diagonal[free_[k]] : 0.0);
+  }
   for (Eigen::Index k = 0; k < A_.outerSize(); ++k) {  // ||A||_inf = ||A||_1 (symmetric)
     double sum = 0;
     for (Eigen::SparseMatrix<double>::InnerIterator it(A_, k); it; ++it) sum += std::abs(it.value());
@@ -207,9 +232,11 @@ Eigen::MatrixXd SteadyDirectSolver::solve_free(const Field& u, const Field* f) c
 Eigen::MatrixXd SteadyDirectSolver::solve_rhs(const Eigen::MatrixXd& b) const {
   if (b.rows() != num_free())
     throw InputError(fmt::format("right-hand side has {} rows for {} free vertices", b.rows(), num_free()));
-  RefinedSolve s = refined_solve(
+  // CG preconditioned by the factor, with the residuals through the products
+  // (multiply()): the assembled matrix's own rounding is what it removes.
+  RefinedSolve s = pcg_refined_solve(
       b, [&](const Eigen::MatrixXd& r) { return chol_.solve(r); },
-      [&](const Eigen::MatrixXd& x) -> Eigen::MatrixXd { return A_ * x; }, a_norm_inf_, refine_tolerance,
+      [&](const Eigen::MatrixXd& x) -> Eigen::MatrixXd { return multiply(x); }, a_norm_inf_, refine_tolerance,
       max_refinements);
   residual_ = s.relative_residual;
   refinements_ = s.steps;
@@ -217,6 +244,17 @@ Eigen::MatrixXd SteadyDirectSolver::solve_rhs(const Eigen::MatrixXd& b) const {
   // that makes x exact; the forward error is about cond times this.
   backward_error_ = s.backward_error;
   return std::move(s.x);
+}
+
+Eigen::MatrixXd SteadyDirectSolver::multiply(const Eigen::MatrixXd& X) const {
+  const Eigen::Index n = X.rows();
+  Eigen::MatrixXd Y = diagonal_.asDiagonal() * X;
+  if (c_.g1 != 0 || c_.g2 != 0) {
+    const Eigen::MatrixXd KX = K_SF_ * X;  // K_SF X: its first n rows are K_FF X
+    if (c_.g1 != 0) Y += c_.g1 * KX.topRows(n);
+    if (c_.g2 != 0) Y += K_SF_.transpose() * (g2_D_S_.asDiagonal() * KX);
+  }
+  return Y;
 }
 
 std::vector<std::pair<int, double>> steady_coupling(const Mesh& mesh, const FemOperators& ops, const PdeCoefficients& c,
