@@ -16,12 +16,13 @@ void add_bench_command(CLI::App& app) {
   cmd->add_flag("--quick", options->quick, "Fewer repetitions and steps (same meshes)");
   cmd->add_flag("--json", *json, "Print a JSON object");
   cmd->add_flag("--large", options->large,
-                "Also the global solves on the 655k and 2.6M icospheres (iteration counts; minutes, several GB)");
+                "Also the global solves on the 655k and 2.6M icospheres (iteration counts; minutes, several GB) and "
+                "global_real's every mesh and second subdivision");
   cmd->add_option("--threads", options->threads, "Thread limit for the whole run (default: every core)");
   cmd->add_option(
          "--only", options->only,
-         "One section alone: haptic (the haptic_* figures) or global_real (the global bi-Laplacian on the real "
-         "meshes)")
+         "One section alone: haptic (the haptic_* figures) or global_real (the global bi-Laplacian on every real "
+         "mesh of the data folder, as it is and subdivided once and twice, beside CHOLMOD; ten minutes or more)")
       ->check(CLI::IsMember({"haptic", "global_real"}));
   cmd->callback([=] {
     options->data_dir = data_dir();
