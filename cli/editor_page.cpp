@@ -207,7 +207,7 @@ void EditorPage::upload_image(const std::string& bytes, const std::string& name)
   Volume v;
   try {
     write_file_atomically(tmp, bytes);
-    v = read_volume(tmp);
+    v = read_volume(tmp, kMaxUploadedVoxels);
   } catch (const InputError& e) {
     // Name the upload, not the temporary file.
     std::string what = e.what();

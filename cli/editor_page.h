@@ -89,9 +89,14 @@ class EditorPage {
   int upload(const std::string& bytes, const std::string& name);
   /// An uploaded volume (.mha, .nii, .nii.gz, .nrrd: one file) beside the page's mesh:
   /// shown as slices and guiding corrections from now on, in the page's frame; the
-  /// page gets an {"type": "image"} message. Edits so far are kept.
+  /// page gets an {"type": "image"} message. Edits so far are kept. A header that
+  /// declares more than kMaxUploadedVoxels is refused before any voxel is read.
   /// \throw InputError naming the file (the page keeps its image, if any).
   void upload_image(const std::string& bytes, const std::string& name);
+  /// 512 x 512 x 1,024: the page keeps the volume and its edge image (8 bytes a voxel,
+  /// 2 GB at this size), and a compressed upload of --max-upload-mb can declare 1,032
+  /// times its bytes.
+  static constexpr std::size_t kMaxUploadedVoxels = std::size_t{512} * 512 * 1024;
   /// The current mesh in its own format, and the name to download it as.
   /// \throw InputError with no mesh loaded.
   std::pair<std::string, std::string> save() const;

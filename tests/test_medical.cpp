@@ -503,6 +503,35 @@ TEST(Volume, NiftiSformQformScalingAndGzip) {
   }
 }
 
+TEST(Volume, AVoxelLimitRefusesTheHeaderBeforeReadingVoxels) {
+  // What the editor does with an uploaded volume (EditorPage::kMaxUploadedVoxels): a
+  // gzip-compressed NIfTI of 128^3 zeros is 8 MB of voxels in a few kilobytes.
+  std::string bytes = nifti(true, 1.0, 0.0).substr(0, 352);
+  const std::int16_t dim[4] = {3, 128, 128, 128};
+  std::memcpy(bytes.data() + 40, dim, sizeof dim);
+  bytes += std::string(std::size_t{128} * 128 * 128 * 4, '\0');
+  const fs::path gz = scratch("zeros.nii.gz");
+  write_bytes(gz, gzip(bytes));
+  EXPECT_LT(fs::file_size(gz), 64u * 1024);
+  EXPECT_EQ(read_volume(gz).values.size(), std::size_t{128} * 128 * 128);  // no limit: it reads
+  auto expect_error = [](const std::function<void()>& read, std::initializer_list<const char*> needles) {
+    try {
+      read();
+      ADD_FAILURE() << "no error";
+    } catch (const InputError& e) {
+      for (const char* needle : needles) EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();
+    }
+  };
+  expect_error([&] { read_volume(gz, 1000000); }, {"zeros.nii.gz", "128 x 128 x 128", "1000000 at most"});
+  // The limit is checked on the header: a MetaImage whose voxels are missing altogether
+  // gets the limit's message, not the short data's.
+  const fs::path mha = scratch("huge.mha");
+  write_bytes(mha,
+              "ObjectType = Image\nNDims = 3\nDimSize = 2000 2000 2000\nElementType = MET_FLOAT\n"
+              "ElementDataFile = LOCAL\n");
+  expect_error([&] { read_volume(mha, 1u << 28); }, {"huge.mha", "2000 x 2000 x 2000", "at most"});
+}
+
 TEST(Volume, NrrdRasSpaceRawAndGzip) {
   const Eigen::Matrix3d A = rotation() * kSpacing.asDiagonal();
   auto world = [&](const Eigen::Vector3d& ijk) -> Eigen::Vector3d { return kOffset + A * ijk; };

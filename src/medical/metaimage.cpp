@@ -52,7 +52,7 @@ Element element_type(const std::string& value, const std::string& name) {
 
 }  // namespace
 
-Volume read_metaimage(const std::filesystem::path& path) {
+Volume read_metaimage(const std::filesystem::path& path, std::size_t max_voxels) {
   const std::string name = path.string();
   const std::string bytes = read_file_bytes(path);
   // The header: lines up to and including ElementDataFile (the last key, by the format).
@@ -85,7 +85,7 @@ Volume read_metaimage(const std::filesystem::path& path) {
       throw InputError(fmt::format("{}: DimSize = {} is not three positive whole numbers", name, h.at("dimsize")));
     dims[a] = static_cast<long long>(dims_d[a]);
   }
-  const std::size_t voxels = checked_voxels(dims, name);
+  const std::size_t voxels = checked_voxels(dims, name, max_voxels);
   if (!h.count("elementtype")) throw InputError(fmt::format("{}: the header has no ElementType", name));
   const Element type = element_type(h.at("elementtype"), name);
   if (h.count("elementnumberofchannels") &&

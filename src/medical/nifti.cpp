@@ -64,7 +64,7 @@ Element nifti_type(int datatype, const std::string& name) {
 
 }  // namespace
 
-Volume read_nifti(const std::filesystem::path& path) {
+Volume read_nifti(const std::filesystem::path& path, std::size_t max_voxels) {
   const std::string name = path.string();
   const std::string file = read_file_bytes(path);
   const bool gz =
@@ -99,7 +99,7 @@ Volume read_nifti(const std::filesystem::path& path) {
       throw InputError(
           fmt::format("{}: dim[{}] = {}: a 3D scalar image is needed (not a time series or vectors)", name, a, d));
   }
-  const std::size_t voxels = checked_voxels(dims, name);
+  const std::size_t voxels = checked_voxels(dims, name, max_voxels);
   const Element type = nifti_type(h.get<std::int16_t>(70), name);
   const double vox_offset = h.get<float>(108);
   if (!(vox_offset >= 348) || vox_offset > 1e9 || vox_offset != std::floor(vox_offset))

@@ -101,7 +101,7 @@ Element nrrd_type(const std::string& value, const std::string& name) {
 
 }  // namespace
 
-Volume read_nrrd(const std::filesystem::path& path) {
+Volume read_nrrd(const std::filesystem::path& path, std::size_t max_voxels) {
   const std::string name = path.string();
   const std::string bytes = read_file_bytes(path);
   if (bytes.compare(0, 7, "NRRD000") != 0 || bytes.size() < 8 || bytes[7] < '1' || bytes[7] > '5')
@@ -147,7 +147,7 @@ Volume read_nrrd(const std::filesystem::path& path) {
     }
     if (a != 3) throw InputError(fmt::format("{}: sizes: {} values for 3 axes", name, a));
   }
-  const std::size_t voxels = checked_voxels(dims, name);
+  const std::size_t voxels = checked_voxels(dims, name, max_voxels);
   const std::string encoding = lower(field("encoding"));
   const bool big = h.count("endian") && lower(h.at("endian")) == "big";
   if (element_size(type) > 1 && h.count("endian") && !big && lower(h.at("endian")) != "little")

@@ -197,7 +197,7 @@ std::vector<float> inflated_voxels(Inflater& inflater, std::size_t skip, const V
   return out;
 }
 
-std::size_t checked_voxels(const std::array<long long, 3>& dims, const std::string& name) {
+std::size_t checked_voxels(const std::array<long long, 3>& dims, const std::string& name, std::size_t max_voxels) {
   std::size_t n = 1;
   for (int a = 0; a < 3; ++a) {
     if (dims[a] <= 0 || dims[a] > std::numeric_limits<int>::max())
@@ -206,6 +206,9 @@ std::size_t checked_voxels(const std::array<long long, 3>& dims, const std::stri
       throw InputError(fmt::format("{}: {} x {} x {} voxels is too many", name, dims[0], dims[1], dims[2]));
     n *= static_cast<std::size_t>(dims[a]);
   }
+  if (max_voxels > 0 && n > max_voxels)
+    throw InputError(fmt::format("{}: {} x {} x {} voxels is more than this reader takes ({} at most)", name, dims[0],
+                                 dims[1], dims[2], max_voxels));
   return n;
 }
 

@@ -84,15 +84,16 @@ std::vector<float> inflated_voxels(Inflater& inflater, std::size_t skip, const V
                                    const std::string& name);
 
 /// Voxel count of dims, or throws InputError (naming the volume) when a dimension is
-/// not positive or the count would overflow.
-std::size_t checked_voxels(const std::array<long long, 3>& dims, const std::string& name);
+/// not positive, the count would overflow, or it exceeds max_voxels (when > 0): called
+/// on the header, before any voxel is read or allocated.
+std::size_t checked_voxels(const std::array<long long, 3>& dims, const std::string& name, std::size_t max_voxels = 0);
 
 /// Splits A = direction * diag(spacing) into spacing (column norms) and a unit-column
 /// direction; sets the origin. \throw InputError for a zero or non-finite column.
 void set_geometry_from_axes(Volume& v, const Eigen::Matrix3d& axes, const Eigen::Vector3d& origin_lps);
 
-Volume read_metaimage(const std::filesystem::path& path);
-Volume read_nifti(const std::filesystem::path& path);
-Volume read_nrrd(const std::filesystem::path& path);
+Volume read_metaimage(const std::filesystem::path& path, std::size_t max_voxels);
+Volume read_nifti(const std::filesystem::path& path, std::size_t max_voxels);
+Volume read_nrrd(const std::filesystem::path& path, std::size_t max_voxels);
 
 }  // namespace meshpde::detail

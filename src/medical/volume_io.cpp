@@ -24,12 +24,12 @@ bool is_volume_path(const std::filesystem::path& path) {
   return false;
 }
 
-Volume read_volume(const std::filesystem::path& path) {
+Volume read_volume(const std::filesystem::path& path, std::size_t max_voxels) {
   if (!std::filesystem::exists(path)) throw InputError(fmt::format("{}: no such file", path.string()));
   auto ends = [&](const std::string& s) { return name_ends(path, s); };
-  if (ends(".mha") || ends(".mhd")) return detail::read_metaimage(path);
-  if (ends(".nii") || ends(".nii.gz")) return detail::read_nifti(path);
-  if (ends(".nrrd") || ends(".nhdr")) return detail::read_nrrd(path);
+  if (ends(".mha") || ends(".mhd")) return detail::read_metaimage(path, max_voxels);
+  if (ends(".nii") || ends(".nii.gz")) return detail::read_nifti(path, max_voxels);
+  if (ends(".nrrd") || ends(".nhdr")) return detail::read_nrrd(path, max_voxels);
   throw InputError(
       fmt::format("{}: unknown volume format (supported: .mha .mhd .nii .nii.gz .nrrd .nhdr)", path.string()));
 }

@@ -46,8 +46,11 @@ std::vector<std::string> write_any_mesh(const std::filesystem::path& path, const
                                         const WriteOptions& options = {});
 bool is_vtk_mesh_path(const std::filesystem::path& path);
 
-/// .mha .mhd .nii .nii.gz .nrrd .nhdr. \throw InputError naming the file.
-Volume read_volume(const std::filesystem::path& path);
+/// .mha .mhd .nii .nii.gz .nrrd .nhdr. \throw InputError naming the file. With
+/// max_voxels > 0, a header that declares more voxels is refused before any is read or
+/// allocated: a compressed file of a few megabytes can declare gigabytes (deflate
+/// inflates up to 1,032 times), which is how the editor bounds an uploaded volume.
+Volume read_volume(const std::filesystem::path& path, std::size_t max_voxels = 0);
 /// Whether read_volume() reads this path (by its extension, any case).
 bool is_volume_path(const std::filesystem::path& path);
 
