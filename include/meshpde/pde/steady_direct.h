@@ -87,12 +87,12 @@ class SteadyDirectSolver {
   /// iterative refinement; Kt_FF x is computed as the products g2 K^T (D (K x)), not
   /// with the assembled matrix.
   double last_relative_residual() const { return residual_; }
-  /// Refinement steps the last solve took (0 when the first solve met refine_tolerance
-  /// or was already backward stable, see solvers/refinement.h).
+  /// Refinement steps (preconditioned CG steps) the last solve took: 0 when the first
+  /// answer met refine_tolerance (solvers/refinement.h, pcg_refined_solve).
   int last_refinements() const { return refinements_; }
 
-  /// Iterative refinement runs while the relative residual exceeds this (at most
-  /// max_refinements steps, stopping early if the residual stops falling).
+  /// Refinement (CG preconditioned by the factor, residuals through the products) runs
+  /// while the relative residual exceeds this, at most max_refinements steps.
   double refine_tolerance = 1e-14;
   int max_refinements = 5;
   const SparseCholesky& factor() const { return chol_; }

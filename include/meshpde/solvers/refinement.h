@@ -36,9 +36,6 @@ struct RefinedSolve {
 /// Normwise backward error below which refinement stops (Rigal and Gaches' measure).
 inline constexpr double kStableBackwardError = 16 * std::numeric_limits<double>::epsilon();
 
-/// solve(R) applies A^-1 to the columns of R, multiply(X) applies A, a_norm_inf is
-/// |A|_inf. At most max_steps steps; a step that does not lower the residual is
-/// rejected and ends it.
 namespace detail {
 // The relative residual and the normwise backward error of s (worst column).
 inline void measure_refined(const Eigen::MatrixXd& b, double a_norm_inf, RefinedSolve& s) {
@@ -53,6 +50,9 @@ inline void measure_refined(const Eigen::MatrixXd& b, double a_norm_inf, Refined
 }
 }  // namespace detail
 
+/// solve(R) applies A^-1 to the columns of R, multiply(X) applies A, a_norm_inf is
+/// |A|_inf. At most max_steps steps; a step that does not lower the residual is
+/// rejected and ends it.
 template <class Solve, class Multiply>
 RefinedSolve refined_solve(const Eigen::MatrixXd& b, Solve&& solve, Multiply&& multiply, double a_norm_inf,
                            double tolerance, int max_steps) {
