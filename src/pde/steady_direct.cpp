@@ -22,18 +22,42 @@ namespace {
 constexpr int kParallelColumns = 4000;
 }  // namespace
 
-Eigen::SparseMatrix<double> assemble_steady_matrix(const Mesh& mesh, const FemOperators& ops, const PdeCoefficients& c,
-                                                   const std::vector<int>& vertices,
-                                                   const Eigen::VectorXd& extra_diagonal) {
+namespace {
+
+// The rows of K that Kt_FF is made of: S = F and its one ring, numbered locally (F
+// first, in the order given), and row s of K restricted to the free columns.
+struct FreeStiffnessRows {
+  std::vector<int> S;
+  std::vector<int> row_start;                       // row r's entries: [row_start[r], row_start[r + 1])
+  std::vector<std::pair<int, double>> row_entries;  // (local free index, K value), diagonal first
+  std::vector<int> slot_start, slot_local;          // per free row: each adjacency slot's local number (-1: outside S)
+
+  // K_SF (|S| x n) as a sparse matrix, columns sorted within each row.
+  Eigen::SparseMatrix<double, Eigen::RowMajor> matrix(int n) const {
+    Eigen::SparseMatrix<double, Eigen::RowMajor> K(static_cast<Eigen::Index>(S.size()), n);
+    K.resizeNonZeros(static_cast<Eigen::Index>(row_entries.size()));
+    std::copy(row_start.begin(), row_start.end(), K.outerIndexPtr());
+    std::vector<std::pair<int, double>> sorted = row_entries;
+    for (std::size_t r = 0; r < S.size(); ++r)
+      std::sort(sorted.begin() + row_start[r], sorted.begin() + row_start[r + 1]);
+    for (std::size_t e = 0; e < sorted.size(); ++e) {
+      K.innerIndexPtr()[e] = sorted[e].first;
+      K.valuePtr()[e] = sorted[e].second;
+    }
+    return K;
+  }
+};
+
+FreeStiffnessRows free_stiffness_rows(const Mesh& mesh, const FemOperators& ops, const std::vector<int>& vertices) {
   const int n = static_cast<int>(vertices.size());
-  const bool extra = extra_diagonal.size() > 0;
   const auto off = mesh.offsets();
   const auto nbr = mesh.neighbors();
+  FreeStiffnessRows rows;
   // S = F and its one ring, numbered locally (F first, in the order given): the only
   // hash lookups are these, one per adjacency slot of S's rows; the assembly below runs
   // on local numbers. Sized to the region, not the mesh.
   IndexMap local(2 * static_cast<std::size_t>(n));
-  std::vector<int> S;
+  std::vector<int>& S = rows.S;
   S.reserve(2 * static_cast<std::size_t>(n));
   for (int v : vertices)
     if (local.insert(v).second) S.push_back(v);
@@ -45,11 +69,13 @@ Eigen::SparseMatrix<double> assemble_steady_matrix(const Mesh& mesh, const FemOp
   // (slot_local), so the columns below need no hash lookup (a 10k drag region, two
   // threads: the assembly went from 3.4 to 3.2 ms with this, to 2.6 ms with the
   // transpose at the end).
-  std::vector<int> row_start(S.size() + 1, 0);
-  std::vector<std::pair<int, double>> row_entries;
+  std::vector<int>& row_start = rows.row_start;
+  std::vector<std::pair<int, double>>& row_entries = rows.row_entries;
+  std::vector<int>& slot_start = rows.slot_start;
+  std::vector<int>& slot_local = rows.slot_local;
+  row_start.assign(S.size() + 1, 0);
   row_entries.reserve(8 * S.size());
-  std::vector<int> slot_start(static_cast<std::size_t>(n) + 1, 0);
-  std::vector<int> slot_local;
+  slot_start.assign(static_cast<std::size_t>(n) + 1, 0);
   slot_local.reserve(7 * static_cast<std::size_t>(n));
   for (std::size_t r = 0; r < S.size(); ++r) {
     const int i = S[r];
@@ -63,6 +89,21 @@ Eigen::SparseMatrix<double> assemble_steady_matrix(const Mesh& mesh, const FemOp
     row_start[r + 1] = static_cast<int>(row_entries.size());
     if (free_row) slot_start[r + 1] = static_cast<int>(slot_local.size());
   }
+  return rows;
+}
+
+// Kt_FF from those rows (assemble_steady_matrix's body).
+Eigen::SparseMatrix<double> assemble_from_rows(const Mesh& mesh, const FemOperators& ops, const PdeCoefficients& c,
+                                               const std::vector<int>& vertices, const Eigen::VectorXd& extra_diagonal,
+                                               const FreeStiffnessRows& rows) {
+  const int n = static_cast<int>(vertices.size());
+  const bool extra = extra_diagonal.size() > 0;
+  const auto off = mesh.offsets();
+  const std::vector<int>& S = rows.S;
+  const std::vector<int>& row_start = rows.row_start;
+  const std::vector<std::pair<int, double>>& row_entries = rows.row_entries;
+  const std::vector<int>& slot_start = rows.slot_start;
+  const std::vector<int>& slot_local = rows.slot_local;
   // g2 D on S, once per row rather than once per use (each row is used by about seven
   // columns).
   std::vector<double> g2_D(S.size());
@@ -149,6 +190,14 @@ Eigen::SparseMatrix<double> assemble_steady_matrix(const Mesh& mesh, const FemOp
   return A;
 }
 
+}  // namespace
+
+Eigen::SparseMatrix<double> assemble_steady_matrix(const Mesh& mesh, const FemOperators& ops, const PdeCoefficients& c,
+                                                   const std::vector<int>& vertices,
+                                                   const Eigen::VectorXd& extra_diagonal) {
+  return assemble_from_rows(mesh, ops, c, vertices, extra_diagonal, free_stiffness_rows(mesh, ops, vertices));
+}
+
 SteadyDirectSolver::SteadyDirectSolver(const Mesh& mesh, const FemOperators& ops, const PdeCoefficients& c,
                                        std::vector<int> free, SparseCholesky::Backend backend,
                                        const Eigen::VectorXd& extra_diagonal)
@@ -169,32 +218,14 @@ SteadyDirectSolver::SteadyDirectSolver(const Mesh& mesh, const FemOperators& ops
   if (c.g0 <= 0)
     detail::require_held_parts(
         mesh, free_, [&](int v) { return local_index(v); }, [&](int v) { return extra && extra_diagonal[v] > 0; });
-  A_ = assemble_steady_matrix(mesh, ops, c, free_, extra_diagonal);
-  {
-    // K_SF, S = F and then its one ring (numbered from n on), for multiply().
-    const auto off = mesh.offsets();
-    const auto nbr = mesh.neighbors();
-    std::vector<int> S(free_);
-    std::unordered_map<int, int> ring;
-    for (int k = 0; k < n; ++k)
-      for (int q = off[free_[k]]; q < off[free_[k] + 1]; ++q)
-        if (local_index(nbr[q]) < 0 && ring.emplace(nbr[q], static_cast<int>(S.size())).second) S.push_back(nbr[q]);
-    std::vector<Eigen::Triplet<double>> entries;
-    entries.reserve(8 * S.size());
-    g2_D_S_.resize(static_cast<Eigen::Index>(S.size()));
-    for (std::size_t r = 0; r < S.size(); ++r) {
-      const int s = S[r];
-      const int row = static_cast<int>(r);
-      if (row < n) entries.emplace_back(row, row, ops.Kii[s]);
-      for (int q = off[s]; q < off[s + 1]; ++q)
-        if (const int j = local_index(nbr[q]); j >= 0) entries.emplace_back(row, j, ops.Kij[q]);
-      g2_D_S_[row] = c.g2 * ops.D(s);
-    }
-    K_SF_.resize(static_cast<Eigen::Index>(S.size()), n);
-    K_SF_.setFromTriplets(entries.begin(), entries.end());
-    diagonal_.resize(n);
-    for (int k = 0; k < n; ++k) diagonal_[k] = c.g0 * ops.mass[free_[k]] + (extra ? extra_diagonal[free_[k]] : 0.0);
-  }
+  // The assembly's rows of K are kept as K_SF for multiply() (the refinement's products).
+  const FreeStiffnessRows rows = free_stiffness_rows(mesh, ops, free_);
+  A_ = assemble_from_rows(mesh, ops, c, free_, extra_diagonal, rows);
+  K_SF_ = rows.matrix(n);
+  g2_D_S_.resize(static_cast<Eigen::Index>(rows.S.size()));
+  for (std::size_t r = 0; r < rows.S.size(); ++r) g2_D_S_[static_cast<Eigen::Index>(r)] = c.g2 * ops.D(rows.S[r]);
+  diagonal_.resize(n);
+  for (int k = 0; k < n; ++k) diagonal_[k] = c.g0 * ops.mass[free_[k]] + (extra ? extra_diagonal[free_[k]] : 0.0);
   for (Eigen::Index k = 0; k < A_.outerSize(); ++k) {  // ||A||_inf = ||A||_1 (symmetric)
     double sum = 0;
     for (Eigen::SparseMatrix<double>::InnerIterator it(A_, k); it; ++it) sum += std::abs(it.value());
