@@ -12,11 +12,11 @@
 #include "meshpde/io/mesh_io.h"
 #include "meshpde/mesh/generators.h"
 #include "meshpde/mesh/regions.h"
-#include "meshpde/mesh/topology.h"
 #include "meshpde/operators/fem_operators.h"
 #include "meshpde/operators/laplacian.h"
 #include "meshpde/pde/global_bilaplacian.h"
 #include "meshpde/pde/steady_direct.h"
+#include "suite/real_mesh_problem.h"
 #include "test_support.h"
 
 namespace meshpde::test {
@@ -141,34 +141,16 @@ inline Field extended_precision_solve(const Mesh& m, const FemOperators& ops, co
 // on one thread and on two, and on meshes of up to 15k vertices both equal the
 // extended-precision answer above to 1e-8. The operators are the ones the commands
 // build (`--laplacian auto`: intrinsic Delaunay on badly shaped meshes), the problem is
-// the bench's (the top vertex moved, the lowest 2 % of each connected part held,
-// unreferenced vertices held), and the multigrid stops coarsening at kTestCoarsest so
-// that meshes of a few thousand vertices still iterate.
+// the bench's (bench/suite/real_mesh_problem.h: the top vertex moved, the lowest 2 % of
+// each connected part held, unreferenced vertices held), and the multigrid stops
+// coarsening at kTestCoarsest so that meshes of a few thousand vertices still iterate.
 inline void expect_global_matches_direct(const std::string& name, const MeshData& d) {
   SCOPED_TRACE(name);
   const Mesh input(d.V, d.F);
   const MeshOperators mo = build_mesh_operators(input, LaplacianKind::Auto);
   const Mesh& m = mo.mesh;
   const int n = m.num_vertices();
-  int handle = 0;
-  m.positions().col(2).maxCoeff(&handle);
-  Field u = Field::Zero(n, 3);
-  u.row(handle) = 0.01 * mean_edge_length(input) * Eigen::RowVector3d(1, 2, 10);
-  int parts = 0;
-  const std::vector<int> part = vertex_components(m, &parts);
-  std::vector<double> z0(static_cast<std::size_t>(parts), 1e300), z1(static_cast<std::size_t>(parts), -1e300);
-  std::vector<int> size(static_cast<std::size_t>(parts), 0);
-  for (int v = 0; v < n; ++v) {
-    const auto c = static_cast<std::size_t>(part[static_cast<std::size_t>(v)]);
-    z0[c] = std::min(z0[c], m.positions()(v, 2));
-    z1[c] = std::max(z1[c], m.positions()(v, 2));
-    ++size[c];
-  }
-  std::vector<int> free;
-  for (int v = 0; v < n; ++v) {
-    const auto c = static_cast<std::size_t>(part[static_cast<std::size_t>(v)]);
-    if (v != handle && size[c] > 1 && m.positions()(v, 2) > z0[c] + 0.02 * (z1[c] - z0[c])) free.push_back(v);
-  }
+  const auto [handle, u, free] = bench::top_drag(m, mean_edge_length(input));
   const SteadyDirectSolver direct(m, mo.ops, PdeCoefficients{.g0 = 0, .g1 = 0, .g2 = 1}, free);
   const Field x = direct.solve(u);
   const double scale = x.cwiseAbs().maxCoeff();

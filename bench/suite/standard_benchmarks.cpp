@@ -16,6 +16,7 @@
 #include "meshpde/core/errors.h"
 #include "meshpde/core/parallel.h"
 #include "meshpde/io/mesh_io.h"
+#include "real_mesh_problem.h"
 #ifdef MESHPDE_HAVE_MEDICAL
 #include "meshpde/io/medical_io.h"
 #endif
@@ -57,39 +58,6 @@ TimedGlobalSolve timed_global_solve(const Mesh& m, const FemOperators& o, const 
   TimedGlobalSolve out{solve_global_bilaplacian(m, o, free, u, p), 0};
   out.seconds = seconds_since(t);
   return out;
-}
-
-// The real-mesh problem of the global solves: the handle at the top moved by 0.01
-// `edge` x (1, 2, 10), the lowest 2 % (by height) of each connected part held, and
-// vertices that no triangle uses held too (bunny-36k has 1,113; a part with nothing
-// held would float), every other vertex free. On a mesh of one part, as the three
-// meshes of the first rows are, that is the lowest 2 % of the whole mesh.
-struct TopDrag {
-  int handle = 0;
-  Field u;
-  std::vector<int> free;
-};
-TopDrag top_drag(const Mesh& m, double edge) {
-  TopDrag t;
-  const int n = m.num_vertices();
-  m.positions().col(2).maxCoeff(&t.handle);
-  t.u = Field::Zero(n, 3);
-  t.u.row(t.handle) = 0.01 * edge * Eigen::RowVector3d(1, 2, 10);
-  int parts = 0;
-  const std::vector<int> part = vertex_components(m, &parts);
-  std::vector<double> z0(static_cast<std::size_t>(parts), 1e300), z1(static_cast<std::size_t>(parts), -1e300);
-  std::vector<int> size(static_cast<std::size_t>(parts), 0);
-  for (int v = 0; v < n; ++v) {
-    const auto c = static_cast<std::size_t>(part[static_cast<std::size_t>(v)]);
-    z0[c] = std::min(z0[c], m.positions()(v, 2));
-    z1[c] = std::max(z1[c], m.positions()(v, 2));
-    ++size[c];
-  }
-  for (int v = 0; v < n; ++v) {
-    const auto c = static_cast<std::size_t>(part[static_cast<std::size_t>(v)]);
-    if (v != t.handle && size[c] > 1 && m.positions()(v, 2) > z0[c] + 0.02 * (z1[c] - z0[c])) t.free.push_back(v);
-  }
-  return t;
 }
 
 // The default solve (Auto) through a GlobalBilaplacianSolver, timed with its set-up
@@ -362,29 +330,29 @@ void global_real_figures(const BenchOptions& options, nlohmann::json& j, bool ev
   };
   using Preconditioner = GlobalBilaplacianParams::Preconditioner;
   struct RealMesh {
-    const char* name;
-    const char* file;
-    bool first_rows;  // one of the three meshes of every run
+    const char* file;  // its stem names the figures (global_bilap_*_<stem>)
+    bool first_rows;   // one of the three meshes of every run
   };
-  const RealMesh meshes[] = {{"armadillo-43k", "armadillo-43k.obj", true},
-                             {"igea-134k", "igea-134k.ply", true},
-                             {"aorta-103k", "aorta-103k.vtp", true},
-                             {"bunny-36k", "bunny-36k.obj", false},
-                             {"camelhead-11k", "camelhead-11k.off", false},
-                             {"coronary-phantom-7k", "coronary-phantom-7k.stl", false},
-                             {"aorta-closed-6k", "aorta-closed-6k.vtp", false},
-                             {"aorta-open-6k", "aorta-open-6k.stl", false},
-                             {"fertility-4k", "fertility-4k.off", false},
-                             {"carotid-ica-4k", "carotid-ica-4k.vtp", false},
-                             {"bunny-3k", "bunny-3k.off", false},
-                             {"cow-3k", "cow-3k.off", false},
-                             {"vessel-boolean-nonmanifold", "vessel-boolean-nonmanifold.vtp", false},
-                             {"decimated-knight", "decimated-knight.off", false},
-                             {"nonmanifold-vierbein", "nonmanifold-vierbein.obj", false},
-                             {"nonmanifold-vertex-hourglass", "nonmanifold-vertex-hourglass.obj", false}};
-  for (const auto& [name, file, first_rows] : meshes) {
+  const RealMesh meshes[] = {{"armadillo-43k.obj", true},
+                             {"igea-134k.ply", true},
+                             {"aorta-103k.vtp", true},
+                             {"bunny-36k.obj", false},
+                             {"camelhead-11k.off", false},
+                             {"coronary-phantom-7k.stl", false},
+                             {"aorta-closed-6k.vtp", false},
+                             {"aorta-open-6k.stl", false},
+                             {"fertility-4k.off", false},
+                             {"carotid-ica-4k.vtp", false},
+                             {"bunny-3k.off", false},
+                             {"cow-3k.off", false},
+                             {"vessel-boolean-nonmanifold.vtp", false},
+                             {"decimated-knight.off", false},
+                             {"nonmanifold-vierbein.obj", false},
+                             {"nonmanifold-vertex-hourglass.obj", false}};
+  for (const auto& [file, first_rows] : meshes) {
     if (!every && !first_rows) continue;
     const auto path = options.data_dir / file;
+    const std::string name = path.stem().string();
     if (!std::filesystem::exists(path)) {
       warn(path.string() + " not found; its global_bilap_*_" + name + " figures skipped");
       continue;
