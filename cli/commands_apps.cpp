@@ -19,6 +19,7 @@
 #include "meshpde/mesh/topology.h"
 #include "meshpde/operators/fem_operators.h"
 #include "meshpde/operators/laplacian.h"
+#include "meshpde/pde/steady_direct.h"
 #include "meshpde/viz/render.h"
 #include "progress.h"
 
@@ -54,11 +55,6 @@ void add_laplacian_option(CLI::App* cmd, std::string& value, const std::string& 
 }
 
 namespace {
-
-// --solver's names (checked by CLI11 before this runs).
-SteadySolver steady_solver(const std::string& name) {
-  return name == "direct" ? SteadySolver::Direct : name == "global" ? SteadySolver::Global : SteadySolver::Iterative;
-}
 
 void write_values_csv(const std::filesystem::path& path, const Eigen::VectorXd& u) {
   std::string s;
@@ -204,7 +200,7 @@ void add_fair_command(CLI::App& app) {
   auto* cmd = app.add_subcommand(
       "fair", "Fair the free part of a mesh: membrane (--order 1) or thin plate (--order 2), selection held fixed");
   struct Args {
-    std::string mesh, out, png, view = "30,20", up = "y", size = "960x720", solver = "direct", laplacian = "auto";
+    std::string mesh, out, png, view = "30,20", up = "y", size = "960x720", solver = "auto", laplacian = "auto";
     std::vector<std::string> fixed;
     FairParams p;
     bool json = false;
@@ -221,9 +217,12 @@ void add_fair_command(CLI::App& app) {
       ->capture_default_str();
   cmd->add_flag("--regularize", a->p.regularize, "Re-assemble area-weighted stiffness every step (seed 000 Fig. 7)");
   cmd->add_option("--solver", a->solver,
-                  "Static solve: direct (sparse Cholesky) | global (multigrid or Laplacian-factor CG, large meshes, "
-                  "--order 2) | iterative (Jacobi-CG)")
-      ->check(CLI::IsMember({"direct", "global", "iterative"}))
+                  fmt::format("Static solve: auto (--order 2: the multigrid on meshes of {} free vertices or more "
+                              "without angles under {} degrees, kept where it converges; else direct) | "
+                              "direct (sparse Cholesky) | global (multigrid or Laplacian-factor CG, large meshes, "
+                              "--order 2) | iterative (Jacobi-CG)",
+                              kAutoGlobalFromFreeVertices, kAutoMultigridMinAngleDeg))
+      ->check(CLI::IsMember({"auto", "direct", "global", "iterative"}))
       ->capture_default_str();
   add_laplacian_option(cmd, a->laplacian, "--regularize always re-assembles area-weighted cotangent operators");
   cmd->add_option("--dt", a->p.dt, "Regularization step (unit-free)")->capture_default_str();
@@ -243,7 +242,7 @@ void add_fair_command(CLI::App& app) {
       throw InputError("every vertex is fixed: nothing to fair");
     const auto t0 = std::chrono::steady_clock::now();
     FairParams params = a->p;
-    params.solver = steady_solver(a->solver);
+    params.solver = parse_steady_solver(a->solver);
     params.laplacian = parse_laplacian_kind(a->laplacian);
     const FairResult r = fair(mesh, fixed, params);
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -265,6 +264,7 @@ void add_fair_command(CLI::App& app) {
                   {"seconds", seconds},
                   {"cg_iterations", r.cg_iterations},
                   {"relative_residual", r.worst_residual},
+                  {"solver", to_string(r.solver)},
                   {"laplacian", to_string(r.laplacian)},
                   {"laplacian_reason", r.laplacian_reason},
                   {"before", quality_json(r.before)},
@@ -289,7 +289,7 @@ void add_interpolate_command(CLI::App& app) {
   auto* cmd = app.add_subcommand("interpolate",
                                  "Spread values given at a few vertices: scalars, displacements or tangent vectors");
   struct Args {
-    std::string mesh, constraints, kind = "scalar", method = "componentwise", out, png, solver = "direct",
+    std::string mesh, constraints, kind = "scalar", method = "componentwise", out, png, solver = "auto",
                                    laplacian = "auto";
     std::string view = "30,20", up = "y", size = "960x720";
     double g1 = 0, g2 = 1;
@@ -307,9 +307,11 @@ void add_interpolate_command(CLI::App& app) {
   cmd->add_option("--g1", a->g1, "Laplacian weight")->capture_default_str();
   cmd->add_option("--g2", a->g2, "bi-Laplacian weight")->capture_default_str();
   cmd->add_option("--solver", a->solver,
-                  "direct (sparse Cholesky) | global (multigrid or Laplacian-factor CG, large meshes, g2 > 0) | "
-                  "iterative (Jacobi-CG)")
-      ->check(CLI::IsMember({"direct", "global", "iterative"}))
+                  fmt::format("auto (g2 > 0: the multigrid on meshes of {} free vertices or more without angles "
+                              "under {} degrees, kept where it converges; else direct) | direct (sparse Cholesky) | "
+                              "global (multigrid or Laplacian-factor CG, large meshes, g2 > 0) | iterative (Jacobi-CG)",
+                              kAutoGlobalFromFreeVertices, kAutoMultigridMinAngleDeg))
+      ->check(CLI::IsMember({"auto", "direct", "global", "iterative"}))
       ->capture_default_str();
   add_laplacian_option(cmd, a->laplacian, "tangent fields always use cotan");
   cmd->add_option("--method", a->method, "tangent fields: componentwise (seed) | connection | both")
@@ -346,10 +348,11 @@ void add_interpolate_command(CLI::App& app) {
                                                 InterpolationParams{.g1 = a->g1,
                                                                     .g2 = a->g2,
                                                                     .method = method,
-                                                                    .solver = steady_solver(a->solver),
+                                                                    .solver = parse_steady_solver(a->solver),
                                                                     .laplacian = parse_laplacian_kind(a->laplacian)});
       report["laplacian"] = to_string(r.laplacian);
       report["laplacian_reason"] = r.laplacian_reason;
+      report["solver"] = to_string(r.solver);
       const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
       RenderOptions ro = a->r;
       apply_view_options(ro, a->view, a->up, a->size);

@@ -17,6 +17,7 @@
 #include "meshpde/mesh/self_intersections.h"
 #include "meshpde/operators/intrinsic_delaunay.h"
 #include "meshpde/operators/laplacian.h"
+#include "meshpde/pde/steady_direct.h"
 #ifdef MESHPDE_HAVE_MEDICAL
 #include "meshpde/io/medical_io.h"
 #endif
@@ -81,7 +82,7 @@ std::map<std::string, Eigen::VectorXd> displacement_fields(const DragResult& r) 
 
 struct CorrectArgs {
   std::string mesh, out, method = "fem", boundary = "clamp", laplacian = "auto", stiffness, image, space,
-                         solver = "direct", units = "mm";
+                         solver = "auto", units = "mm";
   std::vector<std::string> vertices, moves, brushes;
   int rings = 0, steps = 50, cube = 0, passes = 4;
   double radius = 0, g1 = 0, g2 = 1, tol = 1e-10, image_weight = 30.0, image_sigma = 1.0, search = 3.0;
@@ -210,9 +211,7 @@ void run_correct(const CorrectArgs& a) {
     p.image.passes = a.passes;
   }
 
-  p.solver = a.solver == "global"      ? SteadySolver::Global
-             : a.solver == "iterative" ? SteadySolver::Iterative
-                                       : SteadySolver::Direct;
+  p.solver = parse_steady_solver(a.solver);
   p.cg.tolerance = a.tol;
   nlohmann::json j;
   Positions V;
@@ -242,7 +241,7 @@ void run_correct(const CorrectArgs& a) {
          {"substeps", r.substeps},
          {"intersection_action", r.intersection_action},
          {"handles", p.handles.size()},
-         {"solver", a.solver},
+         {"solver", to_string(r.solver)},
          {"units", to_string(p.units)}};
     if (p.image.edges) {
       j["image"] = {{"pulled_vertices", r.pulled_vertices},
@@ -342,9 +341,12 @@ void add_solve_commands(CLI::App& app) {
                     "springs --image: the thesis's image step)");
     cmd->add_option("--passes", a->passes, "Image fixed-point passes")->capture_default_str();
     cmd->add_option("--solver", a->solver,
-                    "direct (default) | global (multigrid-CG, for very large regions) | iterative (Jacobi-CG, for "
-                    "comparison); global and iterative: static fem without --image")
-        ->check(CLI::IsMember({"direct", "global", "iterative"}))
+                    fmt::format("auto (a static fem region of {} free vertices or more without angles under {} "
+                                "degrees: the multigrid, kept where it converges; else direct) | direct | global "
+                                "(multigrid-CG, for very large regions) | iterative (Jacobi-CG, for comparison); global "
+                                "and iterative: static fem without --image",
+                                kAutoGlobalFromFreeVertices, kAutoMultigridMinAngleDeg))
+        ->check(CLI::IsMember({"auto", "direct", "global", "iterative"}))
         ->capture_default_str();
     cmd->add_option("--tolerance", a->tol, "CG relative residual tolerance (iterative)")->capture_default_str();
     cmd->add_option("-o,--output", a->out,

@@ -239,6 +239,8 @@ TEST(GlobalBilaplacian, AppsGetTheDirectSolversAnswerFromIt) {
   const auto direct = interpolate(m, ops, FieldKind::Scalar, cons, InterpolationParams{.g1 = 0.1, .g2 = 1});
   const auto global = interpolate(m, ops, FieldKind::Scalar, cons,
                                   InterpolationParams{.g1 = 0.1, .g2 = 1, .solver = SteadySolver::Global});
+  EXPECT_EQ(direct.solver, SteadySolver::Direct);  // Auto, 2,559 free vertices: below its size rule
+  EXPECT_EQ(global.solver, SteadySolver::Global);
   EXPECT_GT(global.cg.iterations, 0);
   EXPECT_LE(global.cg.relative_residual, 1e-10);
   EXPECT_LE((global.values - direct.values).cwiseAbs().maxCoeff(), 1e-7 * direct.values.cwiseAbs().maxCoeff());
@@ -268,6 +270,114 @@ TEST(GlobalBilaplacian, AppsGetTheDirectSolversAnswerFromIt) {
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("g2 > 0"), std::string::npos) << e.what();
   }
+}
+
+TEST(GlobalBilaplacian, AutoKeepsTheMultigridWhereItConvergesAndSolvesDirectlyElsewhere) {
+  // SteadySolver::Auto, the default of the commands: on a bi-Laplacian problem without
+  // g0, from kAutoGlobalFromFreeVertices free vertices on and with no angle below
+  // kAutoMultigridMinAngleDeg around them, the multigrid, kept where its probe says it
+  // converges and given up for the direct solve where it does not; the direct solve on
+  // everything else. Every other choice is kept as asked.
+  const PdeCoefficients plate{.g0 = 0, .g1 = 0.1, .g2 = 1};
+  for (const SteadySolver s : {SteadySolver::Auto, SteadySolver::Direct, SteadySolver::Iterative, SteadySolver::Global})
+    EXPECT_EQ(parse_steady_solver(to_string(s)), s);
+  try {
+    (void)parse_steady_solver("cholesky");
+    ADD_FAILURE() << "an unknown solver name was taken";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("'auto', 'direct', 'global' or 'iterative'"), std::string::npos) << e.what();
+  }
+
+  // A well-shaped mesh with the size rule's threshold given lower: the multigrid
+  // converges, Auto keeps it, and its answer is the direct one's.
+  const Mesh m = make(icosphere(4));
+  const FemOperators ops = build_operators(m);
+  std::vector<int> free;
+  for (int v = 0; v < m.num_vertices(); ++v)
+    if (m.positions()(v, 2) > -0.8) free.push_back(v);
+  Field u = Field::Zero(m.num_vertices(), 3);
+  for (int v = 0; v < m.num_vertices(); ++v)
+    if (m.positions()(v, 2) <= -0.8) u.row(v) = Eigen::RowVector3d(0.1, 0, 0.02 * m.positions()(v, 0));
+  const int few = static_cast<int>(free.size());
+  EXPECT_TRUE(auto_tries_multigrid(m, plate, free, few));
+  EXPECT_FALSE(auto_tries_multigrid(m, plate, free, few + 1));
+  EXPECT_FALSE(auto_tries_multigrid(m, plate, free));  // the default size rule: 50,000
+  EXPECT_FALSE(auto_tries_multigrid(m, PdeCoefficients{.g0 = 0, .g1 = 1, .g2 = 0}, free, few));  // a membrane
+  EXPECT_FALSE(auto_tries_multigrid(m, PdeCoefficients{.g0 = 1, .g1 = 0, .g2 = 1}, free, few));  // a foundation
+  const auto [bad, bad_ops, bad_u, bad_free] = stretched_global_problem(4);
+  ASSERT_LT(smallest_angle_deg(bad.positions(), bad.triangles()), kAutoMultigridMinAngleDeg);
+  EXPECT_FALSE(auto_tries_multigrid(bad, plate, bad_free, 1));  // the shape rule
+  // Only the triangles around the free set count: the lowest vertex (held, and so are
+  // its neighbours) moved most of the way to a neighbour leaves thin triangles among
+  // held vertices, which do not stop the try; the top vertex (free) moved so, does.
+  const auto pulled = [&](bool top) {
+    const Positions& P = m.positions();
+    int v = 0;
+    for (int i = 1; i < m.num_vertices(); ++i)
+      if (top ? P(i, 2) > P(v, 2) : P(i, 2) < P(v, 2)) v = i;
+    const int next = m.neighbors()[static_cast<std::size_t>(m.offsets()[v])];
+    Positions X = P;
+    for (int c = 0; c < 3; ++c) X(v, c) = P(v, c) + 0.9 * (P(next, c) - P(v, c));
+    return Mesh(X, m.triangles());
+  };
+  const Mesh thin_below = pulled(false), thin_above = pulled(true);
+  ASSERT_LT(smallest_angle_deg(thin_below.positions(), thin_below.triangles()), kAutoMultigridMinAngleDeg);
+  EXPECT_TRUE(auto_tries_multigrid(thin_below, plate, free, few));
+  EXPECT_FALSE(auto_tries_multigrid(thin_above, plate, free, few));
+  const SteadySolveResult by_default = solve_steady(m, ops, plate, free, u, SteadySolver::Auto);
+  EXPECT_EQ(by_default.solver, SteadySolver::Direct);  // 2,3xx free vertices: below the rule
+  EXPECT_EQ(by_default.multigrid_probe_iterations, 0);
+  const SteadySolveResult lowered = solve_steady(m, ops, plate, free, u, SteadySolver::Auto, 1000);
+  EXPECT_EQ(lowered.solver, SteadySolver::Global);
+  EXPECT_GT(lowered.iterations, 0);
+  EXPECT_EQ(lowered.multigrid_probe_iterations, lowered.iterations);
+  EXPECT_LE(lowered.relative_residual, 1e-10);
+  EXPECT_LE((lowered.values - by_default.values).cwiseAbs().maxCoeff(), 1e-7 * by_default.values.cwiseAbs().maxCoeff());
+  EXPECT_EQ(solve_steady(m, ops, PdeCoefficients{.g0 = 0, .g1 = 1, .g2 = 0}, free, u, SteadySolver::Auto, 1000).solver,
+            SteadySolver::Direct);
+
+  // Auto's try with a hierarchy of two levels (the default coarsest level holds this
+  // whole mesh): kept on the sphere, to the same answer ...
+  SurfaceMultigridParams two_levels;
+  two_levels.coarsest_unknowns = kTestCoarsest;
+  int probe = -1;
+  const std::optional<SteadySolveResult> tried = try_multigrid_solve(m, ops, plate, free, u, &probe, two_levels);
+  ASSERT_TRUE(tried.has_value());
+  const SteadySolveResult kept = tried.value_or(SteadySolveResult{});
+  EXPECT_EQ(kept.solver, SteadySolver::Global);
+  EXPECT_GT(probe, 1);
+  EXPECT_LE(kept.relative_residual, 1e-10);
+  EXPECT_LE((kept.values - by_default.values).cwiseAbs().maxCoeff(), 1e-7 * by_default.values.cwiseAbs().maxCoeff());
+  // ... and given up on a badly shaped mesh (the icosphere stretched 8x along x, where
+  // the multigrid alone needs over 200 iterations) within a few iterations, where the
+  // shape rule does not even let Auto try it.
+  EXPECT_EQ(try_multigrid_solve(bad, bad_ops, plate, bad_free, bad_u, &probe, two_levels), std::nullopt);
+  EXPECT_GE(probe, GlobalBilaplacianParams{}.probe_iterations);
+  EXPECT_LT(probe, 50);
+  const SteadySolveResult untried = solve_steady(bad, bad_ops, plate, bad_free, bad_u, SteadySolver::Auto, 1);
+  EXPECT_EQ(untried.solver, SteadySolver::Direct);
+  EXPECT_EQ(untried.multigrid_probe_iterations, 0);
+  EXPECT_EQ(untried.values, solve_steady(bad, bad_ops, plate, bad_free, bad_u, SteadySolver::Direct).values);
+
+  // The correction's Auto: the direct solver (with its condition estimate) for a small
+  // region, and no refusal where only the direct solver serves (dynamic, fade).
+  CorrectionParams cp;
+  int top = 0;
+  m.positions().col(2).maxCoeff(&top);
+  cp.handles = {{top, Eigen::Vector3d(0, 0, 0.05)}};
+  cp.radius = 0.8;
+  const CorrectionResult c = correct_vessel(m, cp);
+  EXPECT_EQ(c.solver, SteadySolver::Direct);
+  EXPECT_GT(c.condition_estimate, 0);
+  cp.boundary = RegionBoundary::Fade;
+  EXPECT_EQ(correct_vessel(m, cp).solver, SteadySolver::Direct);
+  cp.boundary = RegionBoundary::Clamp;
+  cp.dynamic = true;
+  cp.steps = 3;
+  EXPECT_EQ(correct_vessel(m, cp).solver, SteadySolver::Direct);
+  cp.dynamic = false;
+  cp.solver = SteadySolver::Global;
+  EXPECT_EQ(correct_vessel(m, cp).solver, SteadySolver::Global);
 }
 
 TEST(GlobalBilaplacian, EveryRealMeshInTheCoreFormatsMatchesTheDirectSolve) {

@@ -98,7 +98,7 @@ def wave(V, F, *, sources=None, flux=None, impulses=None, dt=1e-3, steps=100, sp
                           laplacian, callback)
 
 
-def fair(V, F, fixed, *, order=2, regularize=False, dt=1.0, steps=15, damping=0.0, solver="direct",
+def fair(V, F, fixed, *, order=2, regularize=False, dt=1.0, steps=15, damping=0.0, solver="auto",
          laplacian="auto"):
     """Fairing: the free vertices solve the membrane (order 1) or thin-plate (order 2)
     equation with ``fixed`` held, as ``meshpde fair``.
@@ -106,18 +106,21 @@ def fair(V, F, fixed, *, order=2, regularize=False, dt=1.0, steps=15, damping=0.
     fixed: vertex indices, or selection specs as ``--fixed`` takes them ("boundary",
     "rings:V:K", "radius:V:R", "halfspace:NX,NY,NZ:D", "all", ...).
     regularize: seed 000's area-weighted membrane flow (``steps`` steps of ``dt``).
-    solver: "direct" (sparse Cholesky), "global" (multigrid-CG, order 2) or "iterative".
+    solver: "auto" (default: with order 2, the multigrid on meshes of 50,000 free
+    vertices or more without angles under 20 degrees, kept where it converges; else
+    "direct"), "direct" (sparse Cholesky), "global" (multigrid-CG, order 2) or
+    "iterative".
     laplacian: "auto" (intrinsic Delaunay on badly shaped or non-manifold meshes),
     "cotan" or "intrinsic"; ``regularize`` always uses area-weighted cotangent operators.
 
     Returns a namespace with ``V`` (n, 3), triangle quality ``before`` and ``after``
-    (dicts), ``cg_iterations``, ``worst_residual``, ``laplacian`` (the operators used)
-    and ``laplacian_reason``.
+    (dicts), ``cg_iterations``, ``worst_residual``, ``solver`` (the one that ran: "direct",
+    "global" or "iterative"), ``laplacian`` (the operators used) and ``laplacian_reason``.
     """
     return _meshpde._fair(V, F, fixed, order, regularize, dt, steps, damping, solver, laplacian)
 
 
-def interpolate(V, F, vertices, values, *, kind=None, method="componentwise", g1=0.0, g2=1.0, solver="direct",
+def interpolate(V, F, vertices, values, *, kind=None, method="componentwise", g1=0.0, g2=1.0, solver="auto",
                 laplacian="auto"):
     """Scattered-data interpolation (g1 K + g2 K D K) u = 0 with u given at ``vertices``.
 
@@ -127,6 +130,9 @@ def interpolate(V, F, vertices, values, *, kind=None, method="componentwise", g1
     g2 > 0 reproduces linear fields exactly; g1 alone gives spikes.
     laplacian: "auto" (intrinsic Delaunay on badly shaped or non-manifold meshes; tangent
     fields always use the cotangent operators of the input triangles), "cotan" or "intrinsic".
+    solver: "auto" (default: with g2 > 0, the multigrid on meshes of 50,000 free
+    vertices or more without angles under 20 degrees, kept where it converges; else
+    "direct"), "direct", "global" (multigrid-CG; g2 > 0) or "iterative" (Jacobi-CG).
     Returns (n,) or (n, 3).
     """
     if kind is None:
@@ -172,8 +178,11 @@ _CORRECT_DOC = """
     pair with the voxel-to-LPS-mm affine of :func:`read_volume`: pull the wall onto
     its edges. space: "lps" or "ras", the frame of V. image_weight (30),
     image_sigma (1 mm), search_radius (3 mm), cube (0: off), passes (4).
-    solver: "direct" (default), "global" (multigrid-CG, for very large regions) or
+    solver: "auto" (default: for a static, unguided fem region of 50,000 free vertices
+    or more without angles under 20 degrees, the multigrid, kept where it converges;
+    else "direct"), "direct", "global" (multigrid-CG, for very large regions) or
     "iterative" (Jacobi-CG); the last two for the static fem correction without image.
+    The result's ``solver`` says which one ran.
 
     Returns a :class:`CorrectionResult`: V, displacement, region and the report fields
     of ``meshpde correct --json`` under the same names (``to_dict()`` gives them all).
@@ -183,7 +192,7 @@ _CORRECT_DOC = """
 def correct(V, F, vertices, moves, *, radius=0.0, rings=0, method="fem", g1=0.0, g2=1.0, laplacian="auto",
             stiffness=None, dynamic=False, steps=50, mass=0.1, elasticity=0.9, viscosity=0.6,
             allow_intersections=False, max_substeps=8, image=None, space="lps", image_weight=30.0, image_sigma=1.0,
-            search_radius=3.0, cube=0, passes=4, solver="direct", units="mm", boundary="clamp"):
+            search_radius=3.0, cube=0, passes=4, solver="auto", units="mm", boundary="clamp"):
     return _meshpde._correct(V, F, vertices, moves, _correction_options(
         radius, rings, method, g1, g2, laplacian, stiffness, dynamic, steps, mass, elasticity, viscosity,
         allow_intersections, max_substeps, image, space, image_weight, image_sigma, search_radius, cube, passes,
@@ -202,7 +211,7 @@ class CorrectionSession(_meshpde._CorrectionSession):
     def apply(self, vertices, moves, *, radius=0.0, rings=0, method="fem", g1=0.0, g2=1.0, laplacian="auto",
               stiffness=None, dynamic=False, steps=50, mass=0.1, elasticity=0.9, viscosity=0.6,
               allow_intersections=False, max_substeps=8, image=None, space="lps", image_weight=30.0,
-              image_sigma=1.0, search_radius=3.0, cube=0, passes=4, solver="direct", units="mm", boundary="clamp"):
+              image_sigma=1.0, search_radius=3.0, cube=0, passes=4, solver="auto", units="mm", boundary="clamp"):
         return self._apply(vertices, moves, _correction_options(
             radius, rings, method, g1, g2, laplacian, stiffness, dynamic, steps, mass, elasticity, viscosity,
             allow_intersections, max_substeps, image, space, image_weight, image_sigma, search_radius, cube, passes,

@@ -54,10 +54,11 @@ std::vector<std::pair<int, double>> vertex_values_arg(const py::handle& obj, con
 }
 
 SteadySolver solver_arg(const std::string& name) {
-  if (name == "direct") return SteadySolver::Direct;
-  if (name == "global") return SteadySolver::Global;
-  if (name == "iterative") return SteadySolver::Iterative;
-  throw py::value_error(fmt::format("solver: expected 'direct', 'global' or 'iterative', got '{}'", name));
+  try {
+    return parse_steady_solver(name);
+  } catch (const InputError& e) {
+    throw py::value_error(e.what());  // a bad argument, as Python reports one
+  }
 }
 
 // Vertex indices, or selection specs as `meshpde fair --fixed` takes them ("boundary",
@@ -121,7 +122,7 @@ py::object run_propagation(Propagation eq, const py::handle& V, const py::handle
 struct CorrectionOptions {
   CorrectionParams params;
   std::string method = "fem";
-  std::string solver = "direct";
+  std::string solver = "auto";
   std::optional<std::string> image_space;
   std::string units_warning;  // the mesh looks unlike a vessel in params.units
 };
@@ -286,6 +287,7 @@ struct PyCorrectionResult {
 PyCorrectionResult wrap(CorrectionResult r, const CorrectionOptions& c) {
   PyCorrectionResult out{std::move(r),  c.method, c.params.dynamic,          static_cast<int>(c.params.handles.size()),
                          c.image_space, c.solver, to_string(c.params.units), to_string(c.params.boundary)};
+  out.solver = to_string(out.r.solver);  // the one that ran: auto resolved
   if (!c.units_warning.empty()) PyErr_WarnEx(PyExc_UserWarning, c.units_warning.c_str(), 1);
   if (!out.r.region_warning.empty()) PyErr_WarnEx(PyExc_UserWarning, out.r.region_warning.c_str(), 1);
   if (!out.r.accuracy_warning.empty()) PyErr_WarnEx(PyExc_RuntimeWarning, out.r.accuracy_warning.c_str(), 1);
@@ -374,6 +376,7 @@ void bind_apps(py::module_& m) {
         d["after"] = quality(r.after);
         d["cg_iterations"] = r.cg_iterations;
         d["worst_residual"] = r.worst_residual;
+        d["solver"] = to_string(r.solver);
         d["laplacian"] = to_string(r.laplacian);
         d["laplacian_reason"] = r.laplacian_reason;
         return py::module_::import("types").attr("SimpleNamespace")(**d);

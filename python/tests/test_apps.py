@@ -271,6 +271,26 @@ def test_correct_solvers_agree_with_the_direct_one_and_the_cli(cli, ico, tmp_pat
         meshpde.correct(V, F, [0], [(0, 0, 0.1)], radius=0.6, solver=solver, dynamic=True)
 
 
+def test_the_default_solver_is_auto_and_says_which_one_ran(cli, ico, tmp_path):
+    # Auto tries the multigrid only on meshes of 50,000 free vertices or more; below,
+    # the direct solver, and every report names the one that ran.
+    path, V, F = ico
+    report = cli("correct", path, "--vertex", 0, "--move", "0,0,0.1", "--radius", 0.6, "-o", tmp_path / "c.ply",
+                 "--json", json_out=True)
+    assert report["solver"] == "direct" and report["condition_estimate"] > 0
+    assert meshpde.correct(V, F, [0], [(0, 0, 0.1)], radius=0.6).solver == "direct"
+    assert meshpde.correct(V, F, [0], [(0, 0, 0.1)], radius=0.6, solver="global").solver == "global"
+    fixed = np.flatnonzero(V[:, 2] <= -0.5)
+    assert meshpde.fair(V, F, fixed).solver == "direct"
+    assert meshpde.fair(V, F, fixed, solver="global").solver == "global"
+    assert meshpde.fair(V, F, fixed, regularize=True, order=1, steps=2).solver == "iterative"
+    report = cli("fair", path, "--fixed", "halfspace:0,0,1:-0.5", "-o", tmp_path / "f.ply", "--json",
+                 json_out=True)
+    assert report["solver"] == "direct"
+    with pytest.raises(ValueError, match="'auto', 'direct', 'global' or 'iterative'"):
+        meshpde.interpolate(V, F, [0], [1.0], solver="cholesky")
+
+
 @pytest.mark.parametrize("laplacian", ["cotan", "intrinsic"])
 def test_poke_with_either_laplacian_equals_the_python_session(cli, ico, tmp_path, laplacian):
     # On the icosphere (Delaunay already) both operators are the same: the same forces.

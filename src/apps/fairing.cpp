@@ -23,7 +23,7 @@ TriangleQuality triangle_quality(const Positions& V, const Triangles& F, const s
   TriangleQuality q;
   q.area_histogram.assign(TriangleQuality::bin_edges().size() - 1, 0);
   std::vector<double> area;
-  double min_angle = 180, amin = std::numeric_limits<double>::infinity(), amax = 0;
+  double amin = std::numeric_limits<double>::infinity(), amax = 0;
   for (int f : list) {
     const Eigen::Vector3d p[3] = {V.row(F(f, 0)), V.row(F(f, 1)), V.row(F(f, 2))};
     const double A = 0.5 * (p[1] - p[0]).cross(p[2] - p[0]).norm();
@@ -31,12 +31,8 @@ TriangleQuality triangle_quality(const Positions& V, const Triangles& F, const s
     if (!(A > 0)) continue;
     amin = std::min(amin, A);
     amax = std::max(amax, A);
-    for (int c = 0; c < 3; ++c) {
-      const Eigen::Vector3d u = p[(c + 1) % 3] - p[c], w = p[(c + 2) % 3] - p[c];
-      min_angle = std::min(min_angle, std::atan2(u.cross(w).norm(), u.dot(w)) * 180 / M_PI);
-    }
   }
-  q.min_angle_deg = min_angle;
+  q.min_angle_deg = smallest_angle_deg(V, F, list);
   q.area_ratio = amax > 0 ? amax / amin : 0;
   double mean = 0;
   for (double A : area) mean += A / static_cast<double>(area.size());
@@ -79,6 +75,7 @@ FairResult fair(const Mesh& mesh, const std::vector<int>& fixed, const FairParam
     SteadySolveResult s =
         solve_steady(mo.mesh, mo.ops, PdeCoefficients{.g0 = 0, .g1 = g1, .g2 = g2}, free, mesh.positions(), p.solver);
     r.V = std::move(s.values);
+    r.solver = s.solver;
     r.worst_residual = s.relative_residual;
     r.cg_iterations = s.iterations;
     r.after = triangle_quality(r.V, F, free_faces);

@@ -19,7 +19,7 @@ namespace {
 
 Field solve_scalar_like(const Mesh& mesh, const FemOperators& ops, int m,
                         const std::vector<InterpolationConstraint>& cons, const InterpolationParams& p, CgResult& cg,
-                        const std::vector<Eigen::VectorXd>* values = nullptr) {
+                        SteadySolver& used, const std::vector<Eigen::VectorXd>* values = nullptr) {
   if (p.solver != SteadySolver::Iterative) {
     std::vector<char> held(mesh.num_vertices(), 0);
     Field u = Field::Zero(mesh.num_vertices(), m);
@@ -31,12 +31,14 @@ Field solve_scalar_like(const Mesh& mesh, const FemOperators& ops, int m,
     for (int v = 0; v < mesh.num_vertices(); ++v)
       if (!held[v] && ops.mass[v] > 0) free.push_back(v);
     SteadySolveResult s = solve_steady(mesh, ops, PdeCoefficients{.g0 = 0, .g1 = p.g1, .g2 = p.g2}, free, u, p.solver);
+    used = s.solver;
     cg = CgResult{.status = CgStatus::Converged,
                   .iterations = s.iterations,
                   .relative_residual = s.relative_residual,
                   .message = {}};
     return std::move(s.values);
   }
+  used = SteadySolver::Iterative;
   PdeSession s(mesh, ops, m, PdeCoefficients{.alpha = 0, .b1 = 0, .b2 = 0, .g0 = 0, .g1 = p.g1, .g2 = p.g2},
                DomainOptions{.seed_rings = 0});
   s.cg_options = p.cg;
@@ -72,7 +74,7 @@ InterpolationResult interpolate(const Mesh& mesh, const FemOperators& ops, Field
   }
   InterpolationResult r;
   if (kind != FieldKind::Tangent || p.method == TangentMethod::Componentwise) {
-    r.values = solve_scalar_like(mesh, ops, m, cons, p, r.cg);
+    r.values = solve_scalar_like(mesh, ops, m, cons, p, r.cg, r.solver);
     if (kind == FieldKind::Tangent) {
       const Eigen::MatrixX3d N = vertex_normals(mesh);
       for (int i = 0; i < nv; ++i) {
@@ -96,7 +98,7 @@ InterpolationResult interpolate(const Mesh& mesh, const FemOperators& ops, Field
     dir_fixed[2 * c.vertex + 1] = std::sin(a);
     mags.push_back({c.vertex, Eigen::VectorXd::Constant(1, t.norm())});
   }
-  const Field magnitude = solve_scalar_like(mesh, ops, 1, mags, p, r.cg);
+  const Field magnitude = solve_scalar_like(mesh, ops, 1, mags, p, r.cg, r.solver);
   // Kt for directions: g1 L + g2 L D L on the 2-vectors, solved directly on free DOFs.
   const Eigen::SparseMatrix<double> L = connection_laplacian(mesh, conn, ops.Kii, ops.Kij);
   Eigen::SparseMatrix<double> D2(2 * nv, 2 * nv);

@@ -36,6 +36,7 @@ DragResult drag_vertex(const Mesh& mesh, const FemOperators& ops, const DragPara
     SteadySolveResult s =
         solve_steady(mesh, ops, PdeCoefficients{.g0 = 0, .g1 = p.g1, .g2 = p.g2}, free, held, p.solver);
     r.displacement = std::move(s.values);
+    r.solver = s.solver;
     r.cg = CgResult{.status = CgStatus::Converged,
                     .iterations = s.iterations,
                     .relative_residual = s.relative_residual,

@@ -141,7 +141,8 @@ void validate(const Mesh& mesh, const CorrectionParams& p) {
         throw InputError(fmt::format("{} {} at vertex {} is outside [0, 1]", name, (*f)[i], i));
   }
   if (p.dynamic && p.steps < 1) throw InputError("a dynamic correction needs steps >= 1");
-  if (p.solver != SteadySolver::Direct && (p.dynamic || p.image.edges || p.method != CorrectionMethod::Fem))
+  const bool chosen = p.solver == SteadySolver::Global || p.solver == SteadySolver::Iterative;
+  if (chosen && (p.dynamic || p.image.edges || p.method != CorrectionMethod::Fem))
     throw InputError("the global and iterative solvers take the static fem correction without image guidance only");
   if (p.solver == SteadySolver::Global && !(p.g2 > 0))
     throw InputError("the global solver needs g2 > 0 (a bi-Laplacian term)");
@@ -152,7 +153,7 @@ void validate(const Mesh& mesh, const CorrectionParams& p) {
   if (p.boundary == RegionBoundary::Fade) {
     if (p.method != CorrectionMethod::Fem || p.radius <= 0)
       throw InputError("--boundary fade takes the fem method with a radius (not rings)");
-    if (p.solver != SteadySolver::Direct) throw InputError("--boundary fade takes the direct solver");
+    if (chosen) throw InputError("--boundary fade takes the direct solver");
   }
 }
 
@@ -445,9 +446,20 @@ Field fem_solve_local(const Mesh& mesh, const CorrectionParams& p, const std::ve
   const PdeCoefficients coef{.g0 = 0, .g1 = p.dynamic ? e * p.g1 : p.g1, .g2 = p.dynamic ? e * p.g2 : p.g2};
   if (p.dynamic)
     for (int v : s.free) extra[v] += (alpha[v] / (dt * dt) + b1[v] / dt) * s.mo.ops.mass[v];
-  if (p.solver != SteadySolver::Direct) {  // static and unguided (validate() made sure)
+  // Auto: the multigrid's try on a large static, unguided region without the fade's
+  // foundation (the cases the global solver takes), kept where it converges; the direct
+  // solve (with its condition estimate) otherwise.
+  const bool plain_static = !p.dynamic && !guided && !(extra.maxCoeff() > 0);
+  r.solver = p.solver == SteadySolver::Auto ? SteadySolver::Direct : p.solver;
+  if (p.solver == SteadySolver::Auto && plain_static && auto_tries_multigrid(s.mo.mesh, coef, s.free))
+    if (std::optional<SteadySolveResult> g = try_multigrid_solve(s.mo.mesh, s.mo.ops, coef, s.free, held)) {
+      r.solver = SteadySolver::Global;
+      r.relative_residual = std::max(r.relative_residual, g->relative_residual);
+      return std::move(g->values);
+    }
+  if (r.solver != SteadySolver::Direct) {  // static and unguided (validate() made sure)
     SteadySolveResult sr;
-    if (p.solver == SteadySolver::Global) {
+    if (r.solver == SteadySolver::Global) {
       sr = solve_steady(s.mo.mesh, s.mo.ops, coef, s.free, held, SteadySolver::Global);
     } else {
       PdeSession cg(s.mo.mesh, s.mo.ops, 3, PdeCoefficients{.alpha = 0, .b1 = 0, .b2 = 0, .g1 = coef.g1, .g2 = coef.g2},

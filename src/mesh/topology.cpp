@@ -43,6 +43,21 @@ bool is_degenerate(const Mesh& mesh, int f) {
   return triangle_area(mesh, f) <= kDegenerateAreaRelTol * longest_edge_sq(a, b, c);
 }
 
+double smallest_angle_deg(const Positions& V, const Triangles& F, const std::vector<int>& faces) {
+  double smallest = 180;
+  const auto n = static_cast<int>(faces.empty() ? F.rows() : static_cast<Eigen::Index>(faces.size()));
+  for (int k = 0; k < n; ++k) {
+    const int f = faces.empty() ? k : faces[static_cast<std::size_t>(k)];
+    const Eigen::Vector3d p[3] = {V.row(F(f, 0)), V.row(F(f, 1)), V.row(F(f, 2))};
+    if (!((p[1] - p[0]).cross(p[2] - p[0]).norm() > 0)) continue;
+    for (int c = 0; c < 3; ++c) {
+      const Eigen::Vector3d u = p[(c + 1) % 3] - p[c], w = p[(c + 2) % 3] - p[c];
+      smallest = std::min(smallest, std::atan2(u.cross(w).norm(), u.dot(w)) * 180 / M_PI);
+    }
+  }
+  return smallest;
+}
+
 double mean_edge_length(const Mesh& mesh) {
   const auto& V = mesh.positions();
   const auto& E = mesh.edges();

@@ -161,8 +161,10 @@ struct GlobalBilaplacianSolver::Impl {
       res.solve_seconds = seconds_since(t1);
       res.multigrid_seconds = seconds_since(t_mg);
       handed_on = p.preconditioner == Preconditioner::Auto && !r.converged && r.iterations < p.max_iterations;
-      if (!handed_on) {
+      if (!handed_on || !p.hand_on_to_factor) {
         res.used = Preconditioner::Multigrid;
+        res.multigrid_given_up = handed_on;
+        if (handed_on) multigrid.reset();  // judged too slow: not kept for the next solves
         finish();
         return res;
       }

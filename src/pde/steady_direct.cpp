@@ -11,6 +11,7 @@
 #include "free_parts.h"
 #include "meshpde/core/errors.h"
 #include "meshpde/core/parallel.h"
+#include "meshpde/mesh/topology.h"
 #include "meshpde/pde/global_bilaplacian.h"
 #include "meshpde/solvers/refinement.h"
 
@@ -379,9 +380,85 @@ SteadyDirectSolver::Conditioning SteadyDirectSolver::conditioning(double accurac
   return c;
 }
 
+SteadySolver parse_steady_solver(const std::string& name) {
+  for (const SteadySolver s : {SteadySolver::Auto, SteadySolver::Direct, SteadySolver::Iterative, SteadySolver::Global})
+    if (name == to_string(s)) return s;
+  throw InputError(fmt::format("solver: expected 'auto', 'direct', 'global' or 'iterative', got '{}'", name));
+}
+
+const char* to_string(SteadySolver solver) {
+  switch (solver) {
+    case SteadySolver::Auto:
+      return "auto";
+    case SteadySolver::Direct:
+      return "direct";
+    case SteadySolver::Iterative:
+      return "iterative";
+    case SteadySolver::Global:
+      return "global";
+  }
+  return "unknown";
+}
+
+bool auto_tries_multigrid(const Mesh& mesh, const PdeCoefficients& coefficients, const std::vector<int>& free,
+                          int global_from) {
+  if (!(coefficients.g2 > 0) || coefficients.g0 != 0 ||
+      free.size() < static_cast<std::size_t>(std::max(global_from, 0)))
+    return false;
+  std::vector<char> is_free(static_cast<std::size_t>(mesh.num_vertices()), 0);
+  for (const int v : free)
+    if (v >= 0 && v < mesh.num_vertices()) is_free[static_cast<std::size_t>(v)] = 1;
+  const Triangles& F = mesh.triangles();
+  std::vector<int> around;
+  for (int f = 0; f < F.rows(); ++f)
+    if (is_free[static_cast<std::size_t>(F(f, 0))] || is_free[static_cast<std::size_t>(F(f, 1))] ||
+        is_free[static_cast<std::size_t>(F(f, 2))])
+      around.push_back(f);
+  return smallest_angle_deg(mesh.positions(), F, around) >= kAutoMultigridMinAngleDeg;
+}
+
+std::optional<SteadySolveResult> try_multigrid_solve(const Mesh& mesh, const FemOperators& ops,
+                                                     const PdeCoefficients& coefficients, const std::vector<int>& free,
+                                                     const Field& u, int* probe_iterations,
+                                                     const SurfaceMultigridParams& multigrid) {
+  if (probe_iterations) *probe_iterations = 0;
+  // The multigrid's probe decides: kept where it converges (well-shaped meshes, where it
+  // is several times faster than a factorization), given up where its rate predicts more
+  // than max_multigrid_iterations (real meshes with slivers, where neither it nor the
+  // Laplacian factor beats the direct solve: docs/solvers.md).
+  GlobalBilaplacianParams gp{.g1 = coefficients.g1, .g2 = coefficients.g2, .tolerance = 1e-10};
+  gp.hand_on_to_factor = false;
+  gp.multigrid = multigrid;
+  try {
+    GlobalBilaplacianResult g = solve_global_bilaplacian(mesh, ops, free, u, gp);
+    if (probe_iterations) *probe_iterations = g.multigrid_iterations;
+    if (!g.converged) return std::nullopt;
+    SteadySolveResult r;
+    r.values = std::move(g.values);
+    r.iterations = g.iterations;
+    r.relative_residual = g.relative_residual;
+    r.solver = SteadySolver::Global;
+    r.multigrid_probe_iterations = g.multigrid_iterations;
+    return r;
+  } catch (const SolverError&) {
+    // The multigrid cannot serve this mesh (a coarse level that rounding makes
+    // indefinite, as carotid-ica-4k's cotangent one): the direct solve's turn.
+    return std::nullopt;
+  }
+}
+
 SteadySolveResult solve_steady(const Mesh& mesh, const FemOperators& ops, const PdeCoefficients& coefficients,
-                               const std::vector<int>& free, const Field& u, SteadySolver solver) {
+                               const std::vector<int>& free, const Field& u, SteadySolver solver, int global_from) {
+  int probe = 0;
+  if (solver == SteadySolver::Auto) {
+    if (auto_tries_multigrid(mesh, coefficients, free, global_from))
+      if (std::optional<SteadySolveResult> g = try_multigrid_solve(mesh, ops, coefficients, free, u, &probe))
+        return std::move(*g);
+    solver = SteadySolver::Direct;
+  }
   SteadySolveResult r;
+  r.multigrid_probe_iterations = probe;
+  r.solver = solver;
   if (solver == SteadySolver::Direct) {
     const SteadyDirectSolver direct(mesh, ops, coefficients, free);
     r.values = direct.solve(u);

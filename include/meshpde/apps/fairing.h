@@ -41,7 +41,10 @@ struct FairParams {
   /// geometry, which is what the seed's b1 = 0.01 amounts to at its scale (b1 M is
   /// negligible next to dt K there).
   double damping = 0.0;
-  SteadySolver solver = SteadySolver::Direct;  ///< for the static solve (Global: order 2 only)
+  /// The static solve's: Auto (default: for order 2 the multigrid on large, well-shaped
+  /// meshes where it converges, else Direct: SteadySolver's rule), Direct, Global (order
+  /// 2 only) or Iterative; pde/steady_direct.h. Regularized fairing steps by CG.
+  SteadySolver solver = SteadySolver::Auto;
   CgOptions cg{.tolerance = 1e-10, .max_iterations = 100000};
   /// Operators of the static solve: Auto (default) takes intrinsic Delaunay on badly
   /// shaped meshes (operators/laplacian.h), where the cotangent K has weights of 1e9
@@ -66,7 +69,9 @@ struct FairResult {
   Positions V;                    ///< faired positions
   TriangleQuality before, after;  ///< over the faces touching a free vertex
   long long cg_iterations = 0;
-  double worst_residual = 0;                       ///< largest relative residual over the solves
+  double worst_residual = 0;  ///< largest relative residual over the solves
+  SteadySolver solver =
+      SteadySolver::Iterative;  ///< the solver that ran: Direct or Global (Auto resolved); Iterative for CG
   LaplacianKind laplacian = LaplacianKind::Cotan;  ///< the operators of the static solve
   std::string laplacian_reason;                    ///< why Auto chose them
 };

@@ -42,8 +42,11 @@ struct InterpolationParams {
   double g1 = 0;  ///< Laplacian (membrane) weight
   double g2 = 1;  ///< bi-Laplacian (thin plate) weight
   TangentMethod method = TangentMethod::Componentwise;
-  /// Direct, Global (large meshes; g2 > 0) or Iterative (Jacobi-CG), pde/steady_direct.h
-  SteadySolver solver = SteadySolver::Direct;
+  /// Auto (default: the multigrid on large, well-shaped meshes where it converges, else
+  /// Direct: SteadySolver's rule), Direct, Global (large meshes; g2 > 0) or Iterative
+  /// (Jacobi-CG), pde/steady_direct.h. Connection-aware tangent directions are always
+  /// solved directly.
+  SteadySolver solver = SteadySolver::Auto;
   CgOptions cg{.tolerance = 1e-11, .max_iterations = 200000};  ///< for SteadySolver::Iterative
   /// Operators of the overloads without `ops`: Auto (default) takes intrinsic Delaunay
   /// on badly shaped meshes (operators/laplacian.h), where the cotangent K has weights
@@ -53,8 +56,9 @@ struct InterpolationParams {
 };
 
 struct InterpolationResult {
-  Field values;  ///< #V x 1 or #V x 3
-  CgResult cg;   ///< of the (last) solve: iterations (0 for direct) and relative residual
+  Field values;                                ///< #V x 1 or #V x 3
+  CgResult cg;                                 ///< of the (last) solve: iterations (0 for direct) and relative residual
+  SteadySolver solver = SteadySolver::Direct;  ///< the solver of the (scalar or magnitude) solve: Auto resolved
   LaplacianKind laplacian = LaplacianKind::Cotan;  ///< the operators used (overloads without `ops`)
   std::string laplacian_reason;                    ///< why Auto chose them
 };

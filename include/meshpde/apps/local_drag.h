@@ -27,7 +27,10 @@ struct DragParams {
   int rings = 0;      ///< region of influence in rings of neighbours (used when radius == 0)
   double g1 = 0;      ///< membrane stiffness
   double g2 = 1;      ///< plate (bi-Laplacian) stiffness
-  SteadySolver solver = SteadySolver::Direct;  ///< Direct, Global (g2 > 0) or Iterative, pde/steady_direct.h
+  /// Auto (default: the multigrid on large, well-shaped regions where it converges, else
+  /// Direct: SteadySolver's rule), Direct, Global (g2 > 0) or Iterative,
+  /// pde/steady_direct.h
+  SteadySolver solver = SteadySolver::Auto;
   CgOptions cg{.tolerance = 1e-10, .max_iterations = 50000};  ///< for SteadySolver::Iterative
 };
 
@@ -39,6 +42,7 @@ struct DragResult {
   double max_displacement = 0;                         ///< largest |d|
   Eigen::Vector3d reaction = Eigen::Vector3d::Zero();  ///< force holding the handle
   CgResult cg;
+  SteadySolver solver = SteadySolver::Iterative;  ///< the solver that ran (Auto resolved)
 };
 
 // The region is mesh/regions.h's region_around (the geodesic ball of the radius, else

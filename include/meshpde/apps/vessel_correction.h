@@ -198,12 +198,14 @@ struct CorrectionParams {
   bool prevent_intersections = true;
   int max_substeps = 8;  ///< most steps a correction is split into before it is limited; default 8
   ImageGuidance image;   ///< off unless image.edges is set
-  /// How the Fem system is solved: Direct (default: a sparse Cholesky factor of the
-  /// region's matrix, with a condition estimate), Global (CG preconditioned by the
-  /// surface multigrid or the Laplacian factor, pde/global_bilaplacian.h: for regions
-  /// of hundreds of thousands of vertices; g2 > 0) or Iterative (Jacobi-CG, no factor:
-  /// for comparison). Global and Iterative solve the static, unguided problem only.
-  SteadySolver solver = SteadySolver::Direct;
+  /// How the Fem system is solved: Auto (default: for a static, unguided region without
+  /// the fade, the multigrid where SteadySolver's rule tries it and it converges, Direct
+  /// otherwise), Direct (a sparse Cholesky factor of the region's matrix, with a
+  /// condition estimate), Global (CG preconditioned by the surface multigrid or the
+  /// Laplacian factor, pde/global_bilaplacian.h: for regions of hundreds of thousands of
+  /// vertices; g2 > 0) or Iterative (Jacobi-CG, no factor: for comparison). Global and
+  /// Iterative solve the static, unguided problem only.
+  SteadySolver solver = SteadySolver::Auto;
   CgOptions cg{.tolerance = 1e-10, .max_iterations = 50000};  ///< for SteadySolver::Iterative
 };
 
@@ -237,19 +239,20 @@ struct CorrectionRegion {
 CorrectionRegion correction_region(const Mesh& mesh, const CorrectionParams& params);
 
 struct CorrectionResult {
-  Positions V;                               ///< corrected positions (the mesh's unit)
-  Field displacement;                        ///< #V x 3, the mesh's unit (mm unless params.units says otherwise)
-  std::vector<int> region;                   ///< vertices of the region of influence (handles included)
-  int moved_vertices = 0;                    ///< |d| > 1e-6 of the largest handle displacement
-  double max_displacement = 0;               ///< mm
-  int new_self_intersections = 0;            ///< triangle pairs intersecting now that did not before
-  double applied_fraction = 1;               ///< share of the requested displacement applied (< 1: limited)
-  int substeps = 1;                          ///< steps the displacement was split into
-  std::string intersection_action = "none";  ///< none | split into N steps | limited to F
-  double relative_residual = 0;              ///< worst relative residual of the accepted solves
-  double condition_estimate = 0;             ///< largest cond_1 of the scaled system (SteadyDirectSolver::conditioning)
-  double error_bound = 0;                    ///< largest estimated relative error of a solve
-  std::string accuracy_warning;              ///< set when a solve cannot promise 1e-5 relative accuracy
+  Positions V;                                 ///< corrected positions (the mesh's unit)
+  Field displacement;                          ///< #V x 3, the mesh's unit (mm unless params.units says otherwise)
+  std::vector<int> region;                     ///< vertices of the region of influence (handles included)
+  int moved_vertices = 0;                      ///< |d| > 1e-6 of the largest handle displacement
+  double max_displacement = 0;                 ///< mm
+  int new_self_intersections = 0;              ///< triangle pairs intersecting now that did not before
+  double applied_fraction = 1;                 ///< share of the requested displacement applied (< 1: limited)
+  int substeps = 1;                            ///< steps the displacement was split into
+  std::string intersection_action = "none";    ///< none | split into N steps | limited to F
+  double relative_residual = 0;                ///< worst relative residual of the accepted solves
+  SteadySolver solver = SteadySolver::Direct;  ///< the Fem solves' solver (Auto resolved; Direct for springs)
+  double condition_estimate = 0;  ///< largest cond_1 of the scaled system (SteadyDirectSolver::conditioning)
+  double error_bound = 0;         ///< largest estimated relative error of a solve
+  std::string accuracy_warning;   ///< set when a solve cannot promise 1e-5 relative accuracy
   /// Set when the region holds nothing but the handles (a radius below about one edge
   /// length): only the handles move, the wall around them does not follow.
   std::string region_warning;

@@ -60,6 +60,10 @@ MeshReport analyze(const Mesh& mesh, const ShapeWarningThresholds& thresholds = 
 /// Mean length of the unique edges (0 for a mesh without edges).
 double mean_edge_length(const Mesh& mesh);
 
+/// The smallest interior angle, in degrees, of the listed triangles (all of them when
+/// `faces` is empty), skipping triangles of zero area; 180 when none is left.
+double smallest_angle_deg(const Positions& V, const Triangles& F, const std::vector<int>& faces = {});
+
 /// Unit vertex normals (#V x 3), area-weighted, oriented as the triangles are
 /// (inward on an inward-oriented mesh); zero rows where a vertex has no area.
 Eigen::MatrixX3d vertex_normals(const Mesh& mesh);

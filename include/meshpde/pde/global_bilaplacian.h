@@ -53,6 +53,11 @@ struct GlobalBilaplacianParams {
   /// more iterations in all than this (docs/solvers.md: icospheres need 15-26, real
   /// meshes with slivers 80-900, where the factor needs 7-38 iterations at 3-4x the cost).
   double max_multigrid_iterations = 50;
+  /// Auto: once the probe judges the multigrid too slow, go on with the Laplacian factor
+  /// (true, the default), or stop there and return unconverged with
+  /// `multigrid_given_up` set (false: for a caller with a faster route on such meshes,
+  /// as SteadySolver::Auto's direct solve).
+  bool hand_on_to_factor = true;
 };
 
 struct GlobalBilaplacianResult {
@@ -66,6 +71,9 @@ struct GlobalBilaplacianResult {
   /// converged before `probe_iterations`).
   double multigrid_predicted_iterations = 0;
   double multigrid_seconds = 0;  ///< the multigrid's set-up and iterations
+  /// Auto with hand_on_to_factor = false: the probe judged the multigrid too slow and
+  /// the solve stopped there (values: the multigrid's iterate; converged: false).
+  bool multigrid_given_up = false;
   double relative_residual = 0;  ///< worst component
   bool converged = false;
   double setup_seconds = 0;  ///< the right-hand side, the multigrid hierarchy and/or assembly and factorization of K_FF

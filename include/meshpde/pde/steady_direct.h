@@ -7,6 +7,8 @@
 // Jacobi-CG's iteration count grows like h^-4 (see docs/solvers.md).
 #pragma once
 
+#include <cstddef>
+#include <optional>
 #include <string>
 #include <unordered_map>
 #include <utility>
@@ -16,31 +18,80 @@
 #include "meshpde/operators/fem_operators.h"
 #include "meshpde/pde/pde_session.h"
 #include "meshpde/solvers/direct.h"
+#include "meshpde/solvers/surface_multigrid.h"
 
 namespace meshpde {
 
 /// Which solver steady problems use:
-///  - Direct (the default): SteadyDirectSolver, a sparse Cholesky factor of Kt_FF;
+///  - Auto (the default): on a bi-Laplacian problem without g0, with at least
+///    kAutoGlobalFromFreeVertices free vertices and no angle below
+///    kAutoMultigridMinAngleDeg around them, the global solver with the surface
+///    multigrid, kept where its own rate of convergence says it converges (well-shaped
+///    meshes: about three times faster than a factorization) and given up for Direct
+///    where it does not; Direct on everything else. The measured rule: docs/solvers.md,
+///    "Auto: which steady solver, by size and by mesh";
+///  - Direct: SteadyDirectSolver, a sparse Cholesky factor of Kt_FF;
 ///  - Iterative: Jacobi-CG through PdeSession::solve_steady, no factorization memory,
 ///    iteration counts that grow like h^-4;
 ///  - Global: CG preconditioned by the surface multigrid or the Laplacian factor, chosen
 ///    per mesh (pde/global_bilaplacian.h, Preconditioner::Auto), to a relative residual
 ///    of 1e-10: for large free sets, where a factor of Kt_FF costs about 2 KB a vertex
 ///    and this about 0.7-1 KB. Needs g2 > 0 and g0 = 0.
-enum class SteadySolver { Direct, Iterative, Global };
+enum class SteadySolver { Auto, Direct, Iterative, Global };
+
+/// "auto", "direct", "iterative", "global": the names the commands and the Python
+/// module take. \throw InputError for any other name.
+SteadySolver parse_steady_solver(const std::string& name);
+const char* to_string(SteadySolver solver);
+
+/// Auto's size rule: from this many free vertices on, Auto may try the multigrid on a
+/// bi-Laplacian problem without g0 (below it a factorization costs little, and the
+/// multigrid's set-up and probe would weigh more than they can save).
+inline constexpr int kAutoGlobalFromFreeVertices = 50000;
+/// Auto's shape rule: it tries the multigrid only where every triangle touching a free
+/// vertex has all its angles at least this large (the quality that Delaunay refinement
+/// guarantees, 20.7 degrees, and isotropic remeshers reach). On every real mesh of the
+/// data folder the multigrid's probe gave up (their smallest angles are 0.0002-5.4
+/// degrees, a vessel remeshed to a median angle of 55 degrees included), at a cost of
+/// 11-53 % of a direct solve; the rule spares them that.
+inline constexpr double kAutoMultigridMinAngleDeg = 20;
+
+/// Whether Auto tries the multigrid: g2 > 0, g0 = 0, at least `global_from` free
+/// vertices, and no angle below kAutoMultigridMinAngleDeg in the triangles touching
+/// a free vertex.
+bool auto_tries_multigrid(const Mesh& mesh, const PdeCoefficients& coefficients, const std::vector<int>& free,
+                          int global_from = kAutoGlobalFromFreeVertices);
 
 struct SteadySolveResult {
-  Field values;                  ///< u with the free rows solved
-  int iterations = 0;            ///< CG iterations (0 for Direct)
-  double relative_residual = 0;  ///< |b - Kt_FF x| / |b|, worst column
+  Field values;                                ///< u with the free rows solved
+  int iterations = 0;                          ///< CG iterations (0 for Direct)
+  double relative_residual = 0;                ///< |b - Kt_FF x| / |b|, worst column
+  SteadySolver solver = SteadySolver::Direct;  ///< the solver that ran (Direct or Global, never Auto)
+  /// Auto on a large problem: the multigrid's iterations before it finished (Global) or
+  /// was given up for the direct solve (Direct); 0 where Auto did not try it.
+  int multigrid_probe_iterations = 0;
 };
 
+/// Auto's try (needs g2 > 0, g0 = 0): the global solver with the surface multigrid to
+/// a relative residual of 1e-10, stopped once its rate predicts more iterations than
+/// GlobalBilaplacianParams::max_multigrid_iterations (hand_on_to_factor = false). The
+/// answer (solver Global) where it converged; nothing where it was given up or could
+/// not be built. `probe_iterations` (optional) gets its iterations either way;
+/// `multigrid`: the hierarchy's parameters (the defaults are what Auto uses).
+std::optional<SteadySolveResult> try_multigrid_solve(const Mesh& mesh, const FemOperators& ops,
+                                                     const PdeCoefficients& coefficients, const std::vector<int>& free,
+                                                     const Field& u, int* probe_iterations = nullptr,
+                                                     const SurfaceMultigridParams& multigrid = {});
+
 /// The steady problem with the held values of u (its free rows are ignored) by Direct
-/// or Global (for Iterative, use PdeSession::solve_steady, which also takes a domain).
+/// or Global, or as Auto decides (auto_tries_multigrid with `global_from`, then
+/// try_multigrid_solve, else Direct); for Iterative, use PdeSession::solve_steady,
+/// which also takes a domain.
 /// \throw InputError for Iterative, or for Global with g2 <= 0 or g0 != 0;
 ///        SolverError when Global does not converge, or as SteadyDirectSolver.
 SteadySolveResult solve_steady(const Mesh& mesh, const FemOperators& ops, const PdeCoefficients& coefficients,
-                               const std::vector<int>& free, const Field& u, SteadySolver solver);
+                               const std::vector<int>& free, const Field& u, SteadySolver solver,
+                               int global_from = kAutoGlobalFromFreeVertices);
 
 /// Kt_FF = g0 M_FF + g1 K_FF + g2 (K_SF)^T D_S K_SF (+ diag(extra_diagonal) on the free
 /// rows when given, #V values), rows and columns in the order of `free`: the principal
