@@ -8,6 +8,7 @@
 #include <chrono>
 #include <memory>
 #include <numeric>
+#include <optional>
 #include <span>
 #include <thread>
 
@@ -349,6 +350,110 @@ void global_real_figures(const BenchOptions& options, nlohmann::json& j, bool ev
                              {"decimated-knight.off", false},
                              {"nonmanifold-vierbein.obj", false},
                              {"nonmanifold-vertex-hourglass.obj", false}};
+  // One problem: the default global solve, CHOLMOD's direct solve, what `--solver
+  // global` and `--solver auto` run; on a mesh as it is (as_is) also libigl's route and
+  // the multigrid alone on both operators.
+  const auto measure = [&](const std::string& tag, const Mesh& input, bool as_is) {
+    progress("global bi-Laplacian on " + tag);
+    // The operators the commands build (--laplacian auto): intrinsic Delaunay on the
+    // marching-cubes aorta, whose cotangent K D K CHOLMOD cannot factor once it is
+    // subdivided ("not positive definite"; the conditioning, not the problem).
+    const MeshOperators auto_ops = build_mesh_operators(input, LaplacianKind::Auto);
+    const Mesh& m = auto_ops.mesh;
+    const FemOperators& o = auto_ops.ops;
+    const auto [handle, u, free] = top_drag(m, mean_edge_length(input));
+    const TimedGlobalSolve a = timed_global_solve(m, o, free, u, Preconditioner::Auto);
+    j["global_bilap_laplacian_" + tag] = to_string(auto_ops.kind);
+    j["global_bilap_vertices_" + tag] = m.num_vertices();
+    j["global_bilap_s_" + tag] = a.seconds;
+    j["global_bilap_setup_s_" + tag] = a.r.setup_seconds;
+    j["global_bilap_iters_" + tag] = a.r.iterations;
+    j["global_bilap_preconditioner_" + tag] = preconditioner_name(a.r.used);
+    j["global_bilap_multigrid_iters_" + tag] = a.r.multigrid_iterations;
+    j["global_bilap_bytes_per_vertex_" + tag] = a.r.bytes_per_vertex;
+    progress("global bi-Laplacian on " + tag + " by CHOLMOD's direct solve (baseline)");
+    const auto t_direct = clock_type::now();
+    const SteadyDirectSolver direct(m, o, PdeCoefficients{.g0 = 0, .g1 = 0, .g2 = 1}, free);
+    const Field x = direct.solve(u);
+    const double direct_s = seconds_since(t_direct);
+    j["global_bilap_direct_baseline_s_" + tag] = direct_s;
+    j["global_bilap_direct_factor_nonzeros_" + tag] = direct.factor().factor_nonzeros();
+    j["global_bilap_speedup_over_direct_" + tag] = direct_s / a.seconds;
+    j["global_bilap_max_difference_" + tag] = (a.r.values - x).cwiseAbs().maxCoeff() / x.cwiseAbs().maxCoeff();
+    // What `--solver global` runs (solve_steady: the same solver to a relative residual
+    // of 1e-10), against the same direct solve: the figures behind SteadySolver::Auto's
+    // size rule (pde/steady_direct.h).
+    progress("global bi-Laplacian on " + tag + " as the commands' global solver (1e-10)");
+    try {
+      const auto t_steady = clock_type::now();
+      const SteadySolveResult sg =
+          solve_steady(m, o, PdeCoefficients{.g0 = 0, .g1 = 0, .g2 = 1}, free, u, SteadySolver::Global);
+      const double steady_s = seconds_since(t_steady);
+      j["steady_global_s_" + tag] = steady_s;
+      j["steady_global_iters_" + tag] = sg.iterations;
+      j["steady_global_speedup_over_direct_" + tag] = direct_s / steady_s;
+    } catch (const SolverError& e) {
+      j["steady_global_error_" + tag] = e.what();
+      warn("global bi-Laplacian on " + tag + " at 1e-10: " + e.what());
+    }
+    // What `--solver auto` (the default) runs: from kAutoGlobalFromFreeVertices free
+    // vertices on and on meshes without angles below kAutoMultigridMinAngleDeg, the
+    // multigrid's try, kept where it converges, else the direct solve after it; on
+    // everything else the direct solve (the baseline's figure). The try alone is timed
+    // from 10,000 free vertices on, whatever the angles, so that both rules can be read
+    // against it.
+    j["global_bilap_smallest_angle_deg_" + tag] = smallest_angle_deg(input.positions(), input.triangles());
+    const PdeCoefficients plate{.g0 = 0, .g1 = 0, .g2 = 1};
+    if (free.size() >= 10000) {
+      progress("global bi-Laplacian on " + tag + ": the multigrid's try (--solver auto)");
+      const auto t_try = clock_type::now();
+      int probe = 0;
+      const std::optional<SteadySolveResult> tried = try_multigrid_solve(m, o, plate, free, u, &probe);
+      j["steady_multigrid_try_s_" + tag] = seconds_since(t_try);
+      j["steady_multigrid_try_kept_" + tag] = tried.has_value();
+      j["steady_multigrid_try_iters_" + tag] = probe;
+    }
+    if (free.size() >= static_cast<std::size_t>(kAutoGlobalFromFreeVertices)) {
+      progress("global bi-Laplacian on " + tag + " as the commands' default solver (auto)");
+      const auto t_auto = clock_type::now();
+      const SteadySolveResult sa = solve_steady(m, o, plate, free, u, SteadySolver::Auto);
+      const double auto_s = seconds_since(t_auto);
+      j["steady_auto_s_" + tag] = auto_s;
+      j["steady_auto_solver_" + tag] = to_string(sa.solver);
+      j["steady_auto_probe_iters_" + tag] = sa.multigrid_probe_iterations;  // 0: not tried (the shape rule)
+      j["steady_auto_speedup_over_direct_" + tag] = direct_s / auto_s;
+      j["steady_auto_max_difference_" + tag] = (sa.values - x).cwiseAbs().maxCoeff() / x.cwiseAbs().maxCoeff();
+    }
+    if (!as_is) return;
+    progress("global bi-Laplacian on " + tag + " by Eigen's simplicial Cholesky (libigl's route)");
+    const auto t_eigen = clock_type::now();
+    const SteadyDirectSolver eigen_direct(m, o, PdeCoefficients{.g0 = 0, .g1 = 0, .g2 = 1}, free,
+                                          SparseCholesky::Backend::Eigen);
+    const Field xe = eigen_direct.solve(u);
+    const double eigen_s = seconds_since(t_eigen);
+    j["global_bilap_eigen_simplicial_baseline_s_" + tag] = eigen_s;
+    j["global_bilap_speedup_over_eigen_simplicial_" + tag] = eigen_s / a.seconds;
+    // The multigrid alone, on the cotangent and on the intrinsic Delaunay operators
+    // (iterations to 1e-8, at most 300; a count of 300 means it did not get there).
+    for (const LaplacianKind kind : {LaplacianKind::Cotan, LaplacianKind::IntrinsicDelaunay}) {
+      const std::string which = kind == LaplacianKind::Cotan ? "cotan" : "intrinsic";
+      progress("global bi-Laplacian on " + tag + ": the multigrid alone on the " + which + " operators");
+      const MeshOperators mo = build_mesh_operators(input, kind);
+      GlobalBilaplacianParams p;
+      p.preconditioner = Preconditioner::Multigrid;
+      p.max_iterations = 300;
+      try {
+        const GlobalBilaplacianResult r = solve_global_bilaplacian(mo.mesh, mo.ops, free, u, p);
+        j["global_bilap_mg_iters_" + which + "_" + tag] = r.iterations;
+        j["global_bilap_mg_converged_" + which + "_" + tag] = r.converged;
+      } catch (const SolverError& e) {
+        // The cotangent K D K of a mesh with slivers can be indefinite in rounding
+        // (carotid-ica-4k's coarsest level); the row says so and the run goes on.
+        j["global_bilap_mg_error_" + which + "_" + tag] = e.what();
+        warn("global bi-Laplacian on " + tag + ", multigrid on the " + which + " operators: " + e.what());
+      }
+    }
+  };
   for (const auto& [file, first_rows] : meshes) {
     if (!every && !first_rows) continue;
     const auto path = options.data_dir / file;
@@ -371,64 +476,14 @@ void global_real_figures(const BenchOptions& options, nlohmann::json& j, bool ev
     for (int level = 0; level < levels; ++level) {
       if (level) g = subdivide_midpoint(g.V, g.F);
       const std::string tag = level ? std::string(name) + "_x" + std::to_string(level) : std::string(name);
-      progress("global bi-Laplacian on " + tag);
-      const Mesh input(g.V, g.F);
-      // The operators the commands build (--laplacian auto): intrinsic Delaunay on the
-      // marching-cubes aorta, whose cotangent K D K CHOLMOD cannot factor once it is
-      // subdivided ("not positive definite"; the conditioning, not the problem).
-      const MeshOperators auto_ops = build_mesh_operators(input, LaplacianKind::Auto);
-      const Mesh& m = auto_ops.mesh;
-      const FemOperators& o = auto_ops.ops;
-      const auto [handle, u, free] = top_drag(m, mean_edge_length(input));
-      const TimedGlobalSolve a = timed_global_solve(m, o, free, u, Preconditioner::Auto);
-      j["global_bilap_laplacian_" + tag] = to_string(auto_ops.kind);
-      j["global_bilap_vertices_" + tag] = m.num_vertices();
-      j["global_bilap_s_" + tag] = a.seconds;
-      j["global_bilap_setup_s_" + tag] = a.r.setup_seconds;
-      j["global_bilap_iters_" + tag] = a.r.iterations;
-      j["global_bilap_preconditioner_" + tag] = preconditioner_name(a.r.used);
-      j["global_bilap_multigrid_iters_" + tag] = a.r.multigrid_iterations;
-      j["global_bilap_bytes_per_vertex_" + tag] = a.r.bytes_per_vertex;
-      progress("global bi-Laplacian on " + tag + " by CHOLMOD's direct solve (baseline)");
-      const auto t_direct = clock_type::now();
-      const SteadyDirectSolver direct(m, o, PdeCoefficients{.g0 = 0, .g1 = 0, .g2 = 1}, free);
-      const Field x = direct.solve(u);
-      const double direct_s = seconds_since(t_direct);
-      j["global_bilap_direct_baseline_s_" + tag] = direct_s;
-      j["global_bilap_direct_factor_nonzeros_" + tag] = direct.factor().factor_nonzeros();
-      j["global_bilap_speedup_over_direct_" + tag] = direct_s / a.seconds;
-      j["global_bilap_max_difference_" + tag] = (a.r.values - x).cwiseAbs().maxCoeff() / x.cwiseAbs().maxCoeff();
-      if (level > 0) continue;
-      progress("global bi-Laplacian on " + tag + " by Eigen's simplicial Cholesky (libigl's route)");
-      const auto t_eigen = clock_type::now();
-      const SteadyDirectSolver eigen_direct(m, o, PdeCoefficients{.g0 = 0, .g1 = 0, .g2 = 1}, free,
-                                            SparseCholesky::Backend::Eigen);
-      const Field xe = eigen_direct.solve(u);
-      const double eigen_s = seconds_since(t_eigen);
-      j["global_bilap_eigen_simplicial_baseline_s_" + tag] = eigen_s;
-      j["global_bilap_speedup_over_eigen_simplicial_" + tag] = eigen_s / a.seconds;
-      // The multigrid alone, on the cotangent and on the intrinsic Delaunay operators
-      // (iterations to 1e-8, at most 300; a count of 300 means it did not get there).
-      for (const LaplacianKind kind : {LaplacianKind::Cotan, LaplacianKind::IntrinsicDelaunay}) {
-        const std::string which = kind == LaplacianKind::Cotan ? "cotan" : "intrinsic";
-        progress("global bi-Laplacian on " + tag + ": the multigrid alone on the " + which + " operators");
-        const MeshOperators mo = build_mesh_operators(input, kind);
-        GlobalBilaplacianParams p;
-        p.preconditioner = Preconditioner::Multigrid;
-        p.max_iterations = 300;
-        try {
-          const GlobalBilaplacianResult r = solve_global_bilaplacian(mo.mesh, mo.ops, free, u, p);
-          j["global_bilap_mg_iters_" + which + "_" + tag] = r.iterations;
-          j["global_bilap_mg_converged_" + which + "_" + tag] = r.converged;
-        } catch (const SolverError& e) {
-          // The cotangent K D K of a mesh with slivers can be indefinite in rounding
-          // (carotid-ica-4k's coarsest level); the row says so and the run goes on.
-          j["global_bilap_mg_error_" + which + "_" + tag] = e.what();
-          warn("global bi-Laplacian on " + tag + ", multigrid on the " + which + " operators: " + e.what());
-        }
-      }
+      measure(tag, Mesh(g.V, g.F), level == 0);
     }
   }
+  // Well-shaped meshes of the same sizes (the bench's icospheres, unit edge length):
+  // the other side of SteadySolver::Auto's rule, where the multigrid converges.
+  if (every)
+    for (const int level : {7, 8})
+      measure(level == 7 ? "icosphere-164k" : "icosphere-655k", unit_edge_icosphere(level), false);
 }
 
 }  // namespace
