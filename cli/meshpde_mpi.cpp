@@ -79,7 +79,7 @@ void report_errors(const std::string& mine, MPI_Comm comm) {
 }
 
 struct Args {
-  std::string command, dir, constraints, out, mesh, results;
+  std::string command, dir, constraints, out, mesh, results, laplacian = "cotan";
   std::vector<std::string> fixed;
   int order = 2, parts = 0;
   double g1 = 0, g2 = 1, rtol = 1e-12;
@@ -208,6 +208,14 @@ int run_join(const Args& a) {
 
 int run(const Args& a, MPI_Comm comm) {
   const bool fair = a.command == "fair";
+  // Each rank assembles K from its own triangles and its ghosts'; an intrinsic Delaunay
+  // operator flips edges across the whole surface, which no rank sees (docs/scaling.md).
+  if (a.laplacian != "cotan")
+    throw InputError(
+        fmt::format("--laplacian {}: meshpde-mpi builds cotangent operators only (each rank from its "
+                    "own triangles); for intrinsic Delaunay operators (auto picks them on badly shaped "
+                    "meshes) run the serial `meshpde {}`",
+                    a.laplacian, a.command));
   int rank = 0, size = 1;
   MPI_Comm_rank(comm, &rank);
   MPI_Comm_size(comm, &size);
@@ -344,6 +352,9 @@ int main(int argc, char** argv) {
       cmd->add_option("--max-iterations", a.max_iterations, "CG's limit")->capture_default_str();
       cmd->add_option("-o,--output", a.out, "Output folder: " + output)->required();
       cmd->add_flag("--json", a.json, "Print a JSON report (rank 0)");
+      cmd->add_option("--laplacian", a.laplacian,
+                      "The operators: cotan only here (auto and intrinsic are the serial meshpde's)")
+          ->capture_default_str();
       cmd->callback([&a, cmd] { a.command = cmd->get_name(); });
     };
     auto* interp =

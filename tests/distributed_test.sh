@@ -164,6 +164,9 @@ expect_failure "a constraint at @X,Y,Z" "vertex indices of the input mesh" \
   run 2 "$MPI_TOOL" interpolate "$T/parts-2" --constraints "$T/at.json" -o "$T/x"
 expect_failure "fair --fixed rings:0:2" "need the whole mesh" \
   run 2 "$MPI_TOOL" fair "$T/parts-2" --fixed rings:0:2 -o "$T/x"
+# Intrinsic Delaunay operators need the whole surface's edge flips: refused, naming the serial tool.
+expect_failure "interpolate --laplacian intrinsic" "cotangent operators only" \
+  run 2 "$MPI_TOOL" interpolate "$T/parts-2" --constraints "$T/cons.csv" --laplacian intrinsic -o "$T/x"
 # join: result files that do not match the partition.
 expect_failure "join without result files" "found neither" "$MPI_TOOL" join "$T/parts-2" "$T/parts-2" -o "$T/x.ply"
 expect_failure "join of 4 ranks' results over 2 parts" "more result files" \
