@@ -340,12 +340,13 @@ void add_solve_commands(CLI::App& app) {
                     "Thesis direction cube (odd, >= 3) instead of the search along the normal (needed by --method "
                     "springs --image: the thesis's image step)");
     cmd->add_option("--passes", a->passes, "Image fixed-point passes")->capture_default_str();
-    cmd->add_option("--solver", a->solver,
-                    fmt::format("auto (a static fem region of {} free vertices or more without angles under {} "
-                                "degrees: the multigrid, kept where it converges; else direct) | direct | global "
-                                "(multigrid-CG, for very large regions) | iterative (Jacobi-CG, for comparison); global "
-                                "and iterative: static fem without --image",
-                                kAutoGlobalFromFreeVertices, kAutoMultigridMinAngleDeg))
+    cmd->add_option(
+           "--solver", a->solver,
+           fmt::format("auto (a static fem region of {} free vertices or more without angles under {} "
+                       "degrees: the multigrid, kept where it converges; else direct) | direct | global "
+                       "(multigrid-CG, for very large regions) | iterative (Jacobi-CG, for comparison); global "
+                       "and iterative: static fem without --image",
+                       kAutoGlobalFromFreeVertices, kAutoMultigridMinAngleDeg))
         ->check(CLI::IsMember({"auto", "direct", "global", "iterative"}))
         ->capture_default_str();
     cmd->add_option("--tolerance", a->tol, "CG relative residual tolerance (iterative)")->capture_default_str();
