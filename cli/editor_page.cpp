@@ -13,6 +13,7 @@
 #include "meshpde/apps/vessel_correction.h"
 #include "meshpde/core/errors.h"
 #include "meshpde/image/volume_slice.h"
+#include "meshpde/io/mesh_io.h"
 #include "meshpde/mesh/generators.h"
 #include "meshpde/mesh/regions.h"
 #ifdef MESHPDE_HAVE_MEDICAL
@@ -137,10 +138,7 @@ std::string lower_name(const std::string& name) {
 }  // namespace
 
 bool is_volume_upload(const std::string& name) {
-  const std::string n = lower_name(name);
-  for (const char* ext : {".mha", ".mhd", ".nii", ".nii.gz", ".nrrd", ".nhdr"})
-    if (n.ends_with(ext)) return true;
-  return false;
+  return is_volume_path(fs::path(name).filename());
 }
 
 EditorPage::EditorPage(PageSink sink, std::shared_ptr<const EditorImage> image, Space space, LaplacianKind laplacian)

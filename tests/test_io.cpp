@@ -352,3 +352,12 @@ TEST(Io, ReadsEveryRealFormat) {
     EXPECT_GT(m.num_faces(), 0) << name;
   }
 }
+
+TEST(Io, VolumePathsAreKnownByTheirExtensionInAnyCase) {
+  // The one list of volume extensions (core, so the editor built without
+  // meshpde::medical tells an uploaded volume from a mesh by it).
+  for (const char* yes : {"scan.mha", "scan.MHD", "a/b/ct.nii", "CT.Nii.Gz", "seg.nrrd", "seg.NHDR"})
+    EXPECT_TRUE(is_volume_path(yes)) << yes;
+  for (const char* no : {"mesh.ply", "mesh.vtp", "scan.nii.gz.ply", "folder.nii/mesh.obj", "nii", "scan.gz"})
+    EXPECT_FALSE(is_volume_path(no)) << no;
+}

@@ -21,6 +21,14 @@ MeshFormat format_from_path(const std::filesystem::path& path) {
   throw InputError(fmt::format("{}: unknown mesh format '{}' (supported: .obj .off .ply .stl)", path.string(), ext));
 }
 
+bool is_volume_path(const std::filesystem::path& path) {
+  std::string name = path.filename().string();
+  std::transform(name.begin(), name.end(), name.begin(), [](unsigned char c) { return std::tolower(c); });
+  for (const char* ext : {".mha", ".mhd", ".nii", ".nii.gz", ".nrrd", ".nhdr"})
+    if (name.ends_with(ext)) return true;
+  return false;
+}
+
 MeshData read_mesh_from_memory(const std::string& bytes, MeshFormat format, const std::string& name) {
   MeshData d;
   switch (format) {

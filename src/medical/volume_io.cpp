@@ -18,12 +18,6 @@ bool name_ends(const std::filesystem::path& path, const std::string& suffix) {
 
 }  // namespace
 
-bool is_volume_path(const std::filesystem::path& path) {
-  for (const char* e : {".mha", ".mhd", ".nii", ".nii.gz", ".nrrd", ".nhdr"})
-    if (name_ends(path, e)) return true;
-  return false;
-}
-
 Volume read_volume(const std::filesystem::path& path, std::size_t max_voxels) {
   if (!std::filesystem::exists(path)) throw InputError(fmt::format("{}: no such file", path.string()));
   auto ends = [&](const std::string& s) { return name_ends(path, s); };

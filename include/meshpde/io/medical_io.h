@@ -51,7 +51,6 @@ bool is_vtk_mesh_path(const std::filesystem::path& path);
 /// allocated: a compressed file of a few megabytes can declare gigabytes (deflate
 /// inflates up to 1,032 times), which is how the editor bounds an uploaded volume.
 Volume read_volume(const std::filesystem::path& path, std::size_t max_voxels = 0);
-/// Whether read_volume() reads this path (by its extension, any case).
-bool is_volume_path(const std::filesystem::path& path);
+// Whether read_volume() reads a path: is_volume_path() in mesh_io.h.
 
 }  // namespace meshpde

@@ -54,6 +54,12 @@ struct WriteOptions {
 /// Format from the file extension (case-insensitive). \throw InputError if unknown.
 MeshFormat format_from_path(const std::filesystem::path& path);
 
+/// Whether a path names a volume by its extension, any case: .mha .mhd .nii .nii.gz
+/// .nrrd .nhdr, the formats meshpde::medical's read_volume() reads (medical_io.h).
+/// In the core library so that front ends built without meshpde::medical (the editor's
+/// upload) tell a volume from a mesh by the same list.
+bool is_volume_path(const std::filesystem::path& path);
+
 /// \throw InputError naming the file and line/element on any malformed input.
 MeshData read_mesh(const std::filesystem::path& path);
 
