@@ -308,20 +308,17 @@ void haptic_figures(const BenchOptions& options, nlohmann::json& j) {
   }
 }
 
-// The global steady bi-Laplacian on real meshes (issue 22): each mesh as it is and
-// subdivided once, the handle at its top moved by 0.01 mean edge x (1, 2, 10), the
-// lowest 2 % (by height) held, as on the million-vertex row. The default solve (Auto,
-// cotangent operators) against CHOLMOD's direct solve of K D K in the same run, and on
-// the meshes as they are also libigl's route (Eigen's simplicial Cholesky) and the
-// multigrid alone on the cotangent and the intrinsic Delaunay operators (the issue's
-// first lead). Keys end in the mesh's tag (armadillo-43k, igea-134k, aorta-103k; "_x1"
-// once subdivided).
-// Issue 22's figures on real meshes. Always: armadillo-43k, igea-134k and aorta-103k,
-// as they are and subdivided once, each beside CHOLMOD's direct solve (and, as they are,
-// libigl's route and the multigrid alone on both operators). With `every` (`--only
-// global_real`, or `--large`): also every other mesh of the data folder, and every mesh
-// subdivided twice (igea-134k x2: 2.1M vertices), so the iteration counts can be read
-// against refinement on each.
+// Issue 22's figures on real meshes: the handle at the top moved by 0.01 mean edge
+// x (1, 2, 10), the lowest 2 % (by height) of each part held (real_mesh_problem.h), as
+// on the million-vertex row. Each problem: the default global solve (Auto, the
+// operators the commands build), CHOLMOD's direct solve, what `--solver global` and
+// `--solver auto` run, and the multigrid's try alone; on a mesh as it is also libigl's
+// route (Eigen's simplicial Cholesky) and the multigrid alone on the cotangent and the
+// intrinsic Delaunay operators. Always: armadillo-43k, igea-134k and aorta-103k, as
+// they are and subdivided once. With `every` (`--only global_real`, or `--large`):
+// also every other mesh of the data folder, every mesh subdivided twice (igea-134k
+// x2: 2.1M vertices), and the 164k and 655k icospheres. Keys end in the mesh's tag
+// (its file's stem; "_x1", "_x2" once or twice subdivided).
 void global_real_figures(const BenchOptions& options, nlohmann::json& j, bool every) {
   const auto progress = [&](const std::string& what) {
     if (options.progress) options.progress(what);

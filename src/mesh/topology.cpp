@@ -43,6 +43,15 @@ bool is_degenerate(const Mesh& mesh, int f) {
   return triangle_area(mesh, f) <= kDegenerateAreaRelTol * longest_edge_sq(a, b, c);
 }
 
+namespace {
+// The interior angle of triangle f at its corner c, in degrees.
+double corner_angle_deg(const Positions& V, const Triangles& F, int f, int c) {
+  const Eigen::Vector3d p = V.row(F(f, c)), u = V.row(F(f, (c + 1) % 3)).transpose() - p,
+                        w = V.row(F(f, (c + 2) % 3)).transpose() - p;
+  return std::atan2(u.cross(w).norm(), u.dot(w)) * 180.0 / M_PI;
+}
+}  // namespace
+
 double smallest_angle_deg(const Positions& V, const Triangles& F, const std::vector<int>& faces) {
   double smallest = 180;
   const auto n = static_cast<int>(faces.empty() ? F.rows() : static_cast<Eigen::Index>(faces.size()));
@@ -50,10 +59,7 @@ double smallest_angle_deg(const Positions& V, const Triangles& F, const std::vec
     const int f = faces.empty() ? k : faces[static_cast<std::size_t>(k)];
     const Eigen::Vector3d p[3] = {V.row(F(f, 0)), V.row(F(f, 1)), V.row(F(f, 2))};
     if (!((p[1] - p[0]).cross(p[2] - p[0]).norm() > 0)) continue;
-    for (int c = 0; c < 3; ++c) {
-      const Eigen::Vector3d u = p[(c + 1) % 3] - p[c], w = p[(c + 2) % 3] - p[c];
-      smallest = std::min(smallest, std::atan2(u.cross(w).norm(), u.dot(w)) * 180 / M_PI);
-    }
+    for (int c = 0; c < 3; ++c) smallest = std::min(smallest, corner_angle_deg(V, F, f, c));
   }
   return smallest;
 }
@@ -130,9 +136,7 @@ MeshReport analyze(const Mesh& mesh, const ShapeWarningThresholds& thresholds) {
       min_area = std::min(min_area, A);
       max_area = std::max(max_area, A);
       for (int c = 0; c < 3; ++c) {
-        const Eigen::Vector3d p = V.row(F(f, c)), q = V.row(F(f, (c + 1) % 3)), s = V.row(F(f, (c + 2) % 3));
-        const Eigen::Vector3d u = q - p, w = s - p;
-        const double ang = std::atan2(u.cross(w).norm(), u.dot(w)) * 180.0 / M_PI;
+        const double ang = corner_angle_deg(V, F, f, c);
         min_angle = std::min(min_angle, ang);
         max_angle = std::max(max_angle, ang);
       }

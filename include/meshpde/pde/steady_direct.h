@@ -49,11 +49,11 @@ const char* to_string(SteadySolver solver);
 /// under 0.35 s on the 2-core development machine, little for a try to win back).
 inline constexpr int kAutoGlobalFromFreeVertices = 50000;
 /// Auto's shape rule: it tries the multigrid only where every triangle touching a free
-/// vertex has all its angles at least this large (the quality that Delaunay refinement
-/// guarantees, 20.7 degrees, and isotropic remeshers reach). On every real mesh of the
-/// data folder the multigrid's probe gave up (their smallest angles are 0.0002-5.4
-/// degrees, a vessel remeshed to a median angle of 55 degrees included), at a cost of
-/// 11-53 % of a direct solve; the rule spares them that.
+/// vertex has all its angles at least this large (about the quality that Delaunay
+/// refinement guarantees, 20.7 degrees). On every real mesh of the data folder the
+/// multigrid's probe gave up (their smallest angles are 0.0002-5.4 degrees, a vessel
+/// remeshed to a median angle of 55 degrees included), at a cost of 11-53 % of a
+/// direct solve; the rule spares them that.
 inline constexpr double kAutoMultigridMinAngleDeg = 20;
 
 /// Whether Auto tries the multigrid: g2 > 0, g0 = 0, at least `global_from` free
