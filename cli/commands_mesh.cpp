@@ -3,11 +3,13 @@
 
 #include <limits>
 #include <memory>
+#include <optional>
 
 #include "commands.h"
 #include "meshpde/core/errors.h"
 #include "meshpde/image/volume.h"
 #ifdef MESHPDE_HAVE_MEDICAL
+#include "meshpde/io/dicom.h"
 #include "meshpde/io/medical_io.h"
 #endif
 #include "meshpde/mesh/generators.h"
@@ -70,9 +72,15 @@ nlohmann::json vec3(const Eigen::Vector3d& v) {
   return {v.x(), v.y(), v.z()};
 }
 
+// A 3 x 3 matrix as a list of its rows (a direction's columns are the voxel axes).
+nlohmann::json matrix3(const Eigen::Matrix3d& m) {
+  nlohmann::json rows = nlohmann::json::array();
+  for (int r = 0; r < 3; ++r) rows.push_back(vec3(m.row(r).transpose()));
+  return rows;
+}
+
 nlohmann::json volume_report_json(const VolumeReport& r) {
-  nlohmann::json dir = nlohmann::json::array();
-  for (int c = 0; c < 3; ++c) dir.push_back(vec3(r.direction.col(c)));
+  const nlohmann::json dir = matrix3(r.direction);
   return {{"kind", "volume"},
           {"dims", {r.dims[0], r.dims[1], r.dims[2]}},
           {"spacing", vec3(r.spacing)},
@@ -103,6 +111,61 @@ void print_volume_report(const std::string& path, const VolumeReport& r) {
              r.nonfinite ? fmt::format(", {} not finite", r.nonfinite) : std::string());
 }
 
+#ifdef MESHPDE_HAVE_MEDICAL
+nlohmann::json series_json(const DicomSeries& s) {
+  nlohmann::json files = nlohmann::json::array();
+  for (const auto& f : s.files) files.push_back(f.string());
+  nlohmann::json j = {{"uid", s.uid},
+                      {"number", s.number},
+                      {"description", s.description},
+                      {"modality", s.modality},
+                      {"size", {s.size[0], s.size[1], s.size[2]}},
+                      {"spacing", vec3(s.spacing)},
+                      {"origin", vec3(s.origin)},
+                      {"direction", matrix3(s.direction)},
+                      {"files", files}};
+  if (!s.problem.empty()) j["problem"] = s.problem;
+  return j;
+}
+
+// meshpde info on DICOM input: every series, and the volume of the one chosen (or the only one).
+void dicom_info(const std::string& path, const std::string& choice, bool json) {
+  const DicomListing listing = list_dicom_series(path);
+  const DicomSeries* chosen = nullptr;
+  if (listing.series.size() == 1 || !choice.empty()) chosen = &choose_dicom_series(listing, choice, path);
+  std::optional<VolumeReport> volume;
+  if (chosen && chosen->problem.empty()) volume = describe(read_dicom_series(path, chosen->uid));
+  if (json) {
+    nlohmann::json j = {{"kind", "dicom"}, {"path", path}, {"series", nlohmann::json::array()}};
+    for (const auto& s : listing.series) j["series"].push_back(series_json(s));
+    j["skipped"] = listing.skipped;
+    if (volume) {
+      j["volume"] = volume_report_json(*volume);
+      j["volume"]["series"] = chosen->uid;
+    }
+    print_json(j);
+    return;
+  }
+  const std::size_t skipped = listing.skipped.size();
+  fmt::print("{}: {} DICOM series{}\n", path, listing.series.size(),
+             skipped ? fmt::format(" ({} file{} passed over)", skipped, skipped == 1 ? "" : "s") : "");
+  for (const auto& s : listing.series) {
+    fmt::print("  series {} ({}){}{}: {} files, ", s.number, s.uid, s.modality.empty() ? "" : " " + s.modality,
+               s.description.empty() ? "" : " '" + s.description + "'", s.files.size());
+    if (s.problem.empty())
+      fmt::print("{} x {} x {} voxels of {:.4g} x {:.4g} x {:.4g} mm\n", s.size[0], s.size[1], s.size[2], s.spacing.x(),
+                 s.spacing.y(), s.spacing.z());
+    else
+      fmt::print("not readable as one volume: {}\n", s.problem);
+  }
+  for (const auto& w : listing.skipped) fmt::print("  passed over: {}\n", w);
+  if (volume)
+    print_volume_report(path, *volume);
+  else if (!chosen)
+    fmt::print("choose a series with --series UID|NUMBER (info --series shows its volume)\n");
+}
+#endif
+
 struct GenerateArgs {
   std::string kind, out, base = "icosahedron";
   GeneratorParams p;  // defaults: the library's one table
@@ -115,13 +178,19 @@ void add_mesh_commands(CLI::App& app) {
     auto* cmd = app.add_subcommand("info", "Report counts, topology, defects and shape quality of a mesh");
     auto path = std::make_shared<std::string>();
     auto json = std::make_shared<bool>(false);
+    auto series = std::make_shared<std::string>();
     cmd->add_option("FILE", *path,
                     "Mesh (.obj .off .ply .stl .vtp .vtk) or, with the medical component, volume (.mha .mhd .nii "
-                    ".nii.gz .nrrd .nhdr)")
+                    ".nii.gz .nrrd .nhdr) or DICOM (a folder, searched recursively, or one file)")
         ->required();
     cmd->add_flag("--json", *json, "Print a JSON object");
+    cmd->add_option("--series", *series, "DICOM: the series to describe as a volume, by UID or series number");
     cmd->callback([=] {
 #ifdef MESHPDE_HAVE_MEDICAL
+      if (!is_volume_path(*path) && is_dicom_path(*path)) {
+        dicom_info(*path, *series, *json);
+        return;
+      }
       if (is_volume_path(*path)) {
         const VolumeReport r = describe(read_volume(*path));
         if (*json)
@@ -163,13 +232,16 @@ void add_mesh_commands(CLI::App& app) {
                            "Sample a volume (CT/MR image, level set) at the mesh vertices: checks that mesh and "
                            "image are registered, and writes the values as a vertex field");
     struct Args {
-      std::string mesh, image, space, field = "image", out;
+      std::string mesh, image, series, space, field = "image", out;
       double sigma = -1;
       bool json = false;
     };
     auto a = std::make_shared<Args>();
     cmd->add_option("MESH", a->mesh, "Mesh file (.obj .off .ply .stl .vtp .vtk)")->required();
-    cmd->add_option("--image", a->image, "Volume (.mha .mhd .nii .nii.gz .nrrd .nhdr)")->required();
+    cmd->add_option("--image", a->image,
+                    "Volume (.mha .mhd .nii .nii.gz .nrrd .nhdr) or DICOM series (a folder, or one file of it)")
+        ->required();
+    cmd->add_option("--series", a->series, "DICOM folder of several series: the one to read (UID or series number)");
     cmd->add_option("--space", a->space,
                     "Frame of the mesh coordinates: lps | ras (default: the file's SPACE= header, "
                     "else lps)");
@@ -181,7 +253,9 @@ void add_mesh_commands(CLI::App& app) {
       MeshData d;
       const Mesh mesh = load_mesh(a->mesh, &d);
       const Space space = mesh_space(a->space, d);
-      Volume v = read_volume(a->image);
+      VolumeReadOptions options;
+      options.series = a->series;
+      Volume v = read_volume(a->image, options);
       if (a->sigma >= 0) v = gradient_magnitude(v, a->sigma);
       Eigen::VectorXd values(mesh.num_vertices());
       int outside = 0;

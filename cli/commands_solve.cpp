@@ -81,7 +81,7 @@ std::map<std::string, Eigen::VectorXd> displacement_fields(const DragResult& r) 
 }
 
 struct CorrectArgs {
-  std::string mesh, out, method = "fem", boundary = "clamp", laplacian = "auto", stiffness, image, space,
+  std::string mesh, out, method = "fem", boundary = "clamp", laplacian = "auto", stiffness, image, series, space,
                          solver = "auto", units = "mm";
   std::vector<std::string> vertices, moves, brushes;
   int rings = 0, steps = 50, cube = 0, passes = 4;
@@ -199,7 +199,9 @@ void run_correct(const CorrectArgs& a) {
   const Space space = mesh_space(a.space, data);
   if (!a.image.empty()) {
 #ifdef MESHPDE_HAVE_MEDICAL
-    const Volume volume = read_volume(a.image);
+    VolumeReadOptions options;
+    options.series = a.series;
+    const Volume volume = read_volume(a.image, options);
     p.image.edges = std::make_shared<const Volume>(gradient_magnitude(volume, a.image_sigma));
 #else
     throw InputError("--image needs meshpde built with meshpde::medical (VTK)");
@@ -328,7 +330,10 @@ void add_solve_commands(CLI::App& app) {
     add_laplacian_option(cmd, a->laplacian);
     cmd->add_flag("--allow-intersections", a->allow_intersections,
                   "Do not split or limit a correction that would make the surface intersect itself");
-    cmd->add_option("--image", a->image, "Volume (.mha .mhd .nii .nii.gz .nrrd .nhdr): pull the wall onto image edges");
+    cmd->add_option("--image", a->image,
+                    "Volume (.mha .mhd .nii .nii.gz .nrrd .nhdr) or DICOM series (a folder, or one file of it): pull "
+                    "the wall onto image edges");
+    cmd->add_option("--series", a->series, "DICOM folder of several series: the one to read (UID or series number)");
     cmd->add_option("--space", a->space,
                     "Frame of the mesh coordinates: lps | ras (default: the file's SPACE= header, else lps)");
     cmd->add_option("--image-weight", a->image_weight, "Strength of the pull towards edges")->capture_default_str();

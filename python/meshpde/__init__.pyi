@@ -25,7 +25,7 @@ def read_mesh(path: Path) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]
 def write_mesh(path: Path, V: ArrayLike, F: ArrayLike, fields: Mapping[str, ArrayLike] | None = None,
                binary: bool = True) -> list[str]:
     """Writes atomically by extension; returns (and warns) what the format could not keep."""
-def read_volume(path: Path) -> tuple[np.ndarray, np.ndarray]:
+def read_volume(path: Path, series: str | int | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(values[i, j, k] float32, 4x4 voxel-to-LPS-mm affine); .mha .mhd .nii .nii.gz .nrrd .nhdr."""
 def info(V: Union[ArrayLike, Path], F: ArrayLike | None = None) -> dict[str, Any]:
     """`meshpde info --json` of (V, F), or of a mesh or volume file."""

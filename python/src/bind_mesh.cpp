@@ -21,6 +21,7 @@
 #include "meshpde/mesh/units.h"
 #include "meshpde/viz/render.h"
 #ifdef MESHPDE_HAVE_MEDICAL
+#include "meshpde/io/dicom.h"
 #include "meshpde/io/medical_io.h"
 #endif
 
@@ -126,14 +127,23 @@ py::dict report_to_python(const MeshReport& r) {
   return j;
 }
 
+py::tuple vec3(const Eigen::Vector3d& v) {
+  return py::make_tuple(v.x(), v.y(), v.z());
+}
+
+// A 3 x 3 matrix as a tuple of its rows (a direction's columns are the voxel axes).
+py::tuple matrix3(const Eigen::Matrix3d& m) {
+  return py::make_tuple(vec3(m.row(0).transpose()), vec3(m.row(1).transpose()), vec3(m.row(2).transpose()));
+}
+
 py::dict volume_report_to_python(const VolumeReport& r) {
-  auto vec = [](const Eigen::Vector3d& v) { return py::make_tuple(v.x(), v.y(), v.z()); };
+  const auto& vec = vec3;
   py::dict j;
   j["kind"] = "volume";
   j["dims"] = py::make_tuple(r.dims[0], r.dims[1], r.dims[2]);
   j["spacing"] = vec(r.spacing);
   j["origin"] = vec(r.origin);
-  j["direction"] = py::make_tuple(vec(r.direction.col(0)), vec(r.direction.col(1)), vec(r.direction.col(2)));
+  j["direction"] = matrix3(r.direction);
   j["frame"] = "LPS";
   j["orientation"] = r.orientation;
   j["oblique"] = r.oblique;
@@ -145,6 +155,48 @@ py::dict volume_report_to_python(const VolumeReport& r) {
   j["nonfinite"] = r.nonfinite;
   return j;
 }
+
+#ifdef MESHPDE_HAVE_MEDICAL
+// What `meshpde info DIR --json` prints of DICOM input.
+py::dict dicom_info_to_python(const std::filesystem::path& path) {
+  DicomListing listing;
+  std::optional<VolumeReport> volume;
+  {
+    py::gil_scoped_release release;
+    listing = list_dicom_series(path);
+    if (listing.series.size() == 1 && listing.series.front().problem.empty())
+      volume = describe(read_dicom_series(path, listing.series.front().uid));
+  }
+  py::list series;
+  for (const auto& s : listing.series) {
+    py::dict d;
+    d["uid"] = s.uid;
+    d["number"] = s.number;
+    d["description"] = s.description;
+    d["modality"] = s.modality;
+    d["size"] = py::make_tuple(s.size[0], s.size[1], s.size[2]);
+    d["spacing"] = vec3(s.spacing);
+    d["origin"] = vec3(s.origin);
+    d["direction"] = matrix3(s.direction);
+    py::list files;
+    for (const auto& f : s.files) files.append(f.string());
+    d["files"] = files;
+    if (!s.problem.empty()) d["problem"] = s.problem;
+    series.append(d);
+  }
+  py::dict j;
+  j["kind"] = "dicom";
+  j["path"] = path.string();
+  j["series"] = series;
+  j["skipped"] = listing.skipped;
+  if (volume) {
+    py::dict v = volume_report_to_python(*volume);
+    v["series"] = listing.series.front().uid;
+    j["volume"] = v;
+  }
+  return j;
+}
+#endif
 
 Colormap parse_colormap(const std::string& name) {
   if (name == "viridis") return Colormap::Viridis;
@@ -216,6 +268,7 @@ format cannot hold are dropped with a UserWarning (also returned).)doc",
           const auto path = V.cast<std::filesystem::path>();
           require_file(path);
 #ifdef MESHPDE_HAVE_MEDICAL
+          if (!is_volume_path(path) && is_dicom_path(path)) return dicom_info_to_python(path);
           if (is_volume_path(path)) {
             VolumeReport r;
             {
@@ -248,7 +301,12 @@ format cannot hold are dropped with a UserWarning (also returned).)doc",
 
 The report of `meshpde info --json`: counts, boundary loops, non-manifold edges and
 vertices, components, orientation, signed volume, angles, warnings. For a volume file:
-dims, spacing, origin, direction (LPS), orientation code, extent, value range.)doc",
+dims, spacing, origin, direction (LPS; rows of the matrix whose columns are the voxel
+axes), orientation code, extent, value range. For DICOM (a folder or one file): kind
+"dicom", every series found ("series": uid, number, description, modality, size,
+spacing, origin, direction, files in slice order, and "problem" when it is not one
+regular grid), the files passed over ("skipped"), and with a single series its
+"volume".)doc",
       py::arg("V"), py::arg("F") = py::none());
 
   m.def(
@@ -402,12 +460,14 @@ A headless picture: shading, a colour map of `field` (n,) with its legend, arrow
 #ifdef MESHPDE_HAVE_MEDICAL
   m.def(
       "read_volume",
-      [](const std::filesystem::path& path) {
+      [](const std::filesystem::path& path, const py::handle& series) {
         require_file(path);
+        VolumeReadOptions options;
+        if (!series.is_none()) options.series = py::str(series);
         Volume v;
         {
           py::gil_scoped_release release;
-          v = read_volume(path);
+          v = read_volume(path, options);
         }
         // values[i, j, k]: the file's i-fastest order is numpy's Fortran order.
         py::array_t<float, py::array::f_style> a({v.dims[0], v.dims[1], v.dims[2]});
@@ -417,11 +477,15 @@ A headless picture: shading, a colour map of `field` (n,) with its legend, arrow
         affine.topRightCorner<3, 1>() = v.origin;
         return py::make_tuple(std::move(a), to_numpy(Eigen::MatrixXd(affine)));
       },
-      R"doc(read_volume(path) -> (values, affine)
+      R"doc(read_volume(path, series=None) -> (values, affine)
 
 values[i, j, k] float32 and the 4 x 4 affine from voxel indices to LPS millimetres.
-.mha/.mhd, .nii/.nii.gz (sform, else qform), .nrrd/.nhdr.)doc",
-      py::arg("path"));
+.mha/.mhd, .nii/.nii.gz (sform, else qform), .nrrd/.nhdr, or DICOM: a folder holding
+a series (searched recursively) or one file of it, slices ordered along their normal,
+rescale slope and intercept applied (CT in HU). `series` chooses one of several series
+in a folder by SeriesInstanceUID or series number; without it a folder of several
+raises InputError listing them.)doc",
+      py::arg("path"), py::arg("series") = py::none());
 #endif
 
   py::module_ g = m.def_submodule("generate", "Meshes the project generates (the table of `meshpde generate`).");

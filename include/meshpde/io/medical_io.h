@@ -14,6 +14,7 @@
 //    .nii.gz; sform preferred over qform as the NIfTI standard says, scl_slope and
 //    scl_inter applied) and NRRD (.nrrd, .nhdr; raw or gzip). Origin, spacing and
 //    direction matrix are honoured and returned in LPS (see image/volume.h).
+//  - DICOM series (io/dicom.h), read with GDCM.
 //
 // Errors name the file. Writers are atomic (temporary file, then rename).
 #pragma once
@@ -46,10 +47,19 @@ std::vector<std::string> write_any_mesh(const std::filesystem::path& path, const
                                         const WriteOptions& options = {});
 bool is_vtk_mesh_path(const std::filesystem::path& path);
 
-/// .mha .mhd .nii .nii.gz .nrrd .nhdr. \throw InputError naming the file. With
-/// max_voxels > 0, a header that declares more voxels is refused before any is read or
-/// allocated: a compressed file of a few megabytes can declare gigabytes (deflate
-/// inflates up to 1,032 times), which is how the editor bounds an uploaded volume.
+struct VolumeReadOptions {
+  /// > 0: a header that declares more voxels is refused before any is read or allocated:
+  /// a compressed file of a few megabytes can declare gigabytes (deflate inflates up to
+  /// 1,032 times), which is how the editor bounds an uploaded volume. Default 0 (no limit).
+  std::size_t max_voxels = 0;
+  /// A DICOM folder of several series: the one to read, by SeriesInstanceUID or series
+  /// number (io/dicom.h). Default empty: the only series, an error listing them otherwise.
+  std::string series;
+};
+
+/// .mha .mhd .nii .nii.gz .nrrd .nhdr, or DICOM (a folder holding a series, or one file
+/// of it: io/dicom.h). \throw InputError naming the file.
+Volume read_volume(const std::filesystem::path& path, const VolumeReadOptions& options);
 Volume read_volume(const std::filesystem::path& path, std::size_t max_voxels = 0);
 // Whether read_volume() reads a path: is_volume_path() in mesh_io.h.
 
