@@ -150,8 +150,8 @@ void dicom_info(const std::string& path, const std::string& choice, bool json) {
   fmt::print("{}: {} DICOM series{}\n", path, listing.series.size(),
              skipped ? fmt::format(" ({} file{} passed over)", skipped, skipped == 1 ? "" : "s") : "");
   for (const auto& s : listing.series) {
-    fmt::print("  series {} ({}){}{}: {} files, ", s.number, s.uid, s.modality.empty() ? "" : " " + s.modality,
-               s.description.empty() ? "" : " '" + s.description + "'", s.files.size());
+    fmt::print("  series {} ({}){}{}: {} file{}, ", s.number, s.uid, s.modality.empty() ? "" : " " + s.modality,
+               s.description.empty() ? "" : " '" + s.description + "'", s.files.size(), s.files.size() == 1 ? "" : "s");
     if (s.problem.empty())
       fmt::print("{} x {} x {} voxels of {:.4g} x {:.4g} x {:.4g} mm\n", s.size[0], s.size[1], s.size[2], s.spacing.x(),
                  s.spacing.y(), s.spacing.z());

@@ -1,5 +1,8 @@
 #include "fuzz_seeds.h"
 
+#include <fmt/format.h>
+
+#include <cstdint>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -68,6 +71,98 @@ std::string float_bytes(int n) {
   }
   std::memcpy(h.data() + 344, "n+1\0", 4);
   return h + float_bytes(12);
+}
+
+// A DICOM Part 10 file composed element by element (dicom.h reads it): a 3 x 2 CT
+// slice of signed 16-bit pixels, in the transfer syntax asked for. With `frames` > 1 an
+// enhanced multi-frame file whose frames carry their positions in functional groups.
+class DicomComposer {
+ public:
+  DicomComposer(bool implicit, bool big) : implicit_(implicit), big_(big) {}
+  void element(std::uint16_t group, std::uint16_t elem, const char* vr, const std::string& value) {
+    std::string v = value;
+    if (v.size() % 2) v += (std::strcmp(vr, "UI") == 0 || std::strcmp(vr, "OB") == 0) ? '\0' : ' ';
+    out_ += u16(group) + u16(elem);
+    const bool long_form = std::strchr("OSU", vr[0]) && (vr[1] == 'B' || vr[1] == 'W' || vr[1] == 'Q' || vr[1] == 'N');
+    if (implicit_) {
+      out_ += u32(static_cast<std::uint32_t>(v.size()));
+    } else if (long_form) {
+      out_ += std::string(vr, 2) + std::string(2, '\0') + u32(static_cast<std::uint32_t>(v.size()));
+    } else {
+      out_ += std::string(vr, 2) + u16(static_cast<std::uint16_t>(v.size()));
+    }
+    out_ += v;
+  }
+  void us(std::uint16_t group, std::uint16_t elem, std::uint16_t value) { element(group, elem, "US", u16(value)); }
+  // A sequence of one item holding `item` (elements composed alike), undefined lengths.
+  void sequence(std::uint16_t group, std::uint16_t elem, const std::vector<std::string>& items) {
+    out_ += u16(group) + u16(elem);
+    if (!implicit_) out_ += std::string("SQ") + std::string(2, '\0');
+    out_ += u32(0xffffffffu);
+    for (const auto& item : items)
+      out_ += u16(0xfffe) + u16(0xe000) + u32(0xffffffffu) + item + u16(0xfffe) + u16(0xe00d) + u32(0);
+    out_ += u16(0xfffe) + u16(0xe0dd) + u32(0);
+  }
+  const std::string& bytes() const { return out_; }
+  std::string u16(std::uint16_t x) const {
+    return big_ ? std::string{char(x >> 8), char(x & 0xff)} : std::string{char(x & 0xff), char(x >> 8)};
+  }
+  std::string u32(std::uint32_t x) const {
+    return big_ ? u16(std::uint16_t(x >> 16)) + u16(std::uint16_t(x))
+                : u16(std::uint16_t(x)) + u16(std::uint16_t(x >> 16));
+  }
+
+ private:
+  bool implicit_, big_;
+  std::string out_;
+};
+
+std::string dicom(const std::string& syntax, int frames = 1) {
+  const bool implicit = syntax == "1.2.840.10008.1.2", big = syntax == "1.2.840.10008.1.2.2";
+  DicomComposer meta(false, false);
+  meta.element(0x0002, 0x0001, "OB", std::string("\0\1", 2));
+  meta.element(0x0002, 0x0002, "UI", frames > 1 ? "1.2.840.10008.5.1.4.1.1.2.1" : "1.2.840.10008.5.1.4.1.1.2");
+  meta.element(0x0002, 0x0003, "UI", "1.2.3.4.5.6.7");
+  meta.element(0x0002, 0x0010, "UI", syntax);
+  DicomComposer group_length(false, false);
+  group_length.element(0x0002, 0x0000, "UL", group_length.u32(static_cast<std::uint32_t>(meta.bytes().size())));
+  DicomComposer d(implicit, big);
+  d.element(0x0008, 0x0060, "CS", "CT");
+  d.element(0x0020, 0x000e, "UI", "1.2.3.4.5.6.8");
+  d.element(0x0020, 0x0011, "IS", "4");
+  d.element(0x0020, 0x0032, "DS", "-10.5\\20\\3.25");
+  d.element(0x0020, 0x0037, "DS", "1\\0\\0\\0\\0.6\\-0.8");
+  d.us(0x0028, 0x0002, 1);
+  d.element(0x0028, 0x0004, "CS", "MONOCHROME2");
+  if (frames > 1) {
+    d.element(0x0028, 0x0008, "IS", std::to_string(frames));
+    DicomComposer shared(implicit, big), measures(implicit, big);
+    measures.element(0x0028, 0x0030, "DS", "0.5\\0.7");
+    shared.sequence(0x0028, 0x9110, {measures.bytes()});
+    d.sequence(0x5200, 0x9229, {shared.bytes()});
+    std::vector<std::string> per;
+    for (int f = 0; f < frames; ++f) {
+      DicomComposer position(implicit, big), item(implicit, big);
+      const double t = 1.5 * (frames - 1 - f);  // frames stored against the slice order, along the normal (0, .8, .6)
+      position.element(0x0020, 0x0032, "DS", fmt::format("-10.5\\{}\\{}", 20 + 0.8 * t, 3.25 + 0.6 * t));
+      item.sequence(0x0020, 0x9113, {position.bytes()});
+      per.push_back(item.bytes());
+    }
+    d.sequence(0x5200, 0x9230, per);
+  }
+  d.us(0x0028, 0x0010, 2);
+  d.us(0x0028, 0x0011, 3);
+  d.element(0x0028, 0x0030, "DS", "0.5\\0.7");
+  d.us(0x0028, 0x0100, 16);
+  d.us(0x0028, 0x0101, 16);
+  d.us(0x0028, 0x0102, 15);
+  d.us(0x0028, 0x0103, 1);
+  d.element(0x0028, 0x1052, "DS", "-1024");
+  d.element(0x0028, 0x1053, "DS", "2");
+  std::string pixels;
+  for (int k = 0; k < 6 * frames; ++k) pixels += d.u16(static_cast<std::uint16_t>(k * 37 - 50));
+  d.element(0x7fe0, 0x0010, "OW", pixels);
+  return std::string(128, '\0') + "DICM" + group_length.bytes() + meta.bytes() + d.bytes();
 }
 
 }  // namespace
@@ -193,6 +288,10 @@ int write_seeds(const fs::path& root) {
       "NRRD0004\ntype: short\ndimension: 3\nsizes: 2 2 2\nspacings: 1 1 2\nencoding: ascii\n\n1 2 3 4 5 6 7 8\n",
       count);
   // nifti_gz: scripts/fuzz gzips the .nii seed (gzip, not a library of ours).
+  put(root / "dicom", "explicit-little.dcm", dicom("1.2.840.10008.1.2.1"), count);
+  put(root / "dicom", "implicit-little.dcm", dicom("1.2.840.10008.1.2"), count);
+  put(root / "dicom", "explicit-big.dcm", dicom("1.2.840.10008.1.2.2"), count);
+  put(root / "dicom", "enhanced-multiframe.dcm", dicom("1.2.840.10008.1.2.1", 3), count);
 #endif
   return count;
 }

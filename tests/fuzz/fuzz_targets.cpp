@@ -23,6 +23,7 @@
 #include "meshpde/mesh/generators.h"
 #include "meshpde/mesh/topology.h"
 #ifdef MESHPDE_FUZZ_MEDICAL
+#include "meshpde/io/dicom.h"
 #include "meshpde/io/medical_io.h"
 #endif
 
@@ -167,6 +168,17 @@ int volume(const std::uint8_t* data, std::size_t size, const std::string& suffix
       broken("a volume with a non-finite geometry");
   });
 }
+
+// One DICOM file, as a series of that one file (its header, its structure checked
+// before GDCM sees it, then its pixels decoded).
+int dicom(const std::uint8_t* data, std::size_t size) {
+  return guarded([&] {
+    const Volume v = read_dicom_file_from_memory(bytes(data, size), "fuzz.dcm");
+    if (v.values.size() != v.num_voxels()) broken("a volume with another number of values than voxels");
+    if (!v.spacing.allFinite() || !v.origin.allFinite() || !v.direction.allFinite())
+      broken("a volume with a non-finite geometry");
+  });
+}
 #endif
 
 #ifdef MESHPDE_FUZZ_EDITOR
@@ -292,6 +304,7 @@ const std::vector<Target>& targets() {
                  [](const std::uint8_t* d, std::size_t n) { return volume(d, n, ".nii.gz"); }});
     t.push_back({"nrrd", "NRRD volumes (.nrrd)", ".nrrd",
                  [](const std::uint8_t* d, std::size_t n) { return volume(d, n, ".nrrd"); }});
+    t.push_back({"dicom", "DICOM files (Part 10, any transfer syntax; read with GDCM)", ".dcm", dicom});
 #endif
     return t;
   }();
