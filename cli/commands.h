@@ -18,12 +18,13 @@ struct RenderOptions;
 
 namespace meshpde::cli {
 
-void add_mesh_commands(CLI::App& app);      // info, generate, curvature
-void add_solve_commands(CLI::App& app);     // correct, demo
-void add_bench_command(CLI::App& app);      // bench
-void add_render_command(CLI::App& app);     // render
-void add_app_commands(CLI::App& app);       // heat, wave, fair, interpolate, poke
-void add_partition_command(CLI::App& app);  // partition (the distributed component's input)
+void add_mesh_commands(CLI::App& app);          // info, generate, curvature
+void add_solve_commands(CLI::App& app);         // correct, demo
+void add_bench_command(CLI::App& app);          // bench
+void add_render_command(CLI::App& app);         // render
+void add_app_commands(CLI::App& app);           // heat, wave, fair, interpolate, poke
+void add_partition_command(CLI::App& app);      // partition (the distributed component's input)
+void add_segmentation_commands(CLI::App& app);  // extract, voxelize (with meshpde::medical)
 
 /// Shared --view/--up/--size/--wireframe/--zoom options of commands that draw pictures.
 void add_view_options(CLI::App* cmd, RenderOptions& r, std::string& view, std::string& up, std::string& size);

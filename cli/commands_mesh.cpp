@@ -11,6 +11,7 @@
 #ifdef MESHPDE_HAVE_MEDICAL
 #include "meshpde/io/dicom.h"
 #include "meshpde/io/medical_io.h"
+#include "meshpde/io/segmentation_io.h"
 #endif
 #include "meshpde/mesh/generators.h"
 #include "meshpde/mesh/topology.h"
@@ -128,6 +129,48 @@ nlohmann::json series_json(const DicomSeries& s) {
   return j;
 }
 
+// meshpde info on a segmentation with a segment table: its grid and its segments.
+void segmentation_info(const std::string& path, bool json) {
+  const Segmentation seg = read_segmentation(path);
+  std::vector<std::size_t> voxels(seg.segments.size(), 0);
+  for (std::size_t k = 0; k < seg.segments.size(); ++k)
+    for (std::size_t v = 0; v < seg.num_voxels(); ++v)
+      voxels[k] += seg.at(v, seg.segments[k].layer) == seg.segments[k].label;
+  const auto& g = seg.geometry;
+  if (json) {
+    nlohmann::json segments = nlohmann::json::array();
+    for (std::size_t k = 0; k < seg.segments.size(); ++k) {
+      const Segment& s = seg.segments[k];
+      segments.push_back({{"index", s.index},
+                          {"id", s.id},
+                          {"name", s.name},
+                          {"label", s.label},
+                          {"layer", s.layer},
+                          {"color", vec3(s.color)},
+                          {"voxels", voxels[k]}});
+    }
+    print_json({{"kind", "segmentation"},
+                {"format", to_string(seg.format)},
+                {"dims", {g.dims[0], g.dims[1], g.dims[2]}},
+                {"spacing", vec3(g.spacing)},
+                {"origin", vec3(g.origin)},
+                {"direction", matrix3(g.direction)},
+                {"frame", "LPS"},
+                {"layers", seg.layers},
+                {"segments", segments}});
+    return;
+  }
+  fmt::print("{}: segmentation of {} x {} x {} voxels of {:.4g} x {:.4g} x {:.4g} mm, {} layer{}, {} segment{}\n", path,
+             g.dims[0], g.dims[1], g.dims[2], g.spacing.x(), g.spacing.y(), g.spacing.z(), seg.layers,
+             seg.layers == 1 ? "" : "s", seg.segments.size(), seg.segments.size() == 1 ? "" : "s");
+  fmt::print("  origin ({:.6g}, {:.6g}, {:.6g}) mm, LPS\n", g.origin.x(), g.origin.y(), g.origin.z());
+  for (std::size_t k = 0; k < seg.segments.size(); ++k) {
+    const Segment& s = seg.segments[k];
+    fmt::print("  segment {}: '{}' (ID {}), label {} in layer {}, {} voxels\n", s.index, s.name, s.id, s.label, s.layer,
+               voxels[k]);
+  }
+}
+
 // meshpde info on DICOM input: every series, and the volume of the one chosen (or the only one).
 void dicom_info(const std::string& path, const std::string& choice, bool json) {
   const DicomListing listing = list_dicom_series(path);
@@ -189,6 +232,10 @@ void add_mesh_commands(CLI::App& app) {
 #ifdef MESHPDE_HAVE_MEDICAL
       if (!is_volume_path(*path) && is_dicom_path(*path)) {
         dicom_info(*path, *series, *json);
+        return;
+      }
+      if (holds_segments(*path)) {
+        segmentation_info(*path, *json);
         return;
       }
       if (is_volume_path(*path)) {

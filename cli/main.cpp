@@ -84,6 +84,9 @@ int main(int argc, char** argv) {
   meshpde::cli::add_render_command(app);
   meshpde::cli::add_app_commands(app);
   meshpde::cli::add_partition_command(app);
+#ifdef MESHPDE_HAVE_MEDICAL
+  meshpde::cli::add_segmentation_commands(app);
+#endif
 #ifdef MESHPDE_HAVE_SERVER
   meshpde::cli::add_serve_command(app);
 #endif

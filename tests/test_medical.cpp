@@ -736,8 +736,19 @@ TEST(Volume, NrrdEncodingsDetachedDataAndSpacesByMeshpdesOwnReader) {
   EXPECT_NE(refusal(a).find("without a direction"), std::string::npos) << refusal(a);
   write_bytes(a, common + "encoding: bzip2\n\nBZh");
   EXPECT_NE(refusal(a).find("encoding 'bzip2' is not read"), std::string::npos) << refusal(a);
-  write_bytes(a, "NRRD0004\ntype: float\ndimension: 4\nsizes: 1 4 5 6\nencoding: raw\n\n");
-  EXPECT_NE(refusal(a).find("a 3D scalar image is needed"), std::string::npos) << refusal(a);
+  // Four axes: a leading list axis of values per voxel (a segmentation's layers) is not a
+  // scalar image; four spatial axes (a time series) are not read at all.
+  write_bytes(a,
+              "NRRD0004\ntype: float\ndimension: 4\nsizes: 2 4 5 6\nkinds: list domain domain domain\n"
+              "encoding: raw\n\n" +
+                  bytes_of(std::vector<float>(240, 1.0f)));
+  EXPECT_NE(refusal(a).find("2 values per voxel; a scalar image is needed"), std::string::npos) << refusal(a);
+  write_bytes(a,
+              "NRRD0004\ntype: float\ndimension: 4\nsizes: 1 4 5 6\nkinds: domain domain domain domain\n"
+              "encoding: raw\n\n");
+  EXPECT_NE(refusal(a).find("only a leading list axis"), std::string::npos) << refusal(a);
+  write_bytes(a, "NRRD0004\ntype: float\ndimension: 5\nsizes: 1 4 5 6 2\nencoding: raw\n\n");
+  EXPECT_NE(refusal(a).find("a 3D image is needed"), std::string::npos) << refusal(a);
   write_bytes(a, common + "encoding: gzip\n\n" + gzip(std::string(100, '\0')));
   EXPECT_NE(refusal(a).find("ends after"), std::string::npos) << refusal(a);
   write_bytes(a, "NRRD0004\ntype: float\ndimension: 3\nsizes: 1000 1000 1000\nencoding: ascii\n\n1 2 3\n");

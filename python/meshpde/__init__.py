@@ -60,8 +60,9 @@ if has_medical:
 
 __all__ = [
     "CorrectionResult", "CorrectionSession", "DragSession", "Error", "GlobalBilaplacianSolver", "HapticSession",
-    "InputError", "PdeSession", "SolverError", "check_units", "correct", "curvature", "fair", "from_vtk", "generate",
-    "geodesic_ball", "heat", "info", "interpolate", "intrinsic_delaunay", "mass", "read_mesh", "read_volume",
+    "InputError", "PdeSession", "SolverError", "check_units", "correct", "curvature", "extract_surface", "fair",
+    "from_vtk", "generate", "geodesic_ball", "heat", "info", "interpolate", "intrinsic_delaunay", "mass", "read_mesh",
+    "read_segmentation", "read_volume", "voxelize", "write_segmentation",
     "hausdorff_distance", "render", "ring_ball", "self_intersections", "stiffness", "to_vtk", "vertex_normals", "wave", "wave_energy",
     "write_mesh",
 ]
@@ -218,3 +219,105 @@ class CorrectionSession(_meshpde._CorrectionSession):
             solver, units, boundary))
 
     apply.__doc__ = "Applies a correction to the current positions; clears the redo history.\n" + _CORRECT_DOC
+
+
+def _labels_array(d):
+    """(labels, affine, segments) of the extension's segmentation dict."""
+    import numpy as np
+    ni, nj, nk = d["dims"]
+    layers = d["layers"]
+    labels = np.asarray(d["labels"]).reshape((layers, ni, nj, nk), order="F")
+    labels = np.moveaxis(labels, 0, -1)
+    if layers == 1:
+        labels = labels[..., 0]
+    return labels, np.asarray(d["affine"]), list(d["segments"])
+
+
+def _flat_labels(labels):
+    """The extension's flat labels (layer fastest, then i, j, k), dims and layers."""
+    import numpy as np
+    a = np.asarray(labels)
+    if a.ndim not in (3, 4):
+        raise InputError(f"labels: expected an array [i, j, k] or [i, j, k, layer], got {a.ndim} dimensions")
+    if not np.issubdtype(a.dtype, np.integer):
+        if not np.all(np.isfinite(a)) or not np.all(a == np.round(a)):
+            raise InputError("labels: a label map holds whole numbers")
+    if a.size and (a.min() < np.iinfo(np.int32).min or a.max() > np.iinfo(np.int32).max):
+        raise InputError("labels: values beyond int32")
+    if a.ndim == 3:
+        a = a[..., None]
+    flat = np.moveaxis(a.astype(np.int32), -1, 0).ravel(order="F")
+    return np.ascontiguousarray(flat), tuple(int(n) for n in a.shape[:3]), int(a.shape[3])
+
+
+def read_segmentation(path):
+    """A segmentation file: 3D Slicer's .seg.nrrd, or a label map (.nii, .nii.gz, .nrrd,
+    .nhdr, .mha, .mhd).
+
+    Returns ``(labels, affine, segments)``: ``labels[i, j, k]`` int32 (``[i, j, k,
+    layer]`` for a .seg.nrrd of several layers), the 4 x 4 affine from voxel indices to
+    LPS millimetres (as :func:`read_volume`), and the segment table: a list of dicts
+    with ``name``, ``id``, ``label`` (its voxel value), ``layer``, ``color`` (RGB in
+    [0, 1]) and ``index`` (the N of the file's SegmentN_ fields). A plain label map has a
+    segment for each non-zero label, named "label N".
+    """
+    return _labels_array(_meshpde._read_segmentation(path))
+
+
+def write_segmentation(path, labels, affine, segments=None, *, like=None):
+    """Writes a segmentation (by extension: .seg.nrrd, .nrrd, .nii, .nii.gz, .mha),
+    atomically.
+
+    like: a segmentation file on the same grid whose header is kept (every field, key,
+    comment and segment, the voxel type and compression; a .seg.nrrd segment's Extent is
+    widened to its voxels): the way to write back a segmentation read with
+    :func:`read_segmentation` so that 3D Slicer reopens it as it was but for the voxels.
+    Without it the header is made from the affine, and ``segments`` (dicts as
+    :func:`read_segmentation` returns; default: one a label) become a .seg.nrrd's table.
+    """
+    flat, dims, layers = _flat_labels(labels)
+    _meshpde._write_segmentation(path, flat, dims, layers, affine, segments, like)
+
+
+def extract_surface(segmentation, segment=None, *, smoothing=0.15, affine=None):
+    """The closed surface of one segment, as 3D Slicer's closed-surface conversion makes
+    it (flying edges, then windowed-sinc smoothing), in LPS millimetres.
+
+    segmentation: a file (as :func:`read_segmentation` reads), or a labels array with
+    ``affine``. segment: its name, ID or label value (default: the only segment).
+    smoothing: 3D Slicer's factor, 0 (none) to 1 (strong); default 0.15.
+    Returns ``(V, F, info)``: info holds the segment (name, id, label, layer, color),
+    its voxel count, the smoothing and the frame ("LPS").
+    """
+    if isinstance(segmentation, (str, bytes)) or hasattr(segmentation, "__fspath__"):
+        return _meshpde._extract_surface(segmentation, None, (0, 0, 0), 1, None, "" if segment is None else str(segment),
+                                         smoothing)
+    if affine is None:
+        raise InputError("extract_surface: a labels array needs its affine")
+    flat, dims, layers = _flat_labels(segmentation)
+    return _meshpde._extract_surface(None, flat, dims, layers, affine, "" if segment is None else str(segment),
+                                     smoothing)
+
+
+def voxelize(V, F, reference, segment=None, *, displacement=None, oversampling=1, full=False, output=None,
+             space="lps", units="mm", series=None):
+    """A closed surface back into a label map on the grid of ``reference``.
+
+    reference: a segmentation (.seg.nrrd, or a label map: whole non-negative values, at
+    most 1,000 labels), whose ``segment`` (name, ID or label value; default the only one)
+    is replaced and every other segment kept; or an image (any volume, DICOM too; its
+    ``series``), whose grid gets a new label map.
+    displacement: (n, 3), how far each vertex moved (the ``displacement`` field that
+    :func:`correct` and ``meshpde correct`` give): only the voxels between the surface
+    before and after the move are decided again, every other voxel keeps its label.
+    Without it, or with full=True, every voxel of the segment is decided again.
+    oversampling: K sub-samples along each axis of a voxel (inside when more than half
+    are). space, units: the frame ("lps" or "ras") and unit ("mm", "cm" or "m") of V.
+    output: a file to write (as :func:`write_segmentation` with ``like=reference``).
+    Returns ``(labels, affine, segments, report)``; the report counts the voxels
+    ``added``, ``removed`` and left to other segments (``conflicts``), and says whether
+    the update was ``partial``.
+    """
+    d, report = _meshpde._voxelize(V, F, displacement, reference, "" if segment is None else str(segment),
+                                   oversampling, full, space, units, series, output)
+    return (*_labels_array(d), report)

@@ -37,4 +37,7 @@ PYBIND11_MODULE(_meshpde, m) {
   meshpde::python::bind_operators(m);
   meshpde::python::bind_apps(m);
   meshpde::python::bind_sessions(m);
+#ifdef MESHPDE_HAVE_MEDICAL
+  meshpde::python::bind_segmentation(m);
+#endif
 }

@@ -88,6 +88,9 @@ std::vector<std::string> write_mesh(const std::filesystem::path& path, const Mes
   if (!data.point_arrays.empty() || !data.cell_arrays.empty())
     warnings.push_back(fmt::format("{}: {} point and {} cell data array(s) dropped (only .vtp and .vtk keep them)",
                                    path.string(), data.point_arrays.size(), data.cell_arrays.size()));
+  if (!data.field_strings.empty() || !data.field_arrays.empty())
+    warnings.push_back(fmt::format("{}: {} field data array(s) dropped (only .vtp keeps them)", path.string(),
+                                   data.field_strings.size() + data.field_arrays.size()));
   for (const auto& [key, field] : data.vertex_scalars)
     if (field.size() != data.V.rows())
       throw InputError(fmt::format("field '{}' has {} values for {} vertices", key, field.size(), data.V.rows()));

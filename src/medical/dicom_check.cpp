@@ -195,6 +195,9 @@ void check_dicom_structure(const std::string& bytes, const std::string& name) {
     at = h.value + h.length;
   }
   if (syntax.empty()) meta.fail(at, "no transfer syntax in the file meta information");
+  if (syntax.size() > 64 || syntax.find_first_not_of("0123456789.") != std::string::npos)
+    meta.fail(at, "the transfer syntax is not a UID (digits and dots)");
+  if (at >= bytes.size()) meta.fail(at, "no data set after the file meta information");
   if (syntax == "1.2.840.10008.1.2.1.99") {  // deflated explicit VR little endian
     const std::string inflated = inflate_raw(data + at, bytes.size() - at, name);
     const Walker w{reinterpret_cast<const unsigned char*>(inflated.data()), inflated.size(), false, false, name};

@@ -52,7 +52,7 @@ Element element_type(const std::string& value, const std::string& name) {
 
 }  // namespace
 
-Volume read_metaimage(const std::filesystem::path& path, std::size_t max_voxels) {
+Volume read_metaimage(const std::filesystem::path& path, std::size_t max_voxels, StoredVoxels* stored) {
   const std::string name = path.string();
   const std::string bytes = read_file_bytes(path);
   // The header: lines up to and including ElementDataFile (the last key, by the format).
@@ -122,6 +122,13 @@ Volume read_metaimage(const std::filesystem::path& path, std::size_t max_voxels)
     }
   }
 
+  if (stored) {
+    stored->header = bytes.substr(0, pos);
+    stored->type = type;
+    stored->big_endian = big;
+    stored->compressed = compressed;
+    stored->detached = data != &bytes;
+  }
   Volume v;
   v.name = name;
   v.dims = {static_cast<int>(dims[0]), static_cast<int>(dims[1]), static_cast<int>(dims[2])};

@@ -64,7 +64,7 @@ Element nifti_type(int datatype, const std::string& name) {
 
 }  // namespace
 
-Volume read_nifti(const std::filesystem::path& path, std::size_t max_voxels) {
+Volume read_nifti(const std::filesystem::path& path, std::size_t max_voxels, StoredVoxels* stored) {
   const std::string name = path.string();
   const std::string file = read_file_bytes(path);
   const bool gz =
@@ -111,12 +111,32 @@ Volume read_nifti(const std::filesystem::path& path, std::size_t max_voxels) {
   v.name = name;
   v.dims = {static_cast<int>(dims[0]), static_cast<int>(dims[1]), static_cast<int>(dims[2])};
   // The voxels start at vox_offset; in a gzip stream the header is already taken.
-  v.values =
-      gz ? inflated_voxels(*inflater, offset - kHeaderBytes, layout, name) : raw_voxels(file, offset, layout, name);
+  if (stored) {
+    if (gz) {
+      if (offset - kHeaderBytes + layout.bytes() > inflated_bound(inflater->compressed_size()))
+        throw InputError(fmt::format("{}: {} compressed bytes cannot hold {} x {} x {} voxels", name,
+                                     inflater->compressed_size(), dims[0], dims[1], dims[2]));
+      stored->header = head + inflater->take(offset - kHeaderBytes);
+    } else {
+      if (file.size() < offset) throw InputError(fmt::format("{}: vox_offset {} is past the file's end", name, offset));
+      stored->header = file.substr(0, offset);
+    }
+    v.values = gz ? inflated_voxels(*inflater, 0, layout, name) : raw_voxels(file, offset, layout, name);
+  } else {
+    v.values =
+        gz ? inflated_voxels(*inflater, offset - kHeaderBytes, layout, name) : raw_voxels(file, offset, layout, name);
+  }
   // scl_slope 0 (or not finite) means unscaled, as the standard says.
   double slope = h.get<float>(112), inter = h.get<float>(116);
   if (slope == 0 || !std::isfinite(slope)) slope = 1, inter = 0;
   if (!std::isfinite(inter)) inter = 0;
+  if (stored) {
+    stored->type = type;
+    stored->big_endian = layout.big_endian;
+    stored->compressed = gz;
+    stored->slope = slope;
+    stored->intercept = inter;
+  }
   if (slope != 1 || inter != 0)
     for (float& x : v.values) x = static_cast<float>(x * slope + inter);
 

@@ -101,25 +101,33 @@ Element nrrd_type(const std::string& value, const std::string& name) {
 
 }  // namespace
 
-Volume read_nrrd(const std::filesystem::path& path, std::size_t max_voxels) {
+NrrdImage read_nrrd_image(const std::filesystem::path& path, std::size_t max_voxels) {
   const std::string name = path.string();
   const std::string bytes = read_file_bytes(path);
   if (bytes.compare(0, 7, "NRRD000") != 0 || bytes.size() < 8 || bytes[7] < '1' || bytes[7] > '5')
     throw InputError(fmt::format("{}: not a NRRD file (it does not start with NRRD0001 to NRRD0005)", name));
-  std::map<std::string, std::string> h;
+  NrrdImage image;
+  std::map<std::string, std::string>& h = image.fields;
   std::size_t pos = bytes.find('\n');
+  image.lines.push_back(trim(bytes.substr(0, pos)));  // the magic
   pos = pos == std::string::npos ? bytes.size() : pos + 1;
   bool blank = false;
   while (pos < bytes.size()) {
     const std::size_t eol = bytes.find('\n', pos);
-    const std::string line = bytes.substr(pos, eol == std::string::npos ? std::string::npos : eol - pos);
+    std::string line = bytes.substr(pos, eol == std::string::npos ? std::string::npos : eol - pos);
     pos = eol == std::string::npos ? bytes.size() : eol + 1;
+    if (!line.empty() && line.back() == '\r') line.pop_back();
     const std::string t = trim(line);
     if (t.empty()) {
       blank = true;
       break;
     }
-    if (t[0] == '#' || line.find(":=") != std::string::npos) continue;  // comments, key/value pairs
+    image.lines.push_back(line);
+    if (t[0] == '#') continue;
+    if (const auto kv = line.find(":="); kv != std::string::npos) {  // key/value pairs (3D Slicer's Segment fields)
+      image.key_values.emplace_back(line.substr(0, kv), line.substr(kv + 2));
+      continue;
+    }
     const auto colon = line.find(": ");
     if (colon == std::string::npos)
       throw InputError(fmt::format("{}: header line '{}' is not 'field: value'", name, clip(t)));
@@ -130,24 +138,50 @@ Volume read_nrrd(const std::filesystem::path& path, std::size_t max_voxels) {
     if (it == h.end()) throw InputError(fmt::format("{}: the header has no '{}' field", name, key));
     return it->second;
   };
-  if (number(field("dimension"), "dimension", name) != 3)
-    throw InputError(fmt::format("{}: has {} axes; a 3D scalar image is needed", name, clip(field("dimension"))));
+  // Three spatial axes, after one "list" axis of values per voxel when the image has
+  // four (a 3D Slicer segmentation's layers: the list axis's space direction is none).
+  const double dimension = number(field("dimension"), "dimension", name);
+  if (dimension != 3 && dimension != 4)
+    throw InputError(fmt::format("{}: has {} axes; a 3D image is needed", name, clip(field("dimension"))));
+  const int axes_count = static_cast<int>(dimension);
   const Element type = nrrd_type(field("type"), name);
+  image.type = type;
   std::array<long long, 3> dims{};
+  long long components = 1;
   {
     std::istringstream ss(field("sizes"));
     std::string tok;
     int a = 0;
     while (ss >> tok) {
-      if (a == 3) throw InputError(fmt::format("{}: sizes: more than 3 values", name));
+      if (a == axes_count) throw InputError(fmt::format("{}: sizes: more than {} values", name, axes_count));
       const double x = number(tok, "sizes", name);
       if (x != std::floor(x) || x < 1 || x > 1e9)
         throw InputError(fmt::format("{}: sizes: '{}' is not a positive whole number", name, clip(tok)));
-      dims[a++] = static_cast<long long>(x);
+      if (axes_count == 4 && a == 0)
+        components = static_cast<long long>(x);
+      else
+        dims[a - (axes_count - 3)] = static_cast<long long>(x);
+      ++a;
     }
-    if (a != 3) throw InputError(fmt::format("{}: sizes: {} values for 3 axes", name, a));
+    if (a != axes_count) throw InputError(fmt::format("{}: sizes: {} values for {} axes", name, a, axes_count));
   }
-  const std::size_t voxels = checked_voxels(dims, name, max_voxels);
+  if (axes_count == 4) {
+    if (h.count("kinds")) {
+      std::istringstream ks(lower(h.at("kinds")));
+      std::string first;
+      ks >> first;
+      if (first == "domain" || first == "space")
+        throw InputError(
+            fmt::format("{}: a 4D image whose first axis is '{}' (only a leading list axis of values "
+                        "per voxel is read)",
+                        name, clip(first)));
+    }
+    if (components > 4096) throw InputError(fmt::format("{}: {} values per voxel", name, components));
+  }
+  image.components = static_cast<int>(components);
+  const std::size_t voxels =
+      checked_voxels({dims[0] * components, dims[1], dims[2]}, name, max_voxels ? max_voxels * components : 0) /
+      static_cast<std::size_t>(components);
   const std::string encoding = lower(field("encoding"));
   const bool big = h.count("endian") && lower(h.at("endian")) == "big";
   if (element_size(type) > 1 && h.count("endian") && !big && lower(h.at("endian")) != "little")
@@ -177,7 +211,10 @@ Volume read_nrrd(const std::filesystem::path& path, std::size_t max_voxels) {
       offset = eol == std::string::npos ? data->size() : eol + 1;
     }
   }
-  const VoxelLayout layout{dims, voxels, type, big};
+  const VoxelLayout layout{
+      {dims[0] * components, dims[1], dims[2]}, voxels * static_cast<std::size_t>(components), type, big};
+  image.big_endian = big;
+  image.encoding = encoding;
   if (h.count("byte skip") || h.count("byteskip")) {
     const double skip = number(h.count("byte skip") ? h.at("byte skip") : h.at("byteskip"), "byte skip", name);
     if (skip < -1 || skip != std::floor(skip)) throw InputError(fmt::format("{}: byte skip {} is invalid", name, skip));
@@ -190,27 +227,29 @@ Volume read_nrrd(const std::filesystem::path& path, std::size_t max_voxels) {
   }
   offset = std::min(offset, data->size());
 
-  Volume v;
+  Volume& v = image.geometry;
   v.name = name;
   v.dims = {static_cast<int>(dims[0]), static_cast<int>(dims[1]), static_cast<int>(dims[2])};
+  std::vector<float>& values = image.values;
+  const std::size_t count = layout.voxels;
   if (encoding == "raw") {
-    v.values = raw_voxels(*data, offset, layout, name);
+    values = raw_voxels(*data, offset, layout, name);
   } else if (encoding == "gzip" || encoding == "gz") {
     Inflater inflater(*data, offset, name);
-    v.values = inflated_voxels(inflater, 0, layout, name);
+    values = inflated_voxels(inflater, 0, layout, name);
   } else if (encoding == "ascii" || encoding == "text" || encoding == "txt") {
     // At least one byte a value: a count the text cannot hold is refused before allocating.
-    if (data->size() - offset < voxels)
-      throw InputError(fmt::format("{}: {} bytes of text cannot hold {} values", name, data->size() - offset, voxels));
-    v.values.resize(voxels);
+    if (data->size() - offset < count)
+      throw InputError(fmt::format("{}: {} bytes of text cannot hold {} values", name, data->size() - offset, count));
+    values.resize(count);
     const char* p = data->data() + offset;
     const char* end = data->data() + data->size();
-    for (std::size_t i = 0; i < voxels; ++i) {
+    for (std::size_t i = 0; i < count; ++i) {
       while (p < end && (std::isspace(static_cast<unsigned char>(*p)) || *p == ',')) ++p;
       const char* q = p;
       while (q < end && !std::isspace(static_cast<unsigned char>(*q)) && *q != ',') ++q;
-      if (p == q) throw InputError(fmt::format("{}: the text data end after {} of {} values", name, i, voxels));
-      v.values[i] = static_cast<float>(number(std::string(p, q), "data", name, true));
+      if (p == q) throw InputError(fmt::format("{}: the text data end after {} of {} values", name, i, count));
+      values[i] = static_cast<float>(number(std::string(p, q), "data", name, true));
       p = q;
     }
   } else if (encoding == "hex") {
@@ -231,7 +270,7 @@ Volume read_nrrd(const std::filesystem::path& path, std::size_t max_voxels) {
     }
     if (raw.size() < layout.bytes())
       throw InputError(fmt::format("{}: {} hex bytes for {} bytes of voxels", name, raw.size(), layout.bytes()));
-    convert_elements(raw.data(), voxels, type, big, 1, 0, v.values);
+    convert_elements(raw.data(), count, type, big, 1, 0, values);
   } else {
     throw InputError(fmt::format("{}: encoding '{}' is not read (raw, gzip, ascii or hex)", name, clip(encoding)));
   }
@@ -252,7 +291,14 @@ Volume read_nrrd(const std::filesystem::path& path, std::size_t max_voxels) {
   Eigen::Matrix3d axes = Eigen::Matrix3d::Identity();
   Eigen::Vector3d origin = Eigen::Vector3d::Zero();
   if (spatial && h.count("space directions")) {
-    const auto d = vectors(h.at("space directions"), "space directions", name);
+    std::string directions = h.at("space directions");
+    if (axes_count == 4) {  // the list axis has no direction: "none (x,y,z) (x,y,z) (x,y,z)"
+      const auto first = directions.find_first_not_of(" \t");
+      if (first == std::string::npos || directions.compare(first, 4, "none") != 0)
+        throw InputError(fmt::format("{}: space directions: the list axis needs 'none'", name));
+      directions = directions.substr(first + 4);
+    }
+    const auto d = vectors(directions, "space directions", name);
     if (d.size() != 3) throw InputError(fmt::format("{}: space directions: {} vectors for 3 axes", name, d.size()));
     for (int c = 0; c < 3; ++c) axes.col(c) = d[static_cast<std::size_t>(c)];
     if (h.count("space origin")) {
@@ -269,8 +315,21 @@ Volume read_nrrd(const std::filesystem::path& path, std::size_t max_voxels) {
     }
   }
   set_geometry_from_axes(v, L * axes, L * origin);
-  v.validate();
-  return v;
+  if (components == 1) {
+    v.values = values;
+    v.validate();
+  }
+  return image;
+}
+
+Volume read_nrrd(const std::filesystem::path& path, std::size_t max_voxels) {
+  NrrdImage image = read_nrrd_image(path, max_voxels);
+  if (image.components != 1)
+    throw InputError(
+        fmt::format("{}: {} values per voxel; a scalar image is needed (a segmentation's layers are read "
+                    "by read_segmentation)",
+                    path.string(), image.components));
+  return std::move(image.geometry);
 }
 
 }  // namespace meshpde::detail

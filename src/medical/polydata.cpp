@@ -41,6 +41,14 @@ std::vector<std::int64_t> integer_ids(const std::vector<double>& v, const std::s
 MeshData mesh_from_polydata(PolyData&& pd, const std::string& name) {
   MeshData d;
   d.space = pd.space;
+  for (const auto& [key, value] : pd.field_strings) d.field_strings[key] = value;
+  for (const NamedArray& a : pd.field_arrays) {
+    Eigen::MatrixXd m(static_cast<Eigen::Index>(a.tuples()), a.components);
+    for (std::size_t t = 0; t < a.tuples(); ++t)
+      for (int c = 0; c < a.components; ++c)
+        m(static_cast<Eigen::Index>(t), c) = a.values[t * static_cast<std::size_t>(a.components) + c];
+    d.field_arrays[a.name] = DataArray{m, a.type};
+  }
   d.warnings = std::move(pd.warnings);
   const std::size_t np = pd.point_count();
   if (np == 0) throw InputError(fmt::format("{}: contains no points", name));

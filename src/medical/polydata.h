@@ -39,8 +39,10 @@ struct PolyData {
   std::vector<double> points;  ///< 3 per point
   CellList verts, lines, polys, strips;
   std::vector<NamedArray> point_arrays, cell_arrays;
-  std::string space;                  ///< "LPS" or "RAS" from a SPACE= tag, else empty
-  std::vector<std::string> warnings;  ///< arrays the reader skipped, and why
+  std::string space;                                               ///< "LPS" or "RAS" from a SPACE= tag, else empty
+  std::vector<std::pair<std::string, std::string>> field_strings;  ///< field data: string arrays (first string)
+  std::vector<NamedArray> field_arrays;                            ///< field data: numeric arrays
+  std::vector<std::string> warnings;                               ///< arrays the reader skipped, and why
   std::size_t point_count() const { return points.size() / 3; }
 };
 

@@ -9,6 +9,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
+#include <map>
 #include <memory>
 #include <string>
 #include <vector>
@@ -92,8 +93,36 @@ std::size_t checked_voxels(const std::array<long long, 3>& dims, const std::stri
 /// direction; sets the origin. \throw InputError for a zero or non-finite column.
 void set_geometry_from_axes(Volume& v, const Eigen::Matrix3d& axes, const Eigen::Vector3d& origin_lps);
 
-Volume read_metaimage(const std::filesystem::path& path, std::size_t max_voxels);
-Volume read_nifti(const std::filesystem::path& path, std::size_t max_voxels);
+/// A NRRD file as read: its header as written, and its voxels, with one leading list
+/// axis of several values per voxel allowed (a 3D Slicer segmentation's layers).
+struct NrrdImage {
+  Volume geometry;                                              ///< values set only when components == 1
+  std::vector<float> values;                                    ///< components fastest, then i, j, k
+  int components = 1;                                           ///< values per voxel (the list axis)
+  std::vector<std::string> lines;                               ///< the header lines, magic first, in order
+  std::map<std::string, std::string> fields;                    ///< "field: value" lines, fields lower-cased
+  std::vector<std::pair<std::string, std::string>> key_values;  ///< "key:=value" lines, in order
+  Element type = Element::F32;
+  bool big_endian = false;
+  std::string encoding;  ///< lower-cased
+};
+NrrdImage read_nrrd_image(const std::filesystem::path& path, std::size_t max_voxels);
+
+/// How a MetaImage or NIfTI file stores its voxels: what a writer needs to write the
+/// same file back with other voxel values (a label map edited in place).
+struct StoredVoxels {
+  /// NIfTI: the bytes before vox_offset (header and extensions, inflated); MetaImage:
+  /// the header lines up to and including ElementDataFile.
+  std::string header;
+  Element type = Element::F32;
+  bool big_endian = false;
+  bool compressed = false;
+  bool detached = false;            ///< the voxels were in another file (.mhd's ElementDataFile)
+  double slope = 1, intercept = 0;  ///< NIfTI's scl_slope and scl_inter as applied
+};
+
+Volume read_metaimage(const std::filesystem::path& path, std::size_t max_voxels, StoredVoxels* stored = nullptr);
+Volume read_nifti(const std::filesystem::path& path, std::size_t max_voxels, StoredVoxels* stored = nullptr);
 Volume read_nrrd(const std::filesystem::path& path, std::size_t max_voxels);
 
 }  // namespace meshpde::detail

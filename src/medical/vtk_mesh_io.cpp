@@ -116,6 +116,13 @@ vtkSmartPointer<vtkPolyData> to_polydata(const MeshData& d) {
       throw InputError(fmt::format("cell array '{}' has {} rows for {} triangles", key, arr.values.rows(), d.F.rows()));
     pd->GetCellData()->AddArray(make_array(key, arr.values, arr.type));
   }
+  for (const auto& [key, value] : d.field_strings) {
+    auto s = vtkSmartPointer<vtkStringArray>::New();
+    s->SetName(key.c_str());
+    s->InsertNextValue(value);
+    pd->GetFieldData()->AddArray(s);
+  }
+  for (const auto& [key, arr] : d.field_arrays) pd->GetFieldData()->AddArray(make_array(key, arr.values, arr.type));
   return pd;
 }
 

@@ -591,27 +591,61 @@ PolyData merge(std::vector<Piece>& pieces, const std::string& name) {
   return out;
 }
 
-// 3D Slicer's frame tag of XML files: the first string of the field-data array SPACE
-// ("LPS" or "RAS"), or empty when there is none or it says something else.
-std::string field_data_space(const XmlNode* field_data, const FileSettings& f, const std::string& name) {
-  if (!field_data) return {};
+// The field data: string arrays (the first string of each) and numeric arrays, by name.
+// 3D Slicer's frame tag of XML files is the string array SPACE ("LPS" or "RAS"). An
+// array that cannot be read is passed over with a warning: field data describe the
+// mesh, nothing reads the mesh through them.
+void read_field_data(const XmlNode* field_data, const FileSettings& f, const std::string& name, PolyData& pd) {
+  if (!field_data) return;
   for (const XmlNode& da : field_data->children) {
     // VTK writes a string array as <Array>, numeric ones as <DataArray>.
-    if ((da.tag != "Array" && da.tag != "DataArray") || da.attribute_or("Name", "") != "SPACE") continue;
+    if (da.tag != "Array" && da.tag != "DataArray") continue;
+    const std::string array = da.attribute_or("Name", "");
+    const std::string what = fmt::format("{}: field data '{}'", name, array);
     Element type{};
-    std::vector<double> bytes;
-    if (!array_values(da, f, name + ": field data 'SPACE'", type, bytes, true).empty()) return {};
-    std::string value;
-    for (const double b : bytes) {
-      if (b == 0) break;
-      // An ascii array may hold any number: only byte values spell a string.
-      if (!(b >= 0 && b <= 255) || b != std::floor(b)) return {};
-      value.push_back(static_cast<char>(static_cast<unsigned char>(b)));
+    std::vector<double> values;
+    const bool is_string = da.attribute_or("type", "") == "String";
+    std::string why;
+    try {
+      why = array_values(da, f, what, type, values, is_string);
+    } catch (const InputError& e) {
+      why = e.what();
     }
-    if (value.find("RAS") != std::string::npos) return "RAS";
-    if (value.find("LPS") != std::string::npos) return "LPS";
+    if (!why.empty()) {
+      pd.warnings.push_back(fmt::format("{}: not read ({})", what, why));
+      continue;
+    }
+    if (is_string) {
+      std::string value;
+      for (const double b : values) {
+        if (b == 0) break;
+        // An ascii array may hold any number: only byte values spell a string.
+        if (!(b >= 0 && b <= 255) || b != std::floor(b)) {
+          value.clear();
+          break;
+        }
+        value.push_back(static_cast<char>(static_cast<unsigned char>(b)));
+      }
+      if (array == "SPACE") {
+        if (value.find("RAS") != std::string::npos) pd.space = "RAS";
+        if (value.find("LPS") != std::string::npos) pd.space = "LPS";
+        continue;
+      }
+      pd.field_strings.emplace_back(array, value);
+      continue;
+    }
+    NamedArray a;
+    a.name = array;
+    a.type = da.attribute_or("type", "Float64");
+    a.components = std::max(1, components_of(da, what));
+    a.values = std::move(values);
+    if (a.values.size() % static_cast<std::size_t>(a.components) != 0) {
+      pd.warnings.push_back(
+          fmt::format("{}: not read ({} values of {} components)", what, a.values.size(), a.components));
+      continue;
+    }
+    pd.field_arrays.push_back(std::move(a));
   }
-  return {};
 }
 
 }  // namespace
@@ -661,7 +695,7 @@ PolyData read_vtp_polydata(const std::string& bytes, const std::string& name) {
     if (node.tag == "Piece") pieces.push_back(read_piece(node, pieces.size(), limit, f, name));
   if (pieces.empty()) throw InputError(fmt::format("{}: <PolyData> has no <Piece>", name));
   PolyData pd = merge(pieces, name);
-  pd.space = field_data_space(poly->child("FieldData"), f, name);
+  read_field_data(poly->child("FieldData"), f, name, pd);
   if (pd.space.empty())
     pd.space = detect_space(std::string_view(bytes).substr(0, std::min<std::size_t>(bytes.size(), 4096)));
   return pd;

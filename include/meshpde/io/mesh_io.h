@@ -43,7 +43,12 @@ struct MeshData {
   std::map<std::string, DataArray> point_arrays;          ///< other point data (VTK only: 2, 4+ components)
   std::map<std::string, DataArray> cell_arrays;           ///< cell data, one row per triangle (VTK only)
   std::map<std::string, std::string> scalar_types;        ///< VTK type of a vertex_scalars entry, when read from VTK
-  std::string space;                  ///< "LPS" or "RAS" when the file says so (3D Slicer's SPACE= header), else empty
+  std::string space;  ///< "LPS" or "RAS" when the file says so (3D Slicer's SPACE= header), else empty
+  /// Data about the whole mesh (VTK field data; .vtp keeps them, the other formats drop
+  /// them): one-string arrays by name (a segment's Segment_Name), numeric arrays by name
+  /// (tuples x components: a segment's Segment_Color is 1 x 3).
+  std::map<std::string, std::string> field_strings;
+  std::map<std::string, DataArray> field_arrays;
   std::vector<std::string> warnings;  ///< e.g. "triangulated 78 quads"
 };
 
