@@ -141,32 +141,6 @@ void tissue_fields(const Mesh& mesh, const MeshData& d, const CorrectArgs& a, do
   }
 }
 
-// Point normals the input carried (vmtk's Normals_, Slicer's Normals) would shade the
-// moved wall wrongly: recompute them on the corrected surface, keeping the file's
-// orientation (inward or outward, whichever the old normals mostly agree with).
-void refresh_normals(MeshData& d, const std::string& name) {
-  for (const auto& [key, values] : d.vertex_scalars) {
-    if (key.size() < 3 || key.compare(key.size() - 2, 2, "_x") != 0) continue;
-    const std::string base = key.substr(0, key.size() - 2);
-    std::string lower = base;
-    std::transform(lower.begin(), lower.end(), lower.begin(), [](unsigned char c) { return std::tolower(c); });
-    if (lower.find("normal") == std::string::npos || !d.vertex_scalars.count(base + "_y") ||
-        !d.vertex_scalars.count(base + "_z"))
-      continue;
-    Eigen::MatrixX3d N = vertex_normals(Mesh(d.V, d.F));
-    double agree = 0;
-    for (Eigen::Index i = 0; i < N.rows(); ++i)
-      agree += N(i, 0) * values[i] + N(i, 1) * d.vertex_scalars.at(base + "_y")[i] +
-               N(i, 2) * d.vertex_scalars.at(base + "_z")[i];
-    if (agree < 0) N = -N;
-    d.vertex_scalars[base + "_x"] = N.col(0);
-    d.vertex_scalars[base + "_y"] = N.col(1);
-    d.vertex_scalars[base + "_z"] = N.col(2);
-    fmt::print(stderr, "note: {}: point normals '{}' recomputed on the corrected surface\n", name, base);
-    return;
-  }
-}
-
 void run_correct(const CorrectArgs& a) {
   if (a.radius <= 0 && a.rings <= 0) throw InputError("give --radius MM or --rings K");
   if (a.vertices.size() != a.moves.size())
@@ -256,7 +230,8 @@ void run_correct(const CorrectArgs& a) {
   // frame given with --space is written too (SPACE= in .vtk, SPACE field data in .vtp).
   data.V = V;
   if (!a.space.empty()) data.space = space == Space::RAS ? "RAS" : "LPS";
-  refresh_normals(data, a.mesh);
+  for (const auto& name : refresh_normal_fields(data))
+    fmt::print(stderr, "note: {}: point normals '{}' recomputed on the corrected surface\n", a.mesh, name);
   const char* comp[3] = {"displacement_x", "displacement_y", "displacement_z"};
   for (int c = 0; c < 3; ++c) data.vertex_scalars[comp[c]] = disp.col(c);
   data.vertex_scalars["displacement_magnitude"] = disp.rowwise().norm();

@@ -40,7 +40,6 @@ from ._meshpde import (  # noqa: F401  (re-exported)
     info,
     intrinsic_delaunay,
     mass,
-    read_mesh,
     render,
     ring_ball,
     hausdorff_distance,
@@ -48,8 +47,64 @@ from ._meshpde import (  # noqa: F401  (re-exported)
     stiffness,
     vertex_normals,
     wave_energy,
-    write_mesh,
 )
+
+
+
+class MeshFields(dict):
+    """The vertex fields of a mesh file by name (this is a dict), and what else the file
+    carried, which :func:`write_mesh` writes back:
+
+    - ``cells``: cell data by name (SimVascular's ``ModelFaceID``, VMTK's
+      ``CellEntityIds``), an (m,) or (m, k) array a row per triangle (a polygon's row
+      repeated for each of its triangles), in the file's type (Int32 as int32);
+    - ``space``: the frame the file names ("LPS" or "RAS", 3D Slicer's tag), or None;
+    - ``field_data``: data about the whole mesh (.vtp), strings and small arrays.
+
+    Vertex fields keep their file's type too (an Int32 array comes as int32 and is
+    written as Int32).
+    """
+
+    def __init__(self, fields=(), cells=None, space=None, field_data=None):
+        super().__init__(fields)
+        self.cells = dict(cells or {})
+        self.space = space
+        self.field_data = dict(field_data or {})
+
+    def copy(self):
+        return MeshFields(self, self.cells, self.space, self.field_data)
+
+
+def read_mesh(path):
+    """(V, F, fields) of a mesh file: V (n, 3) float64, F (m, 3) int32, and a
+    :class:`MeshFields`: the vertex fields by name ((n,) or (n, k) arrays in the file's
+    types; NAME_x/_y/_z joined into (n, 3)), with the file's cell arrays in
+    ``fields.cells``, its frame in ``fields.space`` and its field data in
+    ``fields.field_data``. OBJ, OFF, PLY, STL and, with the medical component, .vtp and
+    .vtk. Raises FileNotFoundError, or InputError naming the file and line or element.
+    """
+    V, F, fields, cells, space, field_data = _meshpde._read_mesh(path)
+    return V, F, MeshFields(fields, cells, space, field_data)
+
+
+def write_mesh(path, V, F, fields=None, binary=True, *, cells=None, space=None, field_data=None):
+    """Writes a mesh by extension, atomically (a temporary file renamed over the target).
+
+    fields: vertex fields by name, (n,) or (n, k) arrays, written in their dtype (int32
+    as Int32, float32 as Float32; others as Float64). cells: cell data by name, a row
+    per triangle; space: "LPS" or "RAS" (3D Slicer's frame tag); field_data: strings and
+    small arrays about the whole mesh. When ``fields`` is the :class:`MeshFields` that
+    :func:`read_mesh` gave, its cells, space and field data are written unless given
+    here. What a format cannot hold (cell data outside .vtp and .vtk, vertex fields in
+    OBJ, OFF and STL) is dropped with a UserWarning; the warnings are returned too.
+    """
+    if isinstance(fields, MeshFields):
+        cells = fields.cells if cells is None else cells
+        space = fields.space if space is None else space
+        field_data = fields.field_data if field_data is None else field_data
+    return _meshpde._write_mesh(path, V, F, None if fields is None else dict(fields), binary, cells, space,
+                                field_data)
+
 
 from .interop import from_vtk, to_vtk  # noqa: F401,E402
 
@@ -60,7 +115,7 @@ if has_medical:
 
 __all__ = [
     "CorrectionResult", "CorrectionSession", "DragSession", "Error", "GlobalBilaplacianSolver", "HapticSession",
-    "InputError", "PdeSession", "SolverError", "check_units", "correct", "curvature", "extract_surface", "fair",
+    "InputError", "MeshFields", "PdeSession", "SolverError", "check_units", "correct", "curvature", "extract_surface", "fair",
     "from_vtk", "generate", "geodesic_ball", "heat", "info", "interpolate", "intrinsic_delaunay", "mass", "read_mesh",
     "read_segmentation", "read_volume", "voxelize", "write_segmentation",
     "hausdorff_distance", "render", "ring_ball", "self_intersections", "stiffness", "to_vtk", "vertex_normals", "wave", "wave_energy",

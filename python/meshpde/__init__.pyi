@@ -20,13 +20,36 @@ class InputError(Error, ValueError): ...
 class SolverError(Error): ...
 
 # --- mesh: files, diagnostics, generators ----------------------------------------
-def read_mesh(path: Path) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
-    """(V (n, 3) float64, F (m, 3) int32, vertex fields by name); OBJ OFF PLY STL, .vtp .vtk."""
+class MeshFields(dict[str, np.ndarray]):
+    """Vertex fields by name (in their file's types), and the file's cell arrays, frame and field data."""
+    cells: dict[str, np.ndarray]  # a row per triangle: ModelFaceID, CellEntityIds, ...
+    space: str | None  # "LPS", "RAS" or None
+    field_data: dict[str, Any]  # strings and small arrays about the whole mesh
+    def __init__(self, fields: Mapping[str, np.ndarray] = ..., cells: Mapping[str, np.ndarray] | None = None,
+                 space: str | None = None, field_data: Mapping[str, Any] | None = None) -> None: ...
+    def copy(self) -> MeshFields: ...
+def read_mesh(path: Path) -> tuple[np.ndarray, np.ndarray, MeshFields]:
+    """(V (n, 3) float64, F (m, 3) int32, MeshFields: vertex fields, .cells, .space, .field_data)."""
 def write_mesh(path: Path, V: ArrayLike, F: ArrayLike, fields: Mapping[str, ArrayLike] | None = None,
-               binary: bool = True) -> list[str]:
-    """Writes atomically by extension; returns (and warns) what the format could not keep."""
+               binary: bool = True, *, cells: Mapping[str, ArrayLike] | None = None, space: str | None = None,
+               field_data: Mapping[str, Any] | None = None) -> list[str]:
+    """Writes atomically by extension, arrays in their dtypes; a MeshFields brings its cells, space and field data."""
 def read_volume(path: Path, series: str | int | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """(values[i, j, k] float32, 4x4 voxel-to-LPS-mm affine); .mha .mhd .nii .nii.gz .nrrd .nhdr."""
+    """(values[i, j, k] float32, 4x4 voxel-to-LPS-mm affine); .mha .mhd .nii .nii.gz .nrrd .nhdr, DICOM."""
+def read_segmentation(path: Path) -> tuple[np.ndarray, np.ndarray, list[dict[str, Any]]]:
+    """(labels[i, j, k] (or [i, j, k, layer]) int32, 4x4 affine to LPS mm, segments); .seg.nrrd and label maps."""
+def write_segmentation(path: Path, labels: ArrayLike, affine: ArrayLike,
+                       segments: Sequence[Mapping[str, Any]] | None = None, *, like: Path | None = None) -> None:
+    """Writes a segmentation atomically; `like`: a file on the same grid whose header is kept."""
+def extract_surface(segmentation: Union[Path, ArrayLike], segment: str | int | None = None, *,
+                    smoothing: float = 0.15, affine: ArrayLike | None = None
+                    ) -> tuple[np.ndarray, np.ndarray, dict[str, Any]]:
+    """(V in LPS mm, F, info) of one segment's closed surface (flying edges, windowed-sinc smoothing)."""
+def voxelize(V: ArrayLike, F: ArrayLike, reference: Path, segment: str | int | None = None, *,
+             displacement: ArrayLike | None = None, oversampling: int = 1, full: bool = False,
+             output: Path | None = None, space: str = "lps", units: str = "mm", series: str | int | None = None
+             ) -> tuple[np.ndarray, np.ndarray, list[dict[str, Any]], dict[str, Any]]:
+    """(labels, affine, segments, report): a closed surface back into a segment on the reference's grid."""
 def info(V: Union[ArrayLike, Path], F: ArrayLike | None = None) -> dict[str, Any]:
     """`meshpde info --json` of (V, F), or of a mesh or volume file."""
 def vertex_normals(V: ArrayLike, F: ArrayLike, outward: bool = True) -> np.ndarray:

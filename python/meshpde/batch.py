@@ -236,7 +236,7 @@ def process(operation, path, output_dir, options: Mapping[str, Any] | None = Non
         fingerprint = _fingerprint(path, name, options, output_format, picture)
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            V, F, _ = meshpde.read_mesh(path)
+            V, F, given = meshpde.read_mesh(path)
             out = _outcome(name, function(V, F, **options), V, F)
             if out.V is not None:
                 suffix = (output_format or path.suffix).lower()
@@ -245,7 +245,8 @@ def process(operation, path, output_dir, options: Mapping[str, Any] | None = Non
                 if out.fields and suffix not in _FIELD_FORMATS:
                     suffix = ".ply"  # OBJ, OFF and STL would drop the fields
                 target = base.with_name(base.name + suffix)
-                meshpde.write_mesh(target, out.V, out.F if out.F is not None else F, out.fields)
+                meshpde.write_mesh(target, out.V, out.F if out.F is not None else F,
+                                   _kept_fields(given, out, V, F))
                 row["output"] = str(target)
             if picture:
                 row["picture"] = _picture(base.with_name(base.name + ".png"), out, V, F, f"{path.name}: {name}")
@@ -262,6 +263,21 @@ def process(operation, path, output_dir, options: Mapping[str, Any] | None = Non
     row["options"] = _jsonable(options)
     _write_json(report_path, row)
     return row
+
+
+def _kept_fields(given, out: Output, V, F):
+    """What the output mesh carries: on the input's triangles, everything the input file
+    carried (its vertex fields and cell arrays in their types, its frame and field data;
+    normals recomputed where the vertices moved) under the operation's fields; on new
+    triangles, the operation's fields alone."""
+    if out.F is not None and (out.F is not F and not np.array_equal(out.F, F)):
+        return out.fields
+    kept = given.copy()
+    if out.V is not V and not np.array_equal(out.V, V) and (given or given.cells):
+        fields, cells, _ = meshpde._meshpde._refresh_normals(out.V, F, dict(given), given.cells)
+        kept = meshpde.MeshFields(fields, cells, given.space, given.field_data)
+    kept.update(out.fields)
+    return kept
 
 
 def _picture(target: pathlib.Path, out: Output, V, F, title: str) -> str:

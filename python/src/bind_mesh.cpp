@@ -53,19 +53,55 @@ std::vector<std::string> write_by_extension(const std::filesystem::path& path, c
 #endif
 }
 
+// numpy's name of a VTK array type (an unknown one reads as float64).
+const char* numpy_type(const std::string& vtk) {
+  static const std::pair<const char*, const char*> types[] = {
+      {"Float32", "float32"}, {"Float64", "float64"}, {"Int8", "int8"},     {"UInt8", "uint8"}, {"Int16", "int16"},
+      {"UInt16", "uint16"},   {"Int32", "int32"},     {"UInt32", "uint32"}, {"Int64", "int64"}, {"UInt64", "uint64"}};
+  for (const auto& [v, n] : types)
+    if (vtk == v) return n;
+  return "float64";
+}
+
+// The VTK type an array is written as: its numpy dtype's (bool as UInt8; others Float64).
+std::string vtk_type(const py::handle& obj) {
+  if (!py::isinstance<py::array>(obj)) return "Float64";
+  const py::dtype dt = obj.cast<py::array>().dtype();
+  const char kind = dt.kind();
+  const auto size = dt.itemsize();
+  if (kind == 'b') return "UInt8";
+  if (kind == 'f') return size == 4 ? "Float32" : "Float64";
+  if (kind == 'i' || kind == 'u') {
+    const std::string bits = std::to_string(8 * size);
+    if (size == 1 || size == 2 || size == 4 || size == 8) return (kind == 'i' ? "Int" : "UInt") + bits;
+  }
+  return "Float64";
+}
+
+// Values (rows x cols, stored as doubles) as a numpy array of their file's type; one
+// column as a 1-D array.
+py::object typed(const Eigen::MatrixXd& m, const std::string& type) {
+  py::object a = to_numpy(m).attr("astype")(numpy_type(type));
+  return m.cols() == 1 ? a.attr("ravel")() : a;
+}
+
 // Vertex fields as Python sees them: NAME_x, NAME_y, NAME_z (the library's storage of a
 // 3-vector field in every format) joined into one (n, 3) array NAME, other scalars as
-// (n,) arrays, VTK point arrays of other widths as (n, k).
+// (n,) arrays, VTK point arrays of other widths as (n, k); each in its file's type.
 py::dict fields_to_python(const MeshData& d) {
   py::dict out;
   const auto& s = d.vertex_scalars;
+  auto type_of = [&](const std::string& key) {
+    const auto it = d.scalar_types.find(key);
+    return it == d.scalar_types.end() ? std::string("Float64") : it->second;
+  };
   for (const auto& [name, values] : s) {
     if (name.size() > 2 && name.compare(name.size() - 2, 2, "_x") == 0) {
       const std::string base = name.substr(0, name.size() - 2);
       if (s.count(base + "_y") && s.count(base + "_z") && !s.count(base)) {
         Eigen::MatrixXd m(values.size(), 3);
         m << values, s.at(base + "_y"), s.at(base + "_z");
-        out[py::str(base)] = to_numpy(m);
+        out[py::str(base)] = typed(m, type_of(name));
         continue;
       }
     }
@@ -74,9 +110,25 @@ py::dict fields_to_python(const MeshData& d) {
       const std::string base = name.substr(0, name.size() - 2);
       if (s.count(base + "_x") && s.count(base + "_y") && s.count(base + "_z") && !s.count(base)) continue;
     }
-    out[py::str(name)] = to_numpy(values);
+    out[py::str(name)] = typed(values, type_of(name));
   }
-  for (const auto& [name, array] : d.point_arrays) out[py::str(name)] = to_numpy(array.values);
+  for (const auto& [name, array] : d.point_arrays) out[py::str(name)] = typed(array.values, array.type);
+  return out;
+}
+
+py::dict cells_to_python(const MeshData& d) {
+  py::dict out;
+  for (const auto& [name, array] : d.cell_arrays) out[py::str(name)] = typed(array.values, array.type);
+  return out;
+}
+
+// Field data: strings as str, arrays of one tuple as 1-D arrays, others (tuples, k).
+py::dict field_data_to_python(const MeshData& d) {
+  py::dict out;
+  for (const auto& [name, value] : d.field_strings) out[py::str(name)] = value;
+  for (const auto& [name, array] : d.field_arrays)
+    out[py::str(name)] = array.values.rows() == 1 ? typed(array.values.transpose(), array.type).attr("ravel")()
+                                                  : typed(array.values, array.type);
   return out;
 }
 
@@ -87,15 +139,46 @@ void fields_from_python(const py::handle& fields, Eigen::Index nv, MeshData& d) 
     const std::string name = py::str(key);
     const std::string what = fmt::format("fields['{}']", name);
     const Field f = field_arg(value, what.c_str(), nv);
+    const std::string type = vtk_type(value);
     if (f.cols() == 1) {
       d.vertex_scalars[name] = f.col(0);
+      d.scalar_types[name] = type;
     } else if (f.cols() == 3) {
-      d.vertex_scalars[name + "_x"] = f.col(0);
-      d.vertex_scalars[name + "_y"] = f.col(1);
-      d.vertex_scalars[name + "_z"] = f.col(2);
+      const char* suffix[3] = {"_x", "_y", "_z"};
+      for (int c = 0; c < 3; ++c) {
+        d.vertex_scalars[name + suffix[c]] = f.col(c);
+        d.scalar_types[name + suffix[c]] = type;
+      }
     } else {
-      d.point_arrays[name] = DataArray{Eigen::MatrixXd(f), "Float64"};
+      d.point_arrays[name] = DataArray{Eigen::MatrixXd(f), type};
     }
+  }
+}
+
+void cells_from_python(const py::handle& cells, Eigen::Index nf, MeshData& d) {
+  if (cells.is_none()) return;
+  if (!py::isinstance<py::dict>(cells)) throw py::type_error("cells: expected a dict of name -> array");
+  for (const auto& [key, value] : cells.cast<py::dict>()) {
+    const std::string name = py::str(key);
+    const std::string what = fmt::format("cells['{}']", name);
+    d.cell_arrays[name] = DataArray{Eigen::MatrixXd(field_arg(value, what.c_str(), nf)), vtk_type(value)};
+  }
+}
+
+void field_data_from_python(const py::handle& field_data, MeshData& d) {
+  if (field_data.is_none()) return;
+  if (!py::isinstance<py::dict>(field_data)) throw py::type_error("field_data: expected a dict of name -> value");
+  for (const auto& [key, value] : field_data.cast<py::dict>()) {
+    const std::string name = py::str(key);
+    if (py::isinstance<py::str>(value)) {
+      d.field_strings[name] = value.cast<std::string>();
+      continue;
+    }
+    const std::string what = fmt::format("field_data['{}']", name);
+    const py::array a = py::array::ensure(value);
+    Field f = field_arg(value, what.c_str());
+    if (a && a.ndim() <= 1) f = Field(f.transpose());  // one tuple of k components
+    d.field_arrays[name] = DataArray{Eigen::MatrixXd(f), vtk_type(value)};
   }
 }
 
@@ -219,7 +302,7 @@ py::tuple generated(const GeneratedMesh& g) {
 
 void bind_mesh(py::module_& m) {
   m.def(
-      "read_mesh",
+      "_read_mesh",
       [](const std::filesystem::path& path) {
         require_file(path);
         MeshData d;
@@ -229,23 +312,23 @@ void bind_mesh(py::module_& m) {
         }
         for (const auto& w : d.warnings)
           PyErr_WarnEx(PyExc_UserWarning, fmt::format("{}: {}", path.string(), w).c_str(), 1);
-        return py::make_tuple(to_numpy(Eigen::MatrixXd(d.V)), to_numpy(d.F), fields_to_python(d));
+        return py::make_tuple(to_numpy(Eigen::MatrixXd(d.V)), to_numpy(d.F), fields_to_python(d), cells_to_python(d),
+                              d.space.empty() ? py::object(py::none()) : py::object(py::str(d.space)),
+                              field_data_to_python(d));
       },
-      R"doc(read_mesh(path) -> (V, F, fields)
-
-V (n, 3) float64, F (m, 3) int32, fields: vertex fields by name ((n,) or (n, k);
-NAME_x/_y/_z joined into (n, 3)). OBJ, OFF, PLY, STL and, with the medical component,
-.vtp/.vtk. Raises FileNotFoundError, or InputError naming the file and line/element.)doc",
       py::arg("path"));
 
   m.def(
-      "write_mesh",
+      "_write_mesh",
       [](const std::filesystem::path& path, const py::handle& V, const py::handle& F, const py::handle& fields,
-         bool binary) {
+         bool binary, const py::handle& cells, const py::handle& space, const py::handle& field_data) {
         MeshData d;
         d.V = positions_arg(V);
         d.F = triangles_arg(F, d.V.rows());
         fields_from_python(fields, d.V.rows(), d);
+        cells_from_python(cells, d.F.rows(), d);
+        field_data_from_python(field_data, d);
+        if (!space.is_none()) d.space = to_string(parse_space(py::str(space).cast<std::string>()));
         std::vector<std::string> warnings;
         {
           py::gil_scoped_release release;
@@ -255,11 +338,21 @@ NAME_x/_y/_z joined into (n, 3)). OBJ, OFF, PLY, STL and, with the medical compo
           PyErr_WarnEx(PyExc_UserWarning, fmt::format("{}: {}", path.string(), w).c_str(), 1);
         return warnings;
       },
-      R"doc(write_mesh(path, V, F, fields=None, binary=True) -> warnings
+      py::arg("path"), py::arg("V"), py::arg("F"), py::arg("fields"), py::arg("binary"), py::arg("cells"),
+      py::arg("space"), py::arg("field_data"));
 
-Writes by extension, atomically (a temporary file renamed over the target). Fields a
-format cannot hold are dropped with a UserWarning (also returned).)doc",
-      py::arg("path"), py::arg("V"), py::arg("F"), py::arg("fields") = py::none(), py::arg("binary") = true);
+  m.def(
+      "_refresh_normals",
+      [](const py::handle& V, const py::handle& F, const py::handle& fields, const py::handle& cells) {
+        MeshData d;
+        d.V = positions_arg(V);
+        d.F = triangles_arg(F, d.V.rows());
+        fields_from_python(fields, d.V.rows(), d);
+        cells_from_python(cells, d.F.rows(), d);
+        const std::vector<std::string> names = refresh_normal_fields(d);
+        return py::make_tuple(fields_to_python(d), cells_to_python(d), names);
+      },
+      py::arg("V"), py::arg("F"), py::arg("fields"), py::arg("cells"));
 
   m.def(
       "info",

@@ -5,6 +5,9 @@
 #include <pybind11/stl.h>
 #include <pybind11/stl/filesystem.h>
 
+#include <optional>
+#include <set>
+
 #include "bindings.h"
 #include "convert.h"
 #include "meshpde/apps/segment_surface.h"
@@ -196,6 +199,8 @@ void bind_segmentation(py::module_& m) {
         }
         VolumeReadOptions options;
         if (!series.is_none()) options.series = py::str(series);
+        const std::optional<std::filesystem::path> out =
+            output.is_none() ? std::nullopt : std::optional(output.cast<std::filesystem::path>());
         bool is_image = false;
         Segmentation seg;
         VoxelizeReport r;
@@ -207,7 +212,7 @@ void bind_segmentation(py::module_& m) {
           const SurfaceInLps lps = surface_in_lps(surface, parse_space(space), parse_length_unit(units));
           r = voxelize_into(seg, s, lps.V, surface.F, lps.displacement,
                             VoxelizeParams{.oversampling = oversampling, .full = full});
-          if (!output.is_none()) write_segmentation(output.cast<std::filesystem::path>(), seg);
+          if (out) write_segmentation(*out, seg);
         }
         py::dict report = segment_dict(s);
         report["partial"] = r.partial;

@@ -8,6 +8,7 @@
 #include <sstream>
 
 #include "io_detail.h"
+#include "meshpde/mesh/topology.h"
 
 namespace meshpde {
 
@@ -96,6 +97,51 @@ std::vector<std::string> write_mesh(const std::filesystem::path& path, const Mes
       throw InputError(fmt::format("field '{}' has {} values for {} vertices", key, field.size(), data.V.rows()));
   write_file_atomically(path, write_mesh_to_memory(data, format, options));
   return warnings;
+}
+
+std::vector<std::string> refresh_normal_fields(MeshData& d) {
+  std::vector<std::string> refreshed;
+  std::vector<std::string> bases;
+  for (const auto& [key, values] : d.vertex_scalars) {
+    if (key.size() < 3 || key.compare(key.size() - 2, 2, "_x") != 0) continue;
+    const std::string base = key.substr(0, key.size() - 2);
+    std::string lower = base;
+    std::transform(lower.begin(), lower.end(), lower.begin(), [](unsigned char c) { return std::tolower(c); });
+    if (lower.find("normal") != std::string::npos && d.vertex_scalars.count(base + "_y") &&
+        d.vertex_scalars.count(base + "_z"))
+      bases.push_back(base);
+  }
+  // Cell normals (SimVascular writes them as cell data): each triangle's unit normal.
+  for (auto& [name, array] : d.cell_arrays) {
+    std::string lower = name;
+    std::transform(lower.begin(), lower.end(), lower.begin(), [](unsigned char c) { return std::tolower(c); });
+    if (lower.find("normal") == std::string::npos || array.values.cols() != 3 || array.values.rows() != d.F.rows())
+      continue;
+    Eigen::MatrixXd N(d.F.rows(), 3);
+    double agree = 0;
+    for (Eigen::Index f = 0; f < d.F.rows(); ++f) {
+      const Eigen::Vector3d a = d.V.row(d.F(f, 0)), b = d.V.row(d.F(f, 1)), c = d.V.row(d.F(f, 2));
+      const Eigen::Vector3d n = (b - a).cross(c - a);
+      N.row(f) = (n.norm() > 0 ? Eigen::Vector3d(n.normalized()) : Eigen::Vector3d::Zero()).transpose();
+      agree += N.row(f).dot(array.values.row(f));
+    }
+    array.values = agree < 0 ? Eigen::MatrixXd(-N) : N;
+    refreshed.push_back(name);
+  }
+  if (bases.empty()) return refreshed;
+  const Eigen::MatrixX3d N = vertex_normals(Mesh(d.V, d.F));
+  for (const std::string& base : bases) {
+    const Eigen::VectorXd &x = d.vertex_scalars.at(base + "_x"), &y = d.vertex_scalars.at(base + "_y"),
+                          &z = d.vertex_scalars.at(base + "_z");
+    double agree = 0;
+    for (Eigen::Index i = 0; i < N.rows(); ++i) agree += N(i, 0) * x[i] + N(i, 1) * y[i] + N(i, 2) * z[i];
+    const double s = agree < 0 ? -1 : 1;
+    d.vertex_scalars[base + "_x"] = s * N.col(0);
+    d.vertex_scalars[base + "_y"] = s * N.col(1);
+    d.vertex_scalars[base + "_z"] = s * N.col(2);
+    refreshed.push_back(base);
+  }
+  return refreshed;
 }
 
 void write_file_atomically(const std::filesystem::path& path, const std::string& contents) {

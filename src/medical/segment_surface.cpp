@@ -17,8 +17,10 @@
 #include <cctype>
 #include <cmath>
 #include <optional>
+#include <set>
 
 #include "meshpde/core/errors.h"
+#include "meshpde/io/dicom.h"
 #include "volume_formats.h"
 #include "vtk_capture.h"
 
@@ -173,28 +175,34 @@ VoxelizeReport voxelize_into(Segmentation& seg, const Segment& segment, const Po
 }
 
 Segmentation voxelize_reference(const std::filesystem::path& path, const VolumeReadOptions& options, bool* is_image) {
-  const std::string name = detail::lower(path.filename().string());
-  const bool label_format = name.ends_with(".nrrd") || name.ends_with(".nhdr") || name.ends_with(".nii") ||
-                            name.ends_with(".nii.gz") || name.ends_with(".mha") || name.ends_with(".mhd");
-  if (label_format) {
-    Segmentation seg = read_segmentation(path);
-    bool label_map = seg.format == SegmentationFormat::SlicerNrrd;
-    if (!label_map) {
-      const auto [lo, hi] = std::minmax_element(seg.labels.begin(), seg.labels.end());
-      label_map = (seg.labels.empty() || *lo >= 0) && seg.segments.size() <= 1000;
+  if (holds_segments(path)) {
+    if (is_image) *is_image = false;
+    return read_segmentation(path);
+  }
+  Volume v = read_volume(path, options);
+  // A label map: whole, non-negative values of at most 1,000 labels; anything else (a
+  // CT in HU, an MR) is an image whose grid gets a new label map.
+  std::set<float> labels;
+  bool label_map = true;
+  for (const float x : v.values) {
+    if (!(x >= 0 && x == std::floor(x) && x < 2e9)) {
+      label_map = false;
+      break;
     }
-    if (label_map) {
-      if (is_image) *is_image = false;
-      return seg;
+    if (x != 0 && labels.insert(x).second && labels.size() > 1000) {
+      label_map = false;
+      break;
     }
   }
-  // An image: its grid, and no labels yet.
-  const Volume v = read_volume(path, options);
+  if (label_map && !is_dicom_path(path)) {
+    if (is_image) *is_image = false;
+    return read_segmentation(path);
+  }
   Segmentation seg;
-  seg.geometry = v;
+  seg.labels.assign(v.num_voxels(), 0);
+  seg.geometry = std::move(v);
   seg.geometry.values.clear();
   seg.layers = 1;
-  seg.labels.assign(v.num_voxels(), 0);
   seg.name = path.string();
   seg.format = SegmentationFormat::Nrrd;
   if (is_image) *is_image = true;

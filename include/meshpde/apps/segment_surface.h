@@ -60,10 +60,10 @@ struct VoxelizeReport {
 VoxelizeReport voxelize_into(Segmentation& segmentation, const Segment& segment, const Positions& V, const Triangles& F,
                              const Field& displacement = {}, const VoxelizeParams& params = {});
 
-/// What voxelize writes into: `path` read as a segmentation when it is one (a .seg.nrrd,
-/// or a label map: a .nrrd/.nhdr/.nii/.nii.gz/.mha/.mhd of whole, non-negative values
-/// with at most 1,000 labels), else as an image (any volume read_volume reads, DICOM
-/// too) whose grid gets a new label map with no segment. `is_image` says which.
+/// What voxelize writes into: `path` read as a segmentation when it is one (a .seg.nrrd
+/// or a NRRD with SegmentN_ fields, or a label map: a volume file of whole, non-negative
+/// values with at most 1,000 labels), else as an image (any volume read_volume reads,
+/// DICOM too) whose grid gets a new label map with no segment. `is_image` says which.
 /// \throw InputError as read_segmentation and read_volume.
 Segmentation voxelize_reference(const std::filesystem::path& path, const VolumeReadOptions& options,
                                 bool* is_image = nullptr);

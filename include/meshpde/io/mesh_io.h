@@ -80,6 +80,13 @@ std::vector<std::string> write_mesh(const std::filesystem::path& path, const Mes
 /// Serializes to bytes (the content write_mesh would write).
 std::string write_mesh_to_memory(const MeshData& data, MeshFormat format, const WriteOptions& options = {});
 
+/// Recomputes, on data.V and data.F, every 3-component vertex field and cell array whose
+/// name says it holds normals (vmtk's Normals_, Slicer's Normals, SimVascular's cell
+/// Normals: the name contains "normal" in any case), keeping the file's orientation
+/// (inward or outward, whichever the old normals mostly agree with): moved vertices make
+/// normals that were read stale. Returns the names of the fields recomputed.
+std::vector<std::string> refresh_normal_fields(MeshData& data);
+
 /// Writes `contents` to `path` through a temporary file and a rename.
 void write_file_atomically(const std::filesystem::path& path, const std::string& contents);
 
