@@ -15,6 +15,7 @@
 #endif
 #include "meshpde/mesh/generators.h"
 #include "meshpde/mesh/topology.h"
+#include "meshpde/mesh/units.h"
 #include "meshpde/operators/curvature.h"
 #include "meshpde/operators/fem_operators.h"
 
@@ -249,10 +250,16 @@ void add_mesh_commands(CLI::App& app) {
 #endif
       const Mesh mesh = load_mesh(*path);
       const MeshReport r = analyze(mesh);
-      if (*json)
-        print_json(report_json(r));
-      else
+      // A model whose sizes look like another unit than millimetres (mesh/units.h's rule).
+      const std::string units = units_warning(mesh, LengthUnit::Millimetre, *path);
+      if (*json) {
+        nlohmann::json j = report_json(r);
+        j["units_warning"] = units.empty() ? nlohmann::json() : nlohmann::json(units);
+        print_json(j);
+      } else {
         print_report(*path, r);
+        if (!units.empty()) fmt::print("  warning: {}\n", units);
+      }
     });
   }
   {
@@ -366,11 +373,18 @@ void add_mesh_commands(CLI::App& app) {
     cmd->add_option("--cell", a->p.bifurcation.cell, "bifurcation: grid spacing in mm (about the edge length)")
         ->capture_default_str();
     cmd->add_flag("--dent", a->p.bifurcation.dent, "bifurcation: push a dent into the trunk wall");
+    cmd->add_flag("--caps", a->p.caps,
+                  "tube, bifurcation: flat caps on the open ends, labelled in the cell array CellEntityIds (wall 1, "
+                  "caps 2, 3, ...; kept by .vtp and .vtk)");
     cmd->callback([=] {
       GeneratorParams p = a->p;
       p.base = a->base == "tetrahedron" ? BaseSolid::Tetrahedron : BaseSolid::Icosahedron;
       const GeneratedMesh g = generate(a->kind, p);
-      save_mesh(a->out, g.V, g.F);
+      MeshData d;
+      d.V = g.V;
+      d.F = g.F;
+      if (g.face_labels.size() > 0) d.cell_arrays["CellEntityIds"] = DataArray{g.face_labels.cast<double>(), "Int32"};
+      for (const auto& w : write_mesh_file(a->out, d)) fmt::print(stderr, "warning: {}\n", w);
       fmt::print("wrote {}: {} vertices, {} triangles\n", a->out, g.V.rows(), g.F.rows());
     });
   }

@@ -22,6 +22,7 @@
 #include "meshpde/io/medical_io.h"
 #endif
 #include "meshpde/core/errors.h"
+#include "meshpde/mesh/caps.h"
 #include "meshpde/mesh/generators.h"
 #include "meshpde/mesh/topology.h"
 #include "meshpde/mesh/units.h"
@@ -82,7 +83,7 @@ std::map<std::string, Eigen::VectorXd> displacement_fields(const DragResult& r) 
 
 struct CorrectArgs {
   std::string mesh, out, method = "fem", boundary = "clamp", laplacian = "auto", stiffness, image, series, space,
-                         solver = "auto", units = "mm";
+                         solver = "auto", units = "mm", caps = "labels";
   std::vector<std::string> vertices, moves, brushes;
   int rings = 0, steps = 50, cube = 0, passes = 4;
   double radius = 0, g1 = 0, g2 = 1, tol = 1e-10, image_weight = 30.0, image_sigma = 1.0, search = 3.0;
@@ -170,6 +171,9 @@ void run_correct(const CorrectArgs& a) {
   p.dynamic = a.dynamic;
   p.steps = a.steps;
   p.prevent_intersections = !a.allow_intersections;
+  std::string label_array;
+  const std::vector<Cap> caps = find_caps(mesh, face_labels(data, &label_array), parse_cap_rule(a.caps));
+  p.held = cap_vertices(caps);
   const Space space = mesh_space(a.space, data);
   if (!a.image.empty()) {
 #ifdef MESHPDE_HAVE_MEDICAL
@@ -198,6 +202,11 @@ void run_correct(const CorrectArgs& a) {
     disp = r.displacement;
     if (!r.accuracy_warning.empty()) fmt::print(stderr, "warning: {}\n", r.accuracy_warning);
     if (!r.region_warning.empty()) fmt::print(stderr, "warning: {}: {}\n", a.mesh, r.region_warning);
+    if (r.applied_fraction < 1)
+      fmt::print(stderr,
+                 "warning: {}: only {:.3f} of the displacement was applied: the whole of it would make the surface "
+                 "intersect itself ({}; --allow-intersections applies it all)\n",
+                 a.mesh, r.applied_fraction, r.intersection_action);
     j = {{"moved_vertices", r.moved_vertices},
          {"max_displacement", r.max_displacement},
          {"region_vertices", r.region.size()},
@@ -219,6 +228,17 @@ void run_correct(const CorrectArgs& a) {
          {"handles", p.handles.size()},
          {"solver", to_string(r.solver)},
          {"units", to_string(p.units)}};
+    nlohmann::json held = nlohmann::json::array();
+    for (const Cap& c : caps)
+      held.push_back({{"label", c.label},
+                      {"faces", c.faces.size()},
+                      {"vertices", c.vertices.size()},
+                      {"centre", {c.centre.x(), c.centre.y(), c.centre.z()}},
+                      {"normal", {c.normal.x(), c.normal.y(), c.normal.z()}}});
+    j["caps"] = {{"rule", a.caps},
+                 {"label_array", label_array.empty() ? nlohmann::json() : nlohmann::json(label_array)},
+                 {"held_vertices", p.held.size()},
+                 {"caps", held}};
     if (p.image.edges) {
       j["image"] = {{"pulled_vertices", r.pulled_vertices},
                     {"mean_edge_before", r.image_mean_edge_before},
@@ -303,6 +323,12 @@ void add_solve_commands(CLI::App& app) {
     cmd->add_option("--g1", a->g1, "Membrane (Laplacian) stiffness")->capture_default_str();
     cmd->add_option("--g2", a->g2, "Plate (bi-Laplacian) stiffness")->capture_default_str();
     add_laplacian_option(cmd, a->laplacian);
+    cmd->add_option("--caps", a->caps,
+                    "Flat caps on the open ends stay put: labels (the flat patches of the face labels ModelFaceID, "
+                    "CellEntityIds or MaterialIds) | auto (labels, else flat patches with a sharp rim found by shape) "
+                    "| off")
+        ->check(CLI::IsMember({"labels", "auto", "off"}))
+        ->capture_default_str();
     cmd->add_flag("--allow-intersections", a->allow_intersections,
                   "Do not split or limit a correction that would make the surface intersect itself");
     cmd->add_option("--image", a->image,

@@ -366,6 +366,31 @@ check "demo moved vertices" [ "$(json "$T/d.json" "d['moved_vertices'] > 100")" 
 check "demo converged" [ "$(json "$T/d.json" "d['converged']")" = True ]
 check "demo output" [ -s "$T/demo/bifurcation-corrected.ply" ]
 
+# CFD models: caps from face labels, cell arrays and their types kept by correct.
+"$M" generate tube --caps --radius 3 --length 20 -o "$T/capped.vtp" >/dev/null || bad "generate tube --caps"
+"$M" generate bifurcation --caps --cell 1 -o "$T/capped-bif.vtk" >/dev/null || bad "generate bifurcation --caps"
+"$M" correct "$T/capped.vtp" --vertex 24 --move normal:1 --radius 5 -o "$T/capped-fixed.vtp" --json >"$T/cap.json" \
+  || bad "correct a capped tube"
+check "correct holds the labelled caps" [ "$(json "$T/cap.json" "d['caps']['held_vertices']")" = 50 ]
+check "correct names the label array" [ "$(json "$T/cap.json" "d['caps']['label_array']")" = CellEntityIds ]
+"$M" correct "$T/capped.vtp" --vertex 24 --move normal:1 --radius 5 --caps off -o "$T/capped-off.vtp" --json \
+  >"$T/cap-off.json" || bad "correct --caps off"
+check "--caps off moves more of the wall" \
+  [ "$(python3 -c "import json; print(json.load(open('$T/cap-off.json'))['moved_vertices'] > json.load(open('$T/cap.json'))['moved_vertices'])")" = True ]
+"$M" correct "$T/capped.vtp" --vertex 480 --move normal:1 --radius 5 -o "$T/x.vtp" 2>"$T/err" >/dev/null
+check "a handle on a cap exits 1" [ $? -eq 1 ]
+check "a handle on a cap is explained" grep -q "lies on a cap" "$T/err"
+if [ -f "$DATA/simvascular-pipe-capped-5k.vtp" ]; then
+  "$M" correct "$DATA/simvascular-pipe-capped-5k.vtp" --units cm --vertex 202 --move normal:3 --radius 12 \
+    -o "$T/pipe.vtp" --json >"$T/pipe.json" || bad "correct the SimVascular pipe"
+  check "the pipe keeps ModelFaceID as Int32" grep -q 'type="Int32" Name="ModelFaceID"' "$T/pipe.vtp"
+  check "the pipe keeps GlobalNodeID as Int32" grep -q 'type="Int32" Name="GlobalNodeID"' "$T/pipe.vtp"
+  check "the pipe's caps are held" [ "$(json "$T/pipe.json" "d['caps']['held_vertices']")" = 507 ]
+  check "the pipe stays in cm" [ "$(json "$T/pipe.json" "d['units']")" = cm ]
+elif [ "${CI:-}" = true ]; then
+  bad "missing $DATA/simvascular-pipe-capped-5k.vtp under CI"
+fi
+
 # A killed write leaves the old file or the complete new one, never half a file
 # (writes go to a temporary file that is renamed over the target): the tool is killed
 # with SIGKILL at several moments while it converts a large mesh over an older one.

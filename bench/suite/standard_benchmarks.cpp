@@ -468,7 +468,7 @@ void global_real_figures(const BenchOptions& options, nlohmann::json& j, bool ev
     }
     const MeshData d = read_mesh(path);
 #endif
-    GeneratedMesh g{d.V, d.F};
+    GeneratedMesh g{d.V, d.F, {}};
     const int levels = every ? 3 : 2;
     for (int level = 0; level < levels; ++level) {
       if (level) g = subdivide_midpoint(g.V, g.F);
@@ -909,7 +909,7 @@ nlohmann::json run_standard_benchmarks(const BenchOptions& options) {
     if (std::filesystem::exists(fertility)) {
       progress("global bi-Laplacian on fertility-4k subdivided 4 times");
       MeshData d = read_mesh(fertility);
-      GeneratedMesh g{d.V, d.F};
+      GeneratedMesh g{d.V, d.F, {}};
       for (int k = 0; k < 4; ++k) g = subdivide_midpoint(g.V, g.F);
       const Mesh m(g.V, g.F);
       const FemOperators o = build_operators(m);

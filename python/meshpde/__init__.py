@@ -199,13 +199,13 @@ def interpolate(V, F, vertices, values, *, kind=None, method="componentwise", g1
 
 def _correction_options(radius, rings, method, g1, g2, laplacian, stiffness, dynamic, steps, mass, elasticity,
                         viscosity, allow_intersections, max_substeps, image, space, image_weight, image_sigma,
-                        search_radius, cube, passes, solver, units, boundary="clamp"):
+                        search_radius, cube, passes, solver, units, boundary="clamp", caps="labels", face_labels=None):
     return dict(units=units, radius=radius, rings=rings, method=method, boundary=boundary, g1=g1, g2=g2,
                 laplacian=laplacian,
                 stiffness=stiffness, dynamic=dynamic, steps=steps, mass=mass, elasticity=elasticity, viscosity=viscosity,
                 allow_intersections=allow_intersections, max_substeps=max_substeps, image=image, space=space,
                 image_weight=image_weight, image_sigma=image_sigma, search_radius=search_radius, cube=cube,
-                passes=passes, solver=solver)
+                passes=passes, solver=solver, caps=caps, face_labels=face_labels)
 
 
 _CORRECT_DOC = """
@@ -229,7 +229,13 @@ _CORRECT_DOC = """
     or an (n,) array of them, one per vertex (elasticity then weighs the static solve
     too, relative to its largest value).
     allow_intersections: do not split or limit a correction that would make the
-    surface intersect itself (default False); max_substeps: how far it is split.
+    surface intersect itself (default False); max_substeps: how far it is split. A
+    correction that is limited says so with a UserWarning.
+    face_labels: (m,) a label per triangle (``fields.cells["ModelFaceID"]`` or
+    ``["CellEntityIds"]`` of :func:`read_mesh`); caps: "labels" (default: the flat
+    labelled patches, other than the wall, are caps), "auto" (labels, else flat patches
+    with a sharp rim found by shape) or "off". A cap's vertices, its rim included, never
+    move; the report's ``caps`` says how many were held.
     image: a volume path (.mha .nii .nii.gz .nrrd), or a (values[i, j, k], affine)
     pair with the voxel-to-LPS-mm affine of :func:`read_volume`: pull the wall onto
     its edges. space: "lps" or "ras", the frame of V. image_weight (30),
@@ -248,11 +254,12 @@ _CORRECT_DOC = """
 def correct(V, F, vertices, moves, *, radius=0.0, rings=0, method="fem", g1=0.0, g2=1.0, laplacian="auto",
             stiffness=None, dynamic=False, steps=50, mass=0.1, elasticity=0.9, viscosity=0.6,
             allow_intersections=False, max_substeps=8, image=None, space="lps", image_weight=30.0, image_sigma=1.0,
-            search_radius=3.0, cube=0, passes=4, solver="auto", units="mm", boundary="clamp"):
+            search_radius=3.0, cube=0, passes=4, solver="auto", units="mm", boundary="clamp", caps="labels",
+            face_labels=None):
     return _meshpde._correct(V, F, vertices, moves, _correction_options(
         radius, rings, method, g1, g2, laplacian, stiffness, dynamic, steps, mass, elasticity, viscosity,
         allow_intersections, max_substeps, image, space, image_weight, image_sigma, search_radius, cube, passes,
-        solver, units, boundary))
+        solver, units, boundary, caps, face_labels))
 
 
 correct.__doc__ = "Vessel-wall correction (seed 001), as ``meshpde correct``; the input is not modified.\n" + _CORRECT_DOC
@@ -267,11 +274,12 @@ class CorrectionSession(_meshpde._CorrectionSession):
     def apply(self, vertices, moves, *, radius=0.0, rings=0, method="fem", g1=0.0, g2=1.0, laplacian="auto",
               stiffness=None, dynamic=False, steps=50, mass=0.1, elasticity=0.9, viscosity=0.6,
               allow_intersections=False, max_substeps=8, image=None, space="lps", image_weight=30.0,
-              image_sigma=1.0, search_radius=3.0, cube=0, passes=4, solver="auto", units="mm", boundary="clamp"):
+              image_sigma=1.0, search_radius=3.0, cube=0, passes=4, solver="auto", units="mm", boundary="clamp",
+              caps="labels", face_labels=None):
         return self._apply(vertices, moves, _correction_options(
             radius, rings, method, g1, g2, laplacian, stiffness, dynamic, steps, mass, elasticity, viscosity,
             allow_intersections, max_substeps, image, space, image_weight, image_sigma, search_radius, cube, passes,
-            solver, units, boundary))
+            solver, units, boundary, caps, face_labels))
 
     apply.__doc__ = "Applies a correction to the current positions; clears the redo history.\n" + _CORRECT_DOC
 

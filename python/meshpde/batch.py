@@ -230,14 +230,24 @@ def process(operation, path, output_dir, options: Mapping[str, Any] | None = Non
     name, function = _resolve(operation)
     base, report_path = _targets(path, output_dir)
     row = {"input": str(path), "status": "failed", "output": None, "report_file": str(report_path),
-           "seconds": 0.0, "worker": _worker_name(), "error": None, "report": {}}
+           "seconds": 0.0, "worker": _worker_name(), "error": None, "note": None, "report": {}}
     start = time.perf_counter()
     try:
         fingerprint = _fingerprint(path, name, options, output_format, picture)
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             V, F, given = meshpde.read_mesh(path)
-            out = _outcome(name, function(V, F, **options), V, F)
+            units = meshpde.check_units(V, F, options.get("units", "mm"))
+            if units["warning"]:
+                row["note"] = units["warning"]  # a model that looks like another unit
+            call = dict(options)
+            if name == "correct" and "face_labels" not in call:
+                # The file's face labels: its flat labelled caps are held (correct's caps rule).
+                for key in ("ModelFaceID", "CellEntityIds", "MaterialIds"):
+                    if key in given.cells and np.ndim(given.cells[key]) == 1:
+                        call["face_labels"] = given.cells[key]
+                        break
+            out = _outcome(name, function(V, F, **call), V, F)
             if out.V is not None:
                 suffix = (output_format or path.suffix).lower()
                 if not suffix.startswith("."):
@@ -337,7 +347,7 @@ class BatchResult(list):
 
     def to_csv(self, path) -> None:
         """One line a file; the report's scalar values as report.KEY columns."""
-        keys = ["input", "status", "output", "seconds", "worker", "error"]
+        keys = ["input", "status", "output", "seconds", "worker", "error", "note"]
         keys += ["picture"] if any(r.get("picture") for r in self) else []
         extra = sorted({k for r in self for k, v in r.get("report", {}).items() if not isinstance(v, (dict, list))})
         path = pathlib.Path(path)

@@ -14,6 +14,7 @@
 #include "meshpde/apps/selection.h"
 #include "meshpde/apps/vessel_correction.h"
 #include "meshpde/core/errors.h"
+#include "meshpde/mesh/caps.h"
 #include "meshpde/mesh/topology.h"
 #include "meshpde/operators/laplacian.h"
 #ifdef MESHPDE_HAVE_MEDICAL
@@ -125,6 +126,7 @@ struct CorrectionOptions {
   std::string solver = "auto";
   std::optional<std::string> image_space;
   std::string units_warning;  // the mesh looks unlike a vessel in params.units
+  std::string caps = "labels";
 };
 
 Volume volume_arg(const py::handle& image) {
@@ -209,6 +211,14 @@ CorrectionOptions correction_options(const Mesh& mesh, const py::handle& vertice
   tissue("mass", p.tissue.mass, p.tissue.mass_field);
   tissue("elasticity", p.tissue.elasticity, p.tissue.elasticity_field);
   tissue("viscosity", p.tissue.viscosity, p.tissue.viscosity_field);
+  if (const py::object v = get("caps"); !v.is_none()) c.caps = v.cast<std::string>();
+  Eigen::VectorXi labels;
+  if (const py::object v = get("face_labels"); !v.is_none()) {
+    const Eigen::VectorXd x = vector_arg(v, "face_labels", mesh.num_faces());
+    if (!(x.array() == x.array().round()).all()) throw py::value_error("face_labels: expected whole numbers");
+    labels = x.cast<int>();
+  }
+  p.held = cap_vertices(find_caps(mesh, labels, parse_cap_rule(c.caps)));
   if (const py::object v = get("allow_intersections"); !v.is_none()) p.prevent_intersections = !v.cast<bool>();
   integer("max_substeps", p.max_substeps);
   if (const py::object v = get("solver"); !v.is_none()) {
@@ -243,6 +253,8 @@ struct PyCorrectionResult {
   std::string solver;
   std::string units;
   std::string boundary = "clamp";
+  std::string caps = "labels";
+  std::size_t held_vertices = 0;
 
   py::object image() const {
     if (!image_space) return py::none();
@@ -279,6 +291,10 @@ struct PyCorrectionResult {
     j["handles"] = handles;
     j["solver"] = solver;
     j["units"] = units;
+    py::dict held;
+    held["rule"] = caps;
+    held["held_vertices"] = held_vertices;
+    j["caps"] = held;
     if (image_space) j["image"] = image();
     return j;
   }
@@ -288,6 +304,15 @@ PyCorrectionResult wrap(CorrectionResult r, const CorrectionOptions& c) {
   PyCorrectionResult out{std::move(r),  c.method, c.params.dynamic,          static_cast<int>(c.params.handles.size()),
                          c.image_space, c.solver, to_string(c.params.units), to_string(c.params.boundary)};
   out.solver = to_string(out.r.solver);  // the one that ran: auto resolved
+  out.caps = c.caps;
+  out.held_vertices = c.params.held.size();
+  if (out.r.applied_fraction < 1)
+    PyErr_WarnEx(PyExc_UserWarning,
+                 fmt::format("only {:.3f} of the displacement was applied: the whole of it would make the surface "
+                             "intersect itself ({})",
+                             out.r.applied_fraction, out.r.intersection_action)
+                     .c_str(),
+                 1);
   if (!c.units_warning.empty()) PyErr_WarnEx(PyExc_UserWarning, c.units_warning.c_str(), 1);
   if (!out.r.region_warning.empty()) PyErr_WarnEx(PyExc_UserWarning, out.r.region_warning.c_str(), 1);
   if (!out.r.accuracy_warning.empty()) PyErr_WarnEx(PyExc_RuntimeWarning, out.r.accuracy_warning.c_str(), 1);

@@ -182,6 +182,14 @@ void field_data_from_python(const py::handle& field_data, MeshData& d) {
   }
 }
 
+// A mesh's report with the units warning (as `meshpde info` prints it), also raised as a
+// UserWarning.
+py::dict with_units_warning(py::dict report, const std::string& warning) {
+  report["units_warning"] = warning.empty() ? py::object(py::none()) : py::object(py::str(warning));
+  if (!warning.empty()) PyErr_WarnEx(PyExc_UserWarning, warning.c_str(), 1);
+  return report;
+}
+
 py::dict report_to_python(const MeshReport& r) {
   py::dict j;
   j["vertices"] = r.vertices;
@@ -310,8 +318,11 @@ void bind_mesh(py::module_& m) {
           py::gil_scoped_release release;
           d = read_by_extension(path);
         }
-        for (const auto& w : d.warnings)
-          PyErr_WarnEx(PyExc_UserWarning, fmt::format("{}: {}", path.string(), w).c_str(), 1);
+        for (const auto& w : d.warnings) {
+          // The readers' warnings name the file already; the others get its name.
+          const std::string text = w.rfind(path.string(), 0) == 0 ? w : fmt::format("{}: {}", path.string(), w);
+          PyErr_WarnEx(PyExc_UserWarning, text.c_str(), 1);
+        }
         return py::make_tuple(to_numpy(Eigen::MatrixXd(d.V)), to_numpy(d.F), fields_to_python(d), cells_to_python(d),
                               d.space.empty() ? py::object(py::none()) : py::object(py::str(d.space)),
                               field_data_to_python(d));
@@ -377,18 +388,24 @@ void bind_mesh(py::module_& m) {
             d = read_by_extension(path);
           }
           const Mesh mesh(d.V, d.F);
-          py::gil_scoped_release release;
-          const MeshReport r = analyze(mesh);
-          py::gil_scoped_acquire acquire;
-          return report_to_python(r);
+          MeshReport r;
+          std::string w;
+          {
+            py::gil_scoped_release release;
+            r = analyze(mesh);
+            w = units_warning(mesh, LengthUnit::Millimetre, path.string(), "units=");
+          }
+          return with_units_warning(report_to_python(r), w);
         }
         const Mesh mesh = mesh_arg(V, F);
         MeshReport r;
+        std::string w;
         {
           py::gil_scoped_release release;
           r = analyze(mesh);
+          w = units_warning(mesh, LengthUnit::Millimetre, "V", "units=");
         }
-        return report_to_python(r);
+        return with_units_warning(report_to_python(r), w);
       },
       R"doc(info(V, F) or info(path) -> dict
 
@@ -412,16 +429,23 @@ regular grid), the files passed over ("skipped"), and with a single series its
         d["units"] = to_string(unit);
         d["diagonal_mm"] = c.diagonal_mm;
         d["mean_edge_mm"] = c.mean_edge_mm;
+        d["median_radius_mm"] = c.median_radius_mm;
         d["implausible"] = c.implausible;
         d["suggested"] = c.suggested ? py::object(py::str(to_string(*c.suggested))) : py::object(py::none());
+        const std::string w = units_warning(mesh, unit, "V", "units=");
+        d["warning"] = w.empty() ? py::object(py::none()) : py::object(py::str(w));
         return d;
       },
       R"doc(check_units(V, F, units="mm") -> dict
 
 What V looks like in millimetres when read in `units` ("mm", "cm" or "m"): its
-bounding-box diagonal and mean edge (`diagonal_mm`, `mean_edge_mm`), whether that is
-unlike a vessel model (`implausible`: outside 15 mm to 2 m across or 0.02 to 8 mm
-edges) and the unit that would fit (`suggested`, or None), as `correct(units=)` warns.)doc",
+bounding-box diagonal and mean edge (`diagonal_mm`, `mean_edge_mm`), the median vessel
+radius when it matters (`median_radius_mm`: measured on models under 60 mm across with
+edges under 0.15 mm, else 0), whether that is unlike a vessel model (`implausible`:
+outside 15 mm to 2 m across or 0.02 to 8 mm edges, or under 60 mm across with edges
+under 0.15 mm and vessels under 2 mm in radius, finer than a scanner resolves: a
+SimVascular model in centimetres) and the unit that would fit (`suggested`, or None),
+as `correct(units=)` warns.)doc",
       py::arg("V"), py::arg("F"), py::arg("units") = "mm");
 
   m.def(

@@ -65,6 +65,10 @@ def test_info_equals_the_cli(cli, data):
             assert ours[key] == pytest.approx(value, rel=1e-12, abs=1e-300), key
         elif isinstance(value, list) and key.startswith("bbox"):
             assert np.allclose(ours[key], value, rtol=1e-12), key
+        elif key == "units_warning":
+            # The same sizes and unit, each front end naming its input and option its way.
+            assert value and ours[key] and "give --units m" in value and "give units=m" in ours[key]
+            assert value.split(": ", 1)[1].replace("--units ", "units=") == ours[key].split(": ", 1)[1]
         elif key in ours:
             assert ours[key] == value, key
 
@@ -162,7 +166,13 @@ def test_info_of_a_volume_file_equals_the_cli(cli, data):
 def test_info_of_a_mesh_file_equals_info_of_its_arrays(data):
     path = data("bunny-3k.off")
     V, F, _ = meshpde.read_mesh(path)
-    assert meshpde.info(path) == meshpde.info(V, F)
+    with pytest.warns(UserWarning, match="give units=m"):
+        by_path = meshpde.info(path)
+    with pytest.warns(UserWarning, match="give units=m"):
+        by_arrays = meshpde.info(V, F)
+    # The units warning names its input: the file, or V.
+    assert by_path.pop("units_warning").startswith(str(path)) and by_arrays.pop("units_warning").startswith("V:")
+    assert by_path == by_arrays
 
 
 def test_geodesic_and_ring_balls(sphere):

@@ -30,6 +30,7 @@ EditorSession::EditorSession(MeshData data, std::shared_ptr<const Volume> edges,
       space_(space),
       laplacian_(laplacian) {
   mean_edge_ = std::max(meshpde::mean_edge_length(correction_.mesh()), 1e-12);
+  held_ = cap_vertices(find_caps(correction_.mesh(), face_labels(data_), CapRule::Labels));
 }
 
 EditorSession::~EditorSession() {
@@ -67,6 +68,7 @@ double EditorSession::drag_begin(int vertex, double radius, const Eigen::VectorX
   p.stiffness = stiffness;
   p.tissue = tissue;
   p.laplacian = laplacian_;
+  p.held = held_;
   // A live preview factors the region on the server's one thread: keep it to regions
   // whose set-up takes a fraction of a second (about 0.3 s at 20k vertices here).
   constexpr std::size_t kPreviewLimit = 20000;
@@ -167,6 +169,7 @@ CorrectionResult EditorSession::correct(CorrectionParams params) {
   pause();
   drag_end();  // the correction replaces the preview
   params.laplacian = laplacian_;
+  if (params.held.empty()) params.held = held_;
   if (edges_ && !params.image.edges && params.image.weight > 0) {
     params.image.edges = edges_;
     params.image.space = space_;

@@ -118,6 +118,20 @@ void validate(const Mesh& mesh, const CorrectionParams& p) {
       throw InputError(fmt::format("handle vertex {} does not exist (the mesh has {} vertices)", h.vertex, nv));
     if (!h.displacement.allFinite()) throw InputError(fmt::format("displacement of vertex {} is not finite", h.vertex));
   }
+  if (!p.held.empty()) {
+    std::vector<char> is_held(static_cast<std::size_t>(nv), 0);
+    for (const int v : p.held) {
+      if (v < 0 || v >= nv)
+        throw InputError(fmt::format("held vertex {} does not exist (the mesh has {} vertices)", v, nv));
+      is_held[static_cast<std::size_t>(v)] = 1;
+    }
+    for (const auto& h : p.handles)
+      if (is_held[static_cast<std::size_t>(h.vertex)])
+        throw InputError(
+            fmt::format("handle vertex {} lies on a cap, which is held: a cap's vertices do not move "
+                        "(let caps move to move it)",
+                        h.vertex));
+  }
   if (p.radius <= 0 && p.rings <= 0)
     throw InputError("give a region of influence: a radius in mm or a number of rings");
   if (!(p.radius >= 0) || !std::isfinite(p.radius)) throw InputError("the region radius must be a finite number >= 0");
@@ -158,13 +172,20 @@ void validate(const Mesh& mesh, const CorrectionParams& p) {
 }
 
 // The region of influence: mesh/regions.h's rule, clamped at the radius for Fem; with
-// the fade, the free set reaches kFadeReach times the radius.
+// the fade, the free set reaches kFadeReach times the radius. Held vertices stay out of
+// it, so that they are held at zero like the region's outside.
 std::vector<int> region_of(const Mesh& mesh, const CorrectionParams& p) {
   std::vector<int> handles;
   for (const auto& h : p.handles) handles.push_back(h.vertex);
-  if (fades(p)) return influence_region(mesh, handles, RegionSpec{.radius = kFadeReach * p.radius}, false);
-  return influence_region(mesh, handles, RegionSpec{.radius = p.radius, .rings = p.rings},
-                          p.method == CorrectionMethod::Fem);
+  std::vector<int> region = fades(p)
+                                ? influence_region(mesh, handles, RegionSpec{.radius = kFadeReach * p.radius}, false)
+                                : influence_region(mesh, handles, RegionSpec{.radius = p.radius, .rings = p.rings},
+                                                   p.method == CorrectionMethod::Fem);
+  if (p.held.empty()) return region;
+  std::vector<char> is_held(static_cast<std::size_t>(mesh.num_vertices()), 0);
+  for (const int v : p.held) is_held[static_cast<std::size_t>(v)] = 1;
+  std::erase_if(region, [&](int v) { return is_held[static_cast<std::size_t>(v)] != 0; });
+  return region;
 }
 
 // Image guidance: where along its normal (or, with a cube, at which voxel nearby)
@@ -287,6 +308,7 @@ Field springs(const Mesh& mesh, const CorrectionParams& p, const std::vector<int
   const auto& V = mesh.positions();
   Field d = Field::Zero(mesh.num_vertices(), 3);
   std::vector<char> placed(static_cast<std::size_t>(mesh.num_vertices()), 0);
+  for (const int v : p.held) placed[static_cast<std::size_t>(v)] = 1;  // anchors that stay put
   for (const auto& h : p.handles) {
     d.row(h.vertex) = h.displacement.transpose();
     placed[static_cast<std::size_t>(h.vertex)] = 1;

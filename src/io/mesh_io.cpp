@@ -99,6 +99,18 @@ std::vector<std::string> write_mesh(const std::filesystem::path& path, const Mes
   return warnings;
 }
 
+Eigen::VectorXi face_labels(const MeshData& d, std::string* name) {
+  for (const char* key : {"ModelFaceID", "CellEntityIds", "MaterialIds"}) {
+    const auto it = d.cell_arrays.find(key);
+    if (it == d.cell_arrays.end() || it->second.values.cols() != 1 || it->second.values.rows() != d.F.rows()) continue;
+    const Eigen::VectorXd& v = it->second.values.col(0);
+    if (!(v.array() == v.array().round()).all() || v.cwiseAbs().maxCoeff() > 2e9) continue;
+    if (name) *name = key;
+    return v.cast<int>();
+  }
+  return {};
+}
+
 std::vector<std::string> refresh_normal_fields(MeshData& d) {
   std::vector<std::string> refreshed;
   std::vector<std::string> bases;

@@ -104,6 +104,42 @@ struct Tree {
     }
   }
 
+  /// Smallest hit(item) (a ray parameter t > 0, infinity for a miss) over the items whose
+  /// boxes the ray origin + t dir meets before the best hit so far.
+  template <class Hit>
+  double first_hit(const Vec& origin, const Vec& dir, Hit&& hit) const {
+    double best = std::numeric_limits<double>::infinity();
+    if (nodes.empty()) return best;
+    auto enters = [&](const Box& b) {  // slab test: where the ray enters the box, or infinity
+      double t0 = 0, t1 = best;
+      for (int a = 0; a < 3; ++a) {
+        if (dir[a] == 0) {
+          if (origin[a] < b.lo[a] || origin[a] > b.hi[a]) return std::numeric_limits<double>::infinity();
+          continue;
+        }
+        double ta = (b.lo[a] - origin[a]) / dir[a], tb = (b.hi[a] - origin[a]) / dir[a];
+        if (ta > tb) std::swap(ta, tb);
+        t0 = std::max(t0, ta);
+        t1 = std::min(t1, tb);
+      }
+      return t0 <= t1 ? t0 : std::numeric_limits<double>::infinity();
+    };
+    int stack[128];
+    int top = 0;
+    stack[top++] = 0;
+    while (top) {
+      const Node& n = nodes[static_cast<std::size_t>(stack[--top])];
+      if (!(enters(n.box) < best)) continue;
+      if (n.left < 0) {
+        for (int k = n.begin; k < n.end; ++k) best = std::min(best, hit(items[static_cast<std::size_t>(k)]));
+      } else {
+        stack[top++] = n.left;
+        stack[top++] = n.right;
+      }
+    }
+    return best;
+  }
+
   /// Smallest dist(item) over all items, skipping boxes farther from p than the
   /// best so far (dist(item) must be >= the distance from p to the item's box).
   template <class Dist>

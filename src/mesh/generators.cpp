@@ -124,7 +124,7 @@ GeneratedMesh icosphere(int level, double radius) {
   return geodesic_sphere(BaseSolid::Icosahedron, 1 << level, radius);
 }
 
-GeneratedMesh tube(double radius, double length, int rings, int segments) {
+GeneratedMesh tube(double radius, double length, int rings, int segments, bool caps) {
   require(rings >= 2 && segments >= 3, "tube needs rings >= 2 and segments >= 3");
   std::vector<Eigen::Vector3d> p;
   for (int k = 0; k < rings; ++k)
@@ -139,7 +139,18 @@ GeneratedMesh tube(double radius, double length, int rings, int segments) {
       t.emplace_back(id(k, j), id(k, j + 1), id(k + 1, j + 1));
       t.emplace_back(id(k, j), id(k + 1, j + 1), id(k + 1, j));
     }
-  return make(p, t);
+  if (!caps) return make(p, t);
+  const std::size_t wall = t.size();
+  const int bottom = static_cast<int>(p.size()), top = bottom + 1;
+  p.emplace_back(0, 0, 0);
+  p.emplace_back(0, 0, length);
+  for (int j = 0; j < segments; ++j) t.emplace_back(bottom, id(0, j + 1), id(0, j));               // facing -z
+  for (int j = 0; j < segments; ++j) t.emplace_back(top, id(rings - 1, j), id(rings - 1, j + 1));  // facing +z
+  GeneratedMesh m = make(p, t);
+  m.face_labels.resize(m.F.rows());
+  for (Eigen::Index f = 0; f < m.F.rows(); ++f)
+    m.face_labels[f] = static_cast<std::size_t>(f) < wall ? 1 : static_cast<std::size_t>(f) < wall + segments ? 2 : 3;
+  return m;
 }
 
 GeneratedMesh plane_grid(int nx, int ny, double sx, double sy) {
@@ -203,10 +214,18 @@ GeneratedMesh y_bifurcation(const BifurcationParams& q) {
   const Eigen::Vector3d b1 = q.branch_length * Eigen::Vector3d(std::sin(half), 0, std::cos(half));
   const Eigen::Vector3d b2 = q.branch_length * Eigen::Vector3d(-std::sin(half), 0, std::cos(half));
   const Eigen::Vector3d dent_center(q.trunk_radius + q.dent_radius - q.dent_depth, 0, -0.5 * q.trunk_length);
+  // With caps the vessels run on past their ends and the planes there cut them square.
+  const Eigen::Vector3d u1 = b1.normalized(), u2 = b2.normalized();
+  const double run = q.caps ? 2 * std::max(q.trunk_radius, q.branch_radius) : 0;
+  auto cut = [&](int c, const Eigen::Vector3d& p) {  // signed distance beyond end plane c
+    return c == 0 ? -(p.z() + q.trunk_length) : c == 1 ? (p - b1).dot(u1) : (p - b2).dot(u2);
+  };
   auto sdf = [&](const Eigen::Vector3d& p) {
-    double d = smin(capsule(p, trunk_end, o, q.trunk_radius), capsule(p, o, b1, q.branch_radius), q.blend);
-    d = smin(d, capsule(p, o, b2, q.branch_radius), q.blend);
+    double d = smin(capsule(p, trunk_end - Eigen::Vector3d(0, 0, run), o, q.trunk_radius),
+                    capsule(p, o, b1 + run * u1, q.branch_radius), q.blend);
+    d = smin(d, capsule(p, o, b2 + run * u2, q.branch_radius), q.blend);
     if (q.dent) d = -smin(-d, (p - dent_center).norm() - q.dent_radius, 1.0);  // smooth subtraction
+    if (q.caps) d = std::max({d, cut(0, p), cut(1, p), cut(2, p)});
     return d;
   };
   // Grid over the bounding box.
@@ -307,6 +326,17 @@ GeneratedMesh y_bifurcation(const BifurcationParams& q) {
     V = W;
   }
   m.V = V;
+  if (q.caps) {
+    // A triangle whose corners all lie on an end plane is that end's cap.
+    m.face_labels = Eigen::VectorXi::Ones(m.F.rows());
+    const double tol = 1e-6 * q.cell;
+    for (Eigen::Index f = 0; f < m.F.rows(); ++f)
+      for (int c = 0; c < 3; ++c) {
+        bool on = true;
+        for (int k = 0; k < 3; ++k) on = on && std::abs(cut(c, V.row(m.F(f, k)).transpose())) < tol;
+        if (on) m.face_labels[f] = 2 + c;
+      }
+  }
   return m;
 }
 
@@ -351,8 +381,12 @@ GeneratedMesh generate(const std::string& kind, const GeneratorParams& p) {
   if (kind == "latlong") return latlong_sphere(p.n, p.radius);
   if (kind == "icosphere") return icosphere(p.level, p.radius);
   if (kind == "geodesic") return geodesic_sphere(p.base, p.frequency, p.radius);
-  if (kind == "tube") return tube(p.radius, p.length, p.rings, p.segments);
-  if (kind == "bifurcation") return y_bifurcation(p.bifurcation);
+  if (kind == "tube") return tube(p.radius, p.length, p.rings, p.segments, p.caps);
+  if (kind == "bifurcation") {
+    BifurcationParams b = p.bifurcation;
+    b.caps = b.caps || p.caps;
+    return y_bifurcation(b);
+  }
   if (kind == "plane") return plane_grid(p.nx, p.ny, p.size, p.size);
   if (kind == "fins") return fins(p.k, p.n);
   std::string names;

@@ -22,6 +22,7 @@
 #include "meshpde/apps/local_drag.h"
 #include "meshpde/apps/vessel_correction.h"
 #include "meshpde/io/mesh_io.h"
+#include "meshpde/mesh/caps.h"
 #include "meshpde/operators/laplacian.h"
 #include "meshpde/pde/pde_session.h"
 
@@ -79,7 +80,11 @@ class EditorSession {
   int drag_region_vertices() const;
 
   // Correct.
-  CorrectionResult correct(CorrectionParams params);  ///< image guidance is filled in when a volume was given
+  /// Image guidance is filled in when a volume was given, and the caps the mesh's face
+  /// labels mark (mesh/caps.h, CapRule::Labels) are held unless params.held is set.
+  CorrectionResult correct(CorrectionParams params);
+  /// The vertices of the mesh's labelled caps, which corrections and drags hold.
+  const std::vector<int>& held_vertices() const { return held_; }
   bool can_undo() const { return correction_.can_undo(); }
   bool can_redo() const { return correction_.can_redo(); }
   void undo();
@@ -132,6 +137,7 @@ class EditorSession {
   Space space_;
   LaplacianKind laplacian_ = LaplacianKind::Auto;
   double mean_edge_ = 1;
+  std::vector<int> held_;  // the caps' vertices
   // The surface's operators (intrinsic Delaunay on badly shaped meshes), one cache for
   // the probe, heat and wave and painting; refreshed by every change of the surface.
   OperatorCache geometry_{laplacian_};

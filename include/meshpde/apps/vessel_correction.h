@@ -193,6 +193,10 @@ struct CorrectionParams {
   bool dynamic = false;  ///< Fem: integrate the tissue dynamics instead of the static solve; default false
   int steps = 50;        ///< dynamic steps, each a quarter of the region's 1/omega (50: settled to about exp(-7.5))
   TissueParams tissue;   ///< mass, elasticity, viscosity of the dynamic mode and of Springs
+  /// Vertices that never move (mesh/caps.h's cap_vertices: the flat caps of a model's open
+  /// ends and their rims): they stay out of the region, held at zero displacement like its
+  /// outside. A handle may not be one. Default none.
+  std::vector<int> held;
   /// Split or limit a Fem correction that would make the surface intersect itself
   /// (default true); false applies it as solved (`--allow-intersections`).
   bool prevent_intersections = true;

@@ -80,6 +80,11 @@ std::vector<std::string> write_mesh(const std::filesystem::path& path, const Mes
 /// Serializes to bytes (the content write_mesh would write).
 std::string write_mesh_to_memory(const MeshData& data, MeshFormat format, const WriteOptions& options = {});
 
+/// The face labels a mesh file carries: its cell array ModelFaceID (SimVascular), else
+/// CellEntityIds (VMTK), else MaterialIds, when it has one component of whole numbers;
+/// empty otherwise. `name` (optional) receives the array's name.
+Eigen::VectorXi face_labels(const MeshData& data, std::string* name = nullptr);
+
 /// Recomputes, on data.V and data.F, every 3-component vertex field and cell array whose
 /// name says it holds normals (vmtk's Normals_, Slicer's Normals, SimVascular's cell
 /// Normals: the name contains "normal" in any case), keeping the file's orientation

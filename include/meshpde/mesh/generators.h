@@ -13,6 +13,9 @@ namespace meshpde {
 struct GeneratedMesh {
   Positions V;
   Triangles F;
+  /// A label per triangle for meshes with flat caps, as VMTK's capper numbers them
+  /// (CellEntityIds): 1 the wall, 2, 3, ... the caps; empty otherwise.
+  Eigen::VectorXi face_labels;
 };
 
 /// Latitude-longitude sphere: two poles and n-1 rings of 2n vertices
@@ -30,8 +33,9 @@ GeneratedMesh geodesic_sphere(BaseSolid base, int frequency, double radius = 1.0
 /// level 8 has 655,362.
 GeneratedMesh icosphere(int level, double radius = 1.0);
 
-/// Open cylinder along z from 0 to length: `rings` rings of `segments` vertices.
-GeneratedMesh tube(double radius, double length, int rings, int segments);
+/// Open cylinder along z from 0 to length: `rings` rings of `segments` vertices. With
+/// `caps`, closed by two flat fans (face labels: wall 1, the cap at z = 0 2, at z = length 3).
+GeneratedMesh tube(double radius, double length, int rings, int segments, bool caps = false);
 
 /// Planar grid in z = 0 covering [0, size_x] x [0, size_y] with nx x ny quads.
 GeneratedMesh plane_grid(int nx, int ny, double size_x = 1.0, double size_y = 1.0);
@@ -58,6 +62,9 @@ struct BifurcationParams {
   double dent_depth = 1.5;    ///< how far the dent reaches in
   double dent_radius = 3.0;   ///< lateral size of the dent
   int relax_iterations = 10;  ///< tangential smoothing + reprojection passes
+  /// Flat caps instead of round ends: the vessels cut square at their lengths, with face
+  /// labels wall 1, trunk cap 2, branch caps 3 and 4 (a CFD model's inlet and outlets).
+  bool caps = false;
 };
 GeneratedMesh y_bifurcation(const BifurcationParams& params = {});
 
@@ -82,6 +89,7 @@ struct GeneratorParams {
   double length = 10.0;                        ///< tube: length along z
   int rings = 20;                              ///< tube: rings along the axis
   int segments = 24;                           ///< tube: vertices per ring
+  bool caps = false;                           ///< tube, bifurcation: flat caps with face labels
   int nx = 20, ny = 20;                        ///< plane: quads along x and y
   double size = 1.0;                           ///< plane: side length (both sides)
   int k = 3;                                   ///< fins: sheets sharing the axis edge
