@@ -16,8 +16,12 @@
 #include "meshpde/io/mesh_io.h"
 #include "meshpde/mesh/generators.h"
 #include "meshpde/mesh/regions.h"
+#include "meshpde/mesh/units.h"
 #ifdef MESHPDE_HAVE_MEDICAL
+#include "meshpde/apps/segment_surface.h"
+#include "meshpde/io/dicom.h"
 #include "meshpde/io/medical_io.h"
+#include "meshpde/io/segmentation_io.h"
 #endif
 
 namespace meshpde::cli {
@@ -30,6 +34,12 @@ std::string lower_ext(const std::string& name) {
   std::string ext = fs::path(name).extension().string();
   for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
   return ext;
+}
+
+std::string lower_name(const std::string& name) {
+  std::string s = fs::path(name).filename().string();
+  for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return s;
 }
 
 template <class T>
@@ -121,28 +131,78 @@ std::shared_ptr<const EditorImage> prepare_editor_image(Volume volume, const std
   return image;
 }
 
-std::shared_ptr<const EditorImage> load_editor_image(const std::string& path) {
+std::shared_ptr<const EditorImage> load_editor_image(const std::string& path, const std::string& series) {
 #ifdef MESHPDE_HAVE_MEDICAL
-  return prepare_editor_image(read_volume(path), fs::path(path).filename().string());
+  VolumeReadOptions options;
+  options.series = series;
+  return prepare_editor_image(read_volume(path, options), fs::path(path).filename().string());
 #else
+  (void)series;
   throw InputError(fmt::format("{}: --image needs meshpde built with meshpde::medical", path));
 #endif
 }
 
-namespace {
-std::string lower_name(const std::string& name) {
-  std::string s = fs::path(name).filename().string();
-  for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+#ifdef MESHPDE_HAVE_MEDICAL
+struct EditorSegmentation {
+  Segmentation segmentation;
+  Segment segment;
+  std::string input, output;
+};
+
+std::shared_ptr<const EditorSegmentation> load_editor_segmentation(const std::string& path, const std::string& segment,
+                                                                   bool overwrite) {
+  auto s = std::make_shared<EditorSegmentation>();
+  s->segmentation = read_segmentation(path);
+  s->segment = find_segment(s->segmentation, segment);
+  s->input = path;
+  if (overwrite) {
+    s->output = path;
+  } else {
+    // NAME-corrected with the input's whole extension (.seg.nrrd, .nii.gz kept), beside it;
+    // a header with a detached data file is written with its data attached.
+    const fs::path p(path);
+    const std::string file = p.filename().string(), lower = lower_name(file);
+    std::string ext;
+    for (const char* e : {".seg.nrrd", ".nii.gz", ".nrrd", ".nii", ".mha", ".nhdr", ".mhd"})
+      if (lower.ends_with(e)) {
+        ext = e;
+        break;
+      }
+    const std::string stem = file.substr(0, file.size() - ext.size());
+    const std::string out_ext = ext == ".nhdr" ? ".nrrd" : ext == ".mhd" ? ".mha" : file.substr(stem.size());
+    s->output = (p.parent_path() / (stem + "-corrected" + out_ext)).string();
+  }
   return s;
 }
-}  // namespace
+
+Loaded segmentation_surface(const EditorSegmentation& s) {
+  Loaded l;
+  l.data = extract_surface(s.segmentation, s.segment);
+  l.name = fs::path(s.input).stem().stem().string() + "-" + s.segment.name + ".vtp";
+  l.from_segmentation = true;
+  return l;
+}
+#else
+struct EditorSegmentation {};
+std::shared_ptr<const EditorSegmentation> load_editor_segmentation(const std::string& path, const std::string&, bool) {
+  throw InputError(fmt::format("{}: segmentations need meshpde built with meshpde::medical", path));
+}
+Loaded segmentation_surface(const EditorSegmentation&) {
+  throw InputError("segmentations need meshpde built with meshpde::medical");
+}
+#endif
 
 bool is_volume_upload(const std::string& name) {
-  return is_volume_path(fs::path(name).filename());
+  return is_volume_path(fs::path(name).filename()) || lower_name(name).ends_with(".zip");
 }
 
-EditorPage::EditorPage(PageSink sink, std::shared_ptr<const EditorImage> image, Space space, LaplacianKind laplacian)
-    : sink_(std::move(sink)), image_(std::move(image)), space_(space), laplacian_(laplacian) {}
+EditorPage::EditorPage(PageSink sink, std::shared_ptr<const EditorImage> image, Space space, LaplacianKind laplacian,
+                       std::shared_ptr<const EditorSegmentation> segmentation)
+    : sink_(std::move(sink)),
+      image_(std::move(image)),
+      space_(space),
+      laplacian_(laplacian),
+      segmentation_(std::move(segmentation)) {}
 
 // Names in messages come from the user's files (field and file names) and need not be
 // UTF-8; they are sent with U+FFFD in place of the bad bytes rather than thrown on.
@@ -159,6 +219,14 @@ void EditorPage::load(Loaded l) {
   tissue_ = CorrectionParams{};
   intersections_ = 0;
   const Mesh& m = session_->mesh();
+  nlohmann::json segmentation = nullptr;
+#ifdef MESHPDE_HAVE_MEDICAL
+  if (segmentation_ && source_.from_segmentation)
+    segmentation = {{"input", fs::path(segmentation_->input).filename().string()},
+                    {"segment", segmentation_->segment.name},
+                    {"output", fs::path(segmentation_->output).filename().string()}};
+#endif
+  const std::string units = units_warning(m, LengthUnit::Millimetre, source_.name, "a model in ");
   send_json({{"type", "mesh"},
              {"name", source_.name},
              {"vertices", m.num_vertices()},
@@ -166,6 +234,9 @@ void EditorPage::load(Loaded l) {
              {"mean_edge", session_->mean_edge_length()},
              {"has_image", session_->has_image()},
              {"image", image_json()},
+             {"segmentation", segmentation},
+             {"held_vertices", session_->held_vertices().size()},
+             {"units_warning", units.empty() ? nlohmann::json() : nlohmann::json(units)},
              {"fields", [&] {
                 std::vector<std::string> names;
                 for (const auto& [k, v] : source_.data.vertex_scalars) names.push_back(k);
@@ -189,8 +260,9 @@ void EditorPage::upload_image(const std::string& bytes, const std::string& name)
 #ifdef MESHPDE_HAVE_MEDICAL
   const std::string base = fs::path(name).filename().string(), lower = lower_name(name);
   if (lower.ends_with(".mhd") || lower.ends_with(".nhdr"))
-    throw InputError(
-        fmt::format("{}: its voxels are in another file; upload one file: .mha, .nii, .nii.gz or .nrrd", base));
+    throw InputError(fmt::format(
+        "{}: its voxels are in another file; upload one file: .mha, .nii, .nii.gz or .nrrd, or a DICOM series as .zip",
+        base));
   // The readers take a path: the bytes go to a private temporary file, removed at once.
   static std::atomic<unsigned> serial{0};
   const std::string ext = lower.ends_with(".nii.gz") ? ".nii.gz" : lower_ext(base);
@@ -204,8 +276,12 @@ void EditorPage::upload_image(const std::string& bytes, const std::string& name)
   } remove_at_exit{tmp};
   Volume v;
   try {
-    write_file_atomically(tmp, bytes);
-    v = read_volume(tmp, kMaxUploadedVoxels);
+    if (lower.ends_with(".zip")) {
+      v = read_dicom_zip(bytes, base, "", kMaxUploadedVoxels, 4 * kMaxUploadedVoxels);
+    } else {
+      write_file_atomically(tmp, bytes);
+      v = read_volume(tmp, kMaxUploadedVoxels);
+    }
   } catch (const InputError& e) {
     // Name the upload, not the temporary file.
     std::string what = e.what();
@@ -292,6 +368,7 @@ void EditorPage::handle(const std::string& payload, bool binary) {
       reply.update({{"moved_vertices", r.moved_vertices},
                     {"new_self_intersections", r.new_self_intersections},
                     {"intersection_action", r.intersection_action},
+                    {"applied_fraction", r.applied_fraction},
                     {"region_warning", r.region_warning},
                     {"time_ms", r.time_ms}});
     } else if (type == "undo" || type == "redo") {
@@ -314,6 +391,8 @@ void EditorPage::handle(const std::string& payload, bool binary) {
     } else if (type == "slice") {
       send_slice(j);
       return;  // the SLC frame is the answer
+    } else if (type == "save_segmentation") {
+      reply.update(save_segmentation());
     } else if (type == "ping") {
     } else {
       throw InputError(fmt::format("unknown request '{}'", type));
@@ -330,6 +409,27 @@ void EditorPage::handle(const std::string& payload, bool binary) {
     // for it), and the page goes on.
     send_json({{"type", "error"}, {"request", type}, {"message", std::string("internal error: ") + e.what()}});
   }
+}
+
+// The edited surface back into a copy of the server's segmentation, written where it
+// says (apps/segment_surface.h: only the voxels the edits swept change).
+nlohmann::json EditorPage::save_segmentation() {
+#ifdef MESHPDE_HAVE_MEDICAL
+  if (!segmentation_) throw InputError("no segmentation: start meshpde serve with --segmentation FILE");
+  if (!source_.from_segmentation)
+    throw InputError(fmt::format("the page holds {}, not the segment of {}: open it again to save into it",
+                                 source_.name, fs::path(segmentation_->input).filename().string()));
+  const Mesh& m = session_->mesh();
+  const Field moved = m.positions() - session_->original_positions();
+  Segmentation copy = segmentation_->segmentation;
+  const VoxelizeReport r = voxelize_into(copy, segmentation_->segment, m.positions(), m.triangles(), moved);
+  write_segmentation(segmentation_->output, copy);
+  return {{"path", segmentation_->output},   {"file", fs::path(segmentation_->output).filename().string()},
+          {"added", r.change.added},         {"removed", r.change.removed},
+          {"conflicts", r.change.conflicts}, {"moved_vertices", r.moved_vertices}};
+#else
+  throw InputError("segmentations need meshpde built with meshpde::medical");
+#endif
 }
 
 // What the page needs to show the image: null without one.

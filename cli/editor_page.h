@@ -33,7 +33,19 @@ namespace meshpde::cli {
 struct Loaded {
   MeshData data;
   std::string name = "mesh.ply";
+  bool from_segmentation = false;  ///< the surface of the server's segment (saving writes it back)
 };
+
+/// The segmentation a server opened (meshpde serve --segmentation): its segment's
+/// surface is what pages edit, and a page's save_segmentation puts the edited surface
+/// back into a copy written to `output` (beside the input unless --overwrite).
+struct EditorSegmentation;
+/// Reads `path`, picks `segment` (name, ID or label value; empty: the only one) and
+/// decides where saving writes. \throw InputError naming the file.
+std::shared_ptr<const EditorSegmentation> load_editor_segmentation(const std::string& path, const std::string& segment,
+                                                                   bool overwrite);
+/// The segment's surface (apps/segment_surface.h, LPS mm) as the mesh pages open.
+Loaded segmentation_surface(const EditorSegmentation& s);
 
 /// A mesh file's bytes, read by the format its name's extension says (.vtp/.vtk need
 /// meshpde::medical). \throw InputError naming the file.
@@ -57,10 +69,11 @@ struct EditorImage {
 
 /// Reads `path` and prepares it for pages (edge map, default window).
 /// \throw InputError naming the file.
-std::shared_ptr<const EditorImage> load_editor_image(const std::string& path);
+std::shared_ptr<const EditorImage> load_editor_image(const std::string& path, const std::string& series = "");
 /// The same for a volume read already; `name` is shown on the page.
 std::shared_ptr<const EditorImage> prepare_editor_image(Volume volume, const std::string& name);
-/// Whether an upload named `name` is a volume (by its extension) rather than a mesh.
+/// Whether an upload named `name` is a volume (by its extension; a .zip holds a DICOM
+/// series) rather than a mesh.
 bool is_volume_upload(const std::string& name);
 
 /// Where a page's frames go: JSON text and binary.
@@ -74,7 +87,8 @@ class EditorPage {
   /// A page with no mesh yet; `image` (may be null) is shown and guides corrections,
   /// `space` is the frame of the meshes' coordinates.
   EditorPage(PageSink sink, std::shared_ptr<const EditorImage> image, Space space,
-             LaplacianKind laplacian = LaplacianKind::Auto);
+             LaplacianKind laplacian = LaplacianKind::Auto,
+             std::shared_ptr<const EditorSegmentation> segmentation = nullptr);
 
   /// Opens `l` (a new session) and sends it: a "mesh" message and a MESH frame.
   /// \throw InputError (the page keeps its mesh).
@@ -87,7 +101,7 @@ class EditorPage {
   /// Parses, checks and opens an uploaded file; returns its vertex count.
   /// \throw InputError naming the file (the page keeps its mesh).
   int upload(const std::string& bytes, const std::string& name);
-  /// An uploaded volume (.mha, .nii, .nii.gz, .nrrd: one file) beside the page's mesh:
+  /// An uploaded volume (.mha, .nii, .nii.gz, .nrrd: one file; .zip: a DICOM series) beside the page's mesh:
   /// shown as slices and guiding corrections from now on, in the page's frame; the
   /// page gets an {"type": "image"} message. Edits so far are kept. A header that
   /// declares more than kMaxUploadedVoxels is refused before any voxel is read.
@@ -107,11 +121,13 @@ class EditorPage {
   void send_stats(bool now);
   void send_slice(const nlohmann::json& request);
   nlohmann::json image_json() const;
+  nlohmann::json save_segmentation();
 
   PageSink sink_;
   std::shared_ptr<const EditorImage> image_;
   Space space_;
   LaplacianKind laplacian_;
+  std::shared_ptr<const EditorSegmentation> segmentation_;
   Loaded source_;
   std::unique_ptr<EditorSession> session_;
   Positions sent_;                 // positions as the page has them

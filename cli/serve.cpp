@@ -52,9 +52,10 @@ using Hdl = int;  // a page's connection id
 namespace fs = std::filesystem;
 
 struct ServeArgs {
-  std::string mesh, host = "127.0.0.1", image, space, web_root, laplacian = "auto";
+  std::string mesh, host = "127.0.0.1", image, series, segmentation, segment, space, web_root, laplacian = "auto";
   int port = 8080;
   double max_upload_mb = 64;
+  bool overwrite = false;
 };
 
 // Percent-decodes a URL path; nullopt for malformed escapes or a NUL byte.
@@ -217,15 +218,21 @@ class EditorServer {
           fmt::format("{}: no index.html (build the page: npm --prefix web ci && npm --prefix web run "
                       "build, or pass --web-root)",
                       web_root_.string()));
-    if (!a.mesh.empty()) {
+    if (!a.segmentation.empty()) {
+      if (!a.mesh.empty()) throw InputError("give a MESH or --segmentation, not both");
+      segmentation_ = load_editor_segmentation(a.segmentation, a.segment, a.overwrite);
+      initial_ = segmentation_surface(*segmentation_);  // in LPS, as its space says
+    } else if (!a.mesh.empty()) {
       initial_.data = read_mesh_file(a.mesh);
       initial_.name = fs::path(a.mesh).filename().string();
     } else {
       initial_ = generated("dented");
     }
+    if (segmentation_ == nullptr && (!a.segment.empty() || a.overwrite))
+      throw InputError("--segment and --overwrite go with --segmentation");
     space_ = mesh_space(a.space, initial_.data);
     laplacian_ = parse_laplacian_kind(a.laplacian);
-    if (!a.image.empty()) image_ = load_editor_image(a.image);
+    if (!a.image.empty()) image_ = load_editor_image(a.image, a.series);
   }
 
   // Runs until SIGINT or SIGTERM.
@@ -262,7 +269,7 @@ class EditorServer {
     page.editor = std::make_shared<EditorPage>(
         PageSink{.text = [this, h](std::string s) { server_.send_text(h, std::move(s)); },
                  .binary = [this, h](std::string s) { server_.send_binary(h, std::move(s)); }},
-        image_, space_, laplacian_);
+        image_, space_, laplacian_, segmentation_);
     page.worker = std::make_unique<PageWorker>();
     send_json(h, {{"type", "hello"}, {"client", h}});
     EditorPage* c = page.editor.get();
@@ -416,6 +423,7 @@ class EditorServer {
   Space space_ = Space::LPS;
   LaplacianKind laplacian_ = LaplacianKind::Auto;
   std::shared_ptr<const EditorImage> image_;
+  std::shared_ptr<const EditorSegmentation> segmentation_;
   std::map<Hdl, Page> pages_;  // the I/O thread's
   std::vector<Page> retired_;  // closed, their workers finishing
 };
@@ -442,7 +450,15 @@ void add_serve_command(CLI::App& app) {
   cmd->add_option("--port", a->port, "TCP port (0: any free port)")->capture_default_str();
   cmd->add_option("--host", a->host, "Address to bind (default loopback only; 0.0.0.0 exposes the editor)")
       ->capture_default_str();
-  cmd->add_option("--image", a->image, "Volume for image-guided correction (.mha .mhd .nii .nii.gz .nrrd .nhdr)");
+  cmd->add_option("--image", a->image,
+                  "Volume for image-guided correction (.mha .mhd .nii .nii.gz .nrrd .nhdr, or a DICOM series: a folder "
+                  "or one file of it)");
+  cmd->add_option("--series", a->series, "DICOM folder of several series: the one to show (UID or series number)");
+  cmd->add_option("--segmentation", a->segmentation,
+                  "Open a segmentation (3D Slicer .seg.nrrd, or a label map .nii .nii.gz .nrrd .mha): pages edit its "
+                  "segment's surface, and saving writes the corrected segmentation beside it as NAME-corrected");
+  cmd->add_option("--segment", a->segment, "The segment to edit: name, ID or label value (needed among several)");
+  cmd->add_flag("--overwrite", a->overwrite, "Saving writes the corrected segmentation over the input itself");
   cmd->add_option("--space", a->space, "Frame of the mesh coordinates: lps | ras");
   add_laplacian_option(cmd, a->laplacian);
   cmd->add_option("--web-root", a->web_root, "Folder with the built page")->capture_default_str();

@@ -52,6 +52,16 @@ struct Walker {
   // Items and delimiters have no VR in any transfer syntax: tag and a 4-byte length.
   static bool is_item_tag(std::uint16_t group) { return group == 0xfffe; }
 
+  // The value representations of DICOM PS3.5 (6.2); GDCM misreads a file whose element
+  // has another (it takes the data set for implicit VR and asserts).
+  static bool known_vr(const char* vr) {
+    for (const char* v : {"AE", "AS", "AT", "CS", "DA", "DS", "DT", "FD", "FL", "IS", "LO", "LT", "OB", "OD", "OF", "OL",
+                          "OV", "OW", "PN", "SH", "SL", "SQ", "SS", "ST", "SV", "TM", "UC", "UI", "UL", "UN", "UR", "US",
+                          "UT", "UV"})
+      if (std::memcmp(vr, v, 2) == 0) return true;
+    return false;
+  }
+
   static bool long_vr(const char* vr) {
     for (const char* v : {"OB", "OD", "OF", "OL", "OV", "OW", "SQ", "SV", "UC", "UN", "UR", "UT", "UV"})
       if (std::memcmp(vr, v, 2) == 0) return true;
@@ -70,8 +80,8 @@ struct Walker {
     }
     h.vr[0] = static_cast<char>(data[at + 4]);
     h.vr[1] = static_cast<char>(data[at + 5]);
-    if (h.vr[0] < 'A' || h.vr[0] > 'Z' || h.vr[1] < 'A' || h.vr[1] > 'Z')
-      fail(at, fmt::format("element ({:04x},{:04x}) has no value representation", h.group, h.element));
+    if (!known_vr(h.vr))
+      fail(at, fmt::format("element ({:04x},{:04x}) has no known value representation", h.group, h.element));
     if (long_vr(h.vr)) {
       if (end - at < 12) fail(at, fmt::format("element ({:04x},{:04x}): its header is cut off", h.group, h.element));
       h.length = u32(at + 8, big_endian);

@@ -254,7 +254,9 @@ std::vector<Segment> slicer_table(const std::vector<std::pair<std::string, std::
     if (std::regex_match(key, m, field) && m[1].str().size() < 7) by_index[std::stoi(m[1])][m[2]] = value;
   }
   std::vector<Segment> out;
-  for (const auto& [n, f] : by_index) {
+  for (const auto& entry : by_index) {
+    const int n = entry.first;  // a plain variable: lambdas below capture it
+    const auto& f = entry.second;
     Segment s;
     s.index = n;
     s.id = f.count("ID") ? f.at("ID") : "";

@@ -256,14 +256,19 @@ int editor_message(const std::uint8_t* data, std::size_t size) {
   });
 }
 
-// The editor's upload handler: the first byte picks the file's extension, the rest is
-// the file, opened by a page as an upload is.
+// The editor's upload handler: the first byte picks the file's extension (a mesh format,
+// or a .zip of a DICOM series), the rest is the file, opened by a page as an upload is.
 int editor_upload(const std::uint8_t* data, std::size_t size) {
   return guarded([&] {
     if (size == 0) return;
-    static const char* kNames[] = {"up.obj", "up.off", "up.ply", "up.stl", "up.vtp", "up.vtk"};
+    static const char* kNames[] = {"up.obj", "up.off", "up.ply", "up.stl", "up.vtp", "up.vtk", "series.zip"};
     cli::EditorPage page(checking_sink(), nullptr, Space::LPS);
-    const int n = page.upload(bytes(data + 1, size - 1), kNames[data[0] % 6]);
+    const char* name = kNames[data[0] % 7];
+    if (cli::is_volume_upload(name)) {  // a DICOM series zipped
+      page.upload_image(bytes(data + 1, size - 1), name);
+      return;
+    }
+    const int n = page.upload(bytes(data + 1, size - 1), name);
     if (n <= 0) broken("an upload opened with no vertices");
     page.frame();
   });

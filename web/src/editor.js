@@ -202,7 +202,16 @@ ws.onmessage = (ev) => {
   if (m.type === 'hello') state.client = m.client;
   else if (m.type === 'mesh') {
     state.ready = false; state.name = m.name; state.meanEdge = m.mean_edge;
+    state.segmentation = m.segmentation;
     $('mesh-name').textContent = `${m.name}: ${m.vertices.toLocaleString()} vertices`;
+    $('save').title = m.segmentation
+      ? `Download the edited surface, and write ${m.segmentation.output} beside ${m.segmentation.input}`
+      : 'Download the edited mesh in its own format';
+    const notes = [];
+    if (m.segmentation) notes.push(`editing segment '${m.segmentation.segment}' of ${m.segmentation.input}`);
+    if (m.held_vertices) notes.push(`${m.held_vertices} vertices of flat caps are held`);
+    if (m.units_warning) notes.push(m.units_warning);
+    if (notes.length) status(notes.join('\n'));
     $('image').disabled = !m.has_image;
     if (!m.has_image) $('image').checked = false;
     imageView.onMeshMessage(m);
@@ -227,7 +236,15 @@ ws.onmessage = (ev) => {
     if (m.request === 'correct')
       status(`corrected: ${m.moved_vertices} vertices moved in ${m.time_ms.toFixed(1)} ms, ` +
              `${m.new_self_intersections} new self-intersections (${m.intersection_action})` +
+             (m.applied_fraction < 1
+               ? `\nonly ${m.applied_fraction.toFixed(2)} of the drag was applied: all of it would make the wall ` +
+                 'intersect itself' : '') +
              (m.region_warning ? `\n${m.region_warning}` : ''));
+    if (m.request === 'save_segmentation') {
+      state.lastSegmentationSave = m;
+      status(`wrote ${m.file}: ${m.added} voxels added, ${m.removed} removed` +
+             (m.conflicts ? `, ${m.conflicts} left to other segments` : ''));
+    }
   } else if (m.type === 'error') {
     state.lastError = m.message; state.errors += 1;
     if (m.request === 'slice') imageView.onSliceError();
@@ -418,6 +435,8 @@ $('save').onclick = async () => {
   a.click();
   a.remove();
   status(`saved ${name}`);
+  // The segmentation the server opened: the corrected one is written beside it.
+  if (state.segmentation) send({ type: 'save_segmentation' });
 };
 
 // Screen position of a vertex (for tests and scripted demos).

@@ -12,8 +12,9 @@
 // Exit 0: all passed; 1: a check failed; 77: skipped (no chromium or node modules,
 // and not under CI=true, where a missing piece is a failure). Waits are generous:
 // under AddressSanitizer the server's probe runs several times slower.
-import { spawn } from 'node:child_process';
-import { existsSync, readFileSync, mkdirSync, rmSync } from 'node:fs';
+import { spawn, spawnSync } from 'node:child_process';
+import { existsSync, readFileSync, mkdirSync, mkdtempSync, rmSync } from 'node:fs';
+import { gunzipSync } from 'node:zlib';
 import net from 'node:net';
 import os from 'node:os';
 import { join, dirname } from 'node:path';
@@ -121,6 +122,146 @@ async function dragBy(page, from, dx, dy, steps = 12) {
   for (let k = 1; k <= steps; ++k) {
     await page.mouse.move(from.x + (dx * k) / steps, from.y + (dy * k) / steps);
     await page.waitForTimeout(25);
+  }
+}
+
+// Rendered pixels of the 3D view that are not its background (the corner pixel's colour),
+// as a fraction: the surface is drawn, not just sent.
+const drawnFraction = (page) => page.evaluate(() => {
+  const gl = document.querySelector('#viewport > canvas');
+  const c = document.createElement('canvas');
+  c.width = gl.width; c.height = gl.height;
+  const ctx = c.getContext('2d');
+  ctx.drawImage(gl, 0, 0);
+  const d = ctx.getImageData(0, 0, c.width, c.height).data;
+  let other = 0;
+  for (let i = 0; i < d.length; i += 4)
+    if (Math.abs(d[i] - d[0]) + Math.abs(d[i + 1] - d[1]) + Math.abs(d[i + 2] - d[2]) > 24) other += 1;
+  return other / (d.length / 4);
+});
+
+// A .seg.nrrd as the tests read it: header fields, the voxels (gzip or raw, uint8).
+function readSegNrrd(file) {
+  const bytes = readFileSync(file);
+  const end = bytes.indexOf('\n\n');
+  const header = bytes.subarray(0, end).toString();
+  const field = (k) => new RegExp(`^${k}: (.*)$`, 'm').exec(header)?.[1];
+  const data = bytes.subarray(end + 2);
+  const voxels = field('encoding') === 'gzip' ? gunzipSync(data) : data;
+  const dirs = [...field('space directions').matchAll(/\(([^)]*)\)/g)].map((m) => m[1].split(',').map(Number));
+  const origin = /\(([^)]*)\)/.exec(field('space origin'))[1].split(',').map(Number);
+  return { header, sizes: field('sizes').split(' ').map(Number), dirs, origin, voxels };
+}
+
+// ------------------------------------------------------------------ a segmentation, corrected and saved
+async function segmentationChecks() {
+  const mesh = join(dataDir, 'aorta-closed-6k.vtp'), mra = join(dataDir, 'aorta-mra.mha');
+  if (!existsSync(mesh) || !existsSync(mra)) {
+    check(`segmentation: ${mesh} and ${mra} present`, !ci, 'CI=true needs ../shared/data');
+    return;
+  }
+  const dir = mkdtempSync(join(os.tmpdir(), 'meshpde-seg-'));
+  const seg = join(dir, 'aorta.seg.nrrd');
+  // The registered aorta voxelized onto the angiography's grid: a segmentation as an
+  // imaging tool would hand it over.
+  const made = spawnSync(binary, ['voxelize', mesh, '--space', 'ras', '--reference', mra, '--segment', '1', '-o', seg]);
+  check('the test segmentation is made by meshpde voxelize', made.status === 0, String(made.stderr));
+  const input = readFileSync(seg);
+  const s = await startServer(['--segmentation', seg, '--image', mra]);
+  const context = await browser.newContext({ viewport: { width: 1280, height: 800 }, acceptDownloads: true });
+  try {
+    const page = await context.newPage();
+    page.on('pageerror', (e) => check('no page errors (segmentation)', false, e.message));
+    await page.goto(s.url);
+    await page.waitForFunction(() => meshpde.ready && meshpde.segmentation && meshpde.imageView.shown >= 3, null,
+                               { timeout: 30000 });
+    check('the page edits the segment', await page.evaluate(() => meshpde.segmentation.segment) === 'label 1');
+    check('the status line says which segment', /editing segment 'label 1' of aorta\.seg\.nrrd/.test(
+      await page.textContent('#status')));
+    check('the segment\'s surface is drawn', (await drawnFraction(page)) > 0.02, String(await drawnFraction(page)));
+    // A correction: the wall at a vertex pushed by 2 mm along x, over 8 mm.
+    const rest = await positions(page);
+    const handle = 1000, radius = 8;
+    const oks = await page.evaluate(() => meshpde.oks);
+    await page.evaluate(([v, r]) => meshpde.send({ type: 'correct', vertex: v, move: [2, 0, 0], radius: r, image: false }),
+                        [handle, radius]);
+    await page.waitForFunction((n) => meshpde.oks > n && meshpde.lastOk === 'correct', oks, { timeout: 60000 });
+    const [download] = await Promise.all([page.waitForEvent('download'), page.click('#save')]);
+    check('save downloads the edited surface', download.suggestedFilename().endsWith('.vtp'), download.suggestedFilename());
+    await page.waitForFunction(() => meshpde.lastSegmentationSave, null, { timeout: 60000 });
+    const saved = await page.evaluate(() => meshpde.lastSegmentationSave);
+    const out = join(dir, 'aorta-corrected.seg.nrrd');
+    check('save writes the corrected segmentation beside the input', existsSync(out) && saved.file === 'aorta-corrected.seg.nrrd',
+          JSON.stringify(saved));
+    check('the input is left as it was', Buffer.compare(readFileSync(seg), input) === 0);
+    check('the status line says what was written', /wrote aorta-corrected\.seg\.nrrd: \d+ voxels added/.test(
+      await page.textContent('#status')), await page.textContent('#status'));
+    await page.screenshot({ path: join(shots, 'editor-segmentation.png') });
+    if (existsSync(out)) {
+      const a = readSegNrrd(seg), b = readSegNrrd(out);
+      check('the corrected segmentation keeps the grid', a.sizes.join() === b.sizes.join() && a.header.split('\n').length === b.header.split('\n').length);
+      const [ni, nj] = a.sizes;
+      const p = rest.slice(3 * handle, 3 * handle + 3);
+      let changed = 0, far = 0;
+      const voxel = Math.max(...a.dirs.map((d) => Math.hypot(...d)));
+      for (let v = 0; v < a.voxels.length; ++v) {
+        if (a.voxels[v] === b.voxels[v]) continue;
+        changed += 1;
+        const i = v % ni, j = Math.floor(v / ni) % nj, k = Math.floor(v / ni / nj);
+        const x = [0, 1, 2].map((c) => a.origin[c] + i * a.dirs[0][c] + j * a.dirs[1][c] + k * a.dirs[2][c]);
+        if (Math.hypot(x[0] - p[0], x[1] - p[1], x[2] - p[2]) > radius + 2 * voxel) far += 1;
+      }
+      check('the correction changed voxels, all near the handle', changed > 0 && changed === saved.added + saved.removed && far === 0,
+            `${changed} changed, ${far} far, ${JSON.stringify(saved)}`);
+    }
+  } finally {
+    await context.close();
+    await stopServer(s);
+    rmSync(dir, { recursive: true, force: true });
+  }
+}
+
+// ------------------------------------------------------------------ a DICOM series uploaded as a .zip
+async function dicomZipChecks(page) {
+  const dir = mkdtempSync(join(os.tmpdir(), 'meshpde-dicom-'));
+  const zip = join(dir, 'series.zip');
+  // Written by the Python tests' DICOM writer (pydicom): a CT with a bright ball in the middle.
+  const script = [
+    'import sys, zipfile, numpy as np, dicom_writer as dw',
+    'v = dw.ct_volume((48, 40, 12))',
+    `paths = dw.write_series(sys.argv[1] + '/s', v, (1.0, 1.0, 2.0), (0, 0, 0), np.eye(3))`,
+    `z = zipfile.ZipFile(sys.argv[1] + '/series.zip', 'w', zipfile.ZIP_DEFLATED)`,
+    `[z.write(p, 'CT/' + p.name) for p in paths]`,
+    'z.close()',
+  ].join('\n');
+  const made = spawnSync('/usr/bin/python3', ['-c', script, dir],
+                         { env: { ...process.env, PYTHONPATH: join(here, '..', '..', 'python', 'tests') } });
+  if (made.status !== 0) {
+    check('a DICOM series is written for the upload (python3-pydicom)', !ci, String(made.stderr));
+    rmSync(dir, { recursive: true, force: true });
+    return;
+  }
+  try {
+    const shownBefore = await page.evaluate(() => meshpde.imageView.shown);
+    await page.setInputFiles('#file', zip);
+    await page.waitForFunction((n) => meshpde.imageView.shown >= n + 3, shownBefore, { timeout: 30000 }).catch(() => {});
+    check('a zipped DICOM series shows as three slices', (await page.evaluate(() => meshpde.imageView.shown)) >= shownBefore + 3);
+    await page.selectOption('#img-2d', 'axial');
+    await page.waitForTimeout(500);
+    // Read back what the 2D view drew: the ball in the middle is bright, the corner dark.
+    const grey = await page.evaluate(() => {
+      const c = document.getElementById('slice-view'), d = c.getContext('2d');
+      const at = (x, y) => d.getImageData(Math.round(x), Math.round(y), 1, 1).data[0];
+      return { centre: at(c.width / 2, c.height / 2), corner: at(c.width * 0.12, c.height * 0.2) };
+    });
+    check('the series is drawn: bright ball, dark corner', grey.centre - grey.corner > 60, JSON.stringify(grey));
+    const refused = await page.evaluate(async () => {
+      const r = await fetch(`/api/upload?client=${meshpde.client}&name=broken.zip`, { method: 'POST', body: 'PK\x03\x04 no archive' });
+      return { status: r.status, error: (await r.json()).error };
+    });
+    check('a broken .zip is refused naming it', refused.status === 400 && /broken\.zip/.test(refused.error), JSON.stringify(refused));
+  } finally {
+    rmSync(dir, { recursive: true, force: true });
   }
 }
 
@@ -548,6 +689,7 @@ try {
       return (await r.json()).error;
     });
     check('a detached-header volume upload says to upload one file', /one file/.test(detached), detached);
+    await dicomZipChecks(page);
   } else {
     check(`${levelsetPath} present`, !ci);
   }
@@ -568,6 +710,7 @@ try {
   await contextA.close();
 
   await imageChecks();
+  await segmentationChecks();
 } catch (e) {
   check('test script ran to the end', false, e.stack || String(e));
 } finally {

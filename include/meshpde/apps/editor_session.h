@@ -118,6 +118,8 @@ class EditorSession {
   /// Advances heat or wave by `steps` steps (the server calls it once a frame).
   void advance(int steps);
 
+  /// The positions the session opened with (before any correction).
+  const Positions& original_positions() const { return correction_.original(); }
   /// The mesh as it is now, with its original fields plus the painted or simulated
   /// field, for saving.
   MeshData snapshot() const;

@@ -76,6 +76,14 @@ const DicomSeries& choose_dicom_series(const DicomListing& listing, const std::s
 Volume read_dicom_series(const std::filesystem::path& folder_or_file, const std::string& choice = "",
                          std::size_t max_voxels = 0);
 
+/// A series from a .zip archive of DICOM files held in memory (a folder zipped for an
+/// upload): its files are unpacked under private names into a private temporary folder,
+/// read as read_dicom_series reads a folder, and removed. An archive that declares more
+/// than `max_bytes` unpacked, or more than 100,000 files, is refused before unpacking.
+/// \throw InputError naming `name` (and the file inside it) on a damaged archive.
+Volume read_dicom_zip(const std::string& bytes, const std::string& name, const std::string& choice = "",
+                      std::size_t max_voxels = 0, std::size_t max_bytes = std::size_t{1} << 32);
+
 /// Parses one file held in memory as read_dicom_series would (its header, then its
 /// pixels), for the fuzz target. \throw InputError naming `name`.
 Volume read_dicom_file_from_memory(const std::string& bytes, const std::string& name);
