@@ -4,6 +4,7 @@ each compared voxel for voxel and affine for affine with the same volume as NIfT
 import json
 import os
 import shutil
+import struct
 import subprocess
 
 import numpy as np
@@ -102,6 +103,39 @@ def test_every_transfer_syntax_reads_the_same_volume(tmp_path, plain_series, exp
     assert_same_volume(tmp_path, expected, affine)
 
 
+@pytest.mark.parametrize("option", ["--rle", "--jpeg", "--jpegls", "--j2k"])
+def test_a_compressed_multiframe_file_reads_every_frame(tmp_path, volume, expected, option):
+    # One fragment a frame (and an offset table): each frame decoded on its own.
+    D = dw.oblique_direction(20.0, (1, 1, -1))
+    order = np.random.default_rng(9).permutation(volume.shape[2])
+    plain = dw.write_enhanced(tmp_path / "enhanced.dcm", volume, SPACING, ORIGIN, D, slope=SLOPE,
+                              intercept=INTERCEPT, frame_order=order)
+    out = tmp_path / "compressed.dcm"
+    subprocess.run([gdcmconv(), option, str(plain), str(out)], check=True, capture_output=True)
+    assert dw.pydicom.dcmread(out, stop_before_pixels=True).file_meta.TransferSyntaxUID == TRANSFER_SYNTAXES[option]
+    assert_same_volume(out, expected, dw.affine_of(SPACING, ORIGIN, D))
+
+
+@pytest.mark.parametrize("options, syntax, max_error", [
+    (["--jpeg", "--lossy", "-q", "90"], "1.2.840.10008.1.2.4.50", 40),
+    (["--j2k", "--lossy", "-q", "40"], "1.2.840.10008.1.2.4.91", 40),
+    (["--jpegls", "--lossy", "-e", "2"], "1.2.840.10008.1.2.4.81", 2),  # near-lossless: |error| <= 2 by design
+])
+def test_lossy_syntaxes_read_within_their_error(tmp_path, volume, options, syntax, max_error):
+    # 8-bit grey (what lossy baseline JPEG holds): the values come back within the
+    # codec's error, most of them much closer; JPEG-LS near-lossless bounds every error.
+    v8 = np.rint((volume - volume.min()) / (volume.max() - volume.min()) * 255)
+    D = dw.oblique_direction(10.0)
+    paths = dw.write_series(tmp_path / "u8", v8, SPACING, ORIGIN, D, dtype=np.uint8)
+    for p in paths:
+        subprocess.run([gdcmconv(), *options, str(p), str(tmp_path / p.name)], check=True, capture_output=True)
+    assert dw.pydicom.dcmread(tmp_path / paths[0].name, stop_before_pixels=True).file_meta.TransferSyntaxUID == syntax
+    values, A = meshpde.read_volume(tmp_path / paths[0].name)
+    error = np.abs(values - v8)
+    assert error.max() <= max_error and error.mean() < 0.75 * max_error, (error.max(), error.mean())
+    assert np.abs(A - dw.affine_of(SPACING, ORIGIN, D)).max() < 1e-9
+
+
 def test_explicit_big_endian(tmp_path, volume, expected):
     D = dw.oblique_direction(15.0)
     dw.write_series(tmp_path, volume, SPACING, ORIGIN, D, slope=SLOPE, intercept=INTERCEPT,
@@ -130,6 +164,44 @@ def test_a_real_volume_through_dicom_equals_the_original(tmp_path, data):
     ours, A = meshpde.read_volume(tmp_path)
     assert np.array_equal(ours, dw.quantized(values).astype(np.float32))
     assert np.abs(A - affine).max() < 1e-9
+
+
+def test_elements_of_unknown_vr_are_read_and_a_wrong_vr_is_refused(tmp_path, plain_series, expected, monkeypatch):
+    # A tool that did not know an element writes it with VR UN; its value is the same
+    # bytes, so the series reads the same. Text where a number belongs is refused.
+    paths, affine = plain_series
+    monkeypatch.setattr(dw.pydicom.config, "replace_un_with_known_vr", False)  # pydicom would undo UN
+    for p in paths:
+        ds = dw.pydicom.dcmread(p)
+        for keyword in ("ImagePositionPatient", "Rows", "RescaleSlope"):
+            e = ds[keyword]
+            values = e.value if e.VM > 1 else [e.value]
+            raw = struct.pack("<H", e.value) if e.VR == "US" else "\\".join(map(str, values)).encode()
+            raw += b" " * (len(raw) % 2)
+            ds[keyword] = dw.pydicom.DataElement(e.tag, "UN", raw)
+        ds.save_as(tmp_path / p.name, write_like_original=False)
+    assert dw.pydicom.dcmread(tmp_path / paths[0].name)["Rows"].VR == "UN"
+    assert_same_volume(tmp_path, expected, affine)
+    wrong = tmp_path / "wrong"
+    wrong.mkdir()
+    for p in paths:
+        ds = dw.pydicom.dcmread(p)
+        ds["RescaleSlope"] = dw.pydicom.DataElement(0x00281053, "UI", "1.2")
+        ds.save_as(wrong / p.name, write_like_original=False)
+    with pytest.raises(meshpde.InputError, match=r"\(0028,1053\) has value representation UI, not DS"):
+        meshpde.read_volume(wrong)
+
+
+@pytest.mark.parametrize("keyword", ["ImageOrientationPatient", "ImagePositionPatient", "PixelSpacing"])
+def test_an_image_without_its_geometry_is_refused_not_placed_at_a_guess(tmp_path, plain_series, keyword):
+    paths, _ = plain_series
+    for p in paths:
+        ds = dw.pydicom.dcmread(p)
+        if p == paths[2]:
+            del ds[keyword]
+        ds.save_as(tmp_path / p.name, write_like_original=False)
+    with pytest.raises(meshpde.InputError, match=f"{paths[2].name} has no {keyword}"):
+        meshpde.read_volume(tmp_path)
 
 
 def test_one_file_of_a_series_reads_the_whole_series(plain_series, expected):

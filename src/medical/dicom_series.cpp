@@ -39,14 +39,24 @@ DicomGrid dicom_grid(const std::vector<DicomFrame>& frames, const std::string& s
   if (frames.empty()) throw InputError(fmt::format("{}: no images", series));
   const DicomFrame& first = frames.front();
   for (const DicomFrame& f : frames) {
+    // Without its geometry an image cannot be placed in the patient frame; a reader
+    // that assumed identity axes and 1 mm would put the scan where the mesh is not.
+    const char* missing = !f.has_orientation ? "ImageOrientationPatient"
+                          : !f.has_spacing   ? "PixelSpacing"
+                          : !f.has_position  ? "ImagePositionPatient"
+                                             : nullptr;
+    if (missing)
+      throw InputError(
+          fmt::format("{}: {} has no {} (a secondary capture or a screenshot?), so its voxels cannot "
+                      "be placed in the patient frame",
+                      series, frame_name(f), missing));
     if (f.samples_per_pixel != 1)
       throw InputError(fmt::format("{}: {} has {} samples a pixel (colour); a grey-level image is needed", series,
                                    frame_name(f), f.samples_per_pixel));
     if (f.rows != first.rows || f.cols != first.cols)
       throw InputError(fmt::format("{}: mixed image sizes: {} is {} x {}, {} is {} x {} (columns x rows)", series,
                                    frame_name(first), first.cols, first.rows, frame_name(f), f.cols, f.rows));
-    if (f.has_orientation != first.has_orientation ||
-        (f.has_orientation && (!close(f.row_dir, first.row_dir, 1e-4) || !close(f.col_dir, first.col_dir, 1e-4))))
+    if (!close(f.row_dir, first.row_dir, 1e-4) || !close(f.col_dir, first.col_dir, 1e-4))
       throw InputError(fmt::format("{}: mixed orientations: {} and {} have different ImageOrientationPatient", series,
                                    frame_name(first), frame_name(f)));
     if (std::abs(f.row_spacing - first.row_spacing) > 1e-4 * first.row_spacing ||
@@ -79,10 +89,6 @@ DicomGrid dicom_grid(const std::vector<DicomFrame>& frames, const std::string& s
     g.origin = first.position;
     return g;
   }
-  for (const DicomFrame& f : frames)
-    if (!f.has_position)
-      throw InputError(
-          fmt::format("{}: {} has no ImagePositionPatient, so the slices cannot be ordered", series, frame_name(f)));
   std::vector<double> along(frames.size());
   for (std::size_t k = 0; k < frames.size(); ++k) along[k] = n.dot(frames[k].position);
   std::stable_sort(g.order.begin(), g.order.end(), [&](std::size_t a, std::size_t b) { return along[a] < along[b]; });
@@ -332,7 +338,7 @@ Volume read_dicom_series(const std::filesystem::path& path, const std::string& c
     const detail::DicomFrame& f = frames[g.order[k]];
     auto it = slots.find(f.file);
     if (it == slots.end()) continue;  // decoded already
-    const std::vector<float> pixels = detail::read_dicom_pixels(f.file, f.rows, f.cols, f.frames_in_file);
+    const std::vector<float> pixels = detail::read_dicom_pixels(f.file, f);
     for (const detail::DicomFrame& fr : frames) {
       if (fr.file != f.file) continue;
       const std::size_t at = it->second[static_cast<std::size_t>(fr.frame)];
@@ -354,8 +360,7 @@ Volume read_dicom_file_from_memory(const std::string& bytes, const std::string& 
   const detail::DicomGrid g = detail::dicom_grid(frames, name);
   const std::size_t voxels = detail::checked_voxels({g.size[0], g.size[1], g.size[2]}, name, 1u << 26);
   const detail::DicomFrame& f = frames.front();
-  const std::vector<float> pixels =
-      detail::read_dicom_pixels_from_memory(bytes, name, f.rows, f.cols, f.frames_in_file);
+  const std::vector<float> pixels = detail::read_dicom_pixels_from_memory(bytes, name, f);
   Volume v;
   v.name = name;
   v.dims = g.size;

@@ -73,8 +73,8 @@ std::string float_bytes(int n) {
   return h + float_bytes(12);
 }
 
-// A DICOM Part 10 file composed element by element (dicom.h reads it): a 3 x 2 CT
-// slice of signed 16-bit pixels, in the transfer syntax asked for. With `frames` > 1 an
+// A DICOM Part 10 file composed element by element (dicom.h reads it): a CT slice of
+// `cols` x `rows` signed 16-bit pixels, in the transfer syntax asked for. With `frames` > 1 an
 // enhanced multi-frame file whose frames carry their positions in functional groups.
 class DicomComposer {
  public:
@@ -117,7 +117,7 @@ class DicomComposer {
   std::string out_;
 };
 
-std::string dicom(const std::string& syntax, int frames = 1) {
+std::string dicom(const std::string& syntax, int frames = 1, int rows = 2, int cols = 3) {
   const bool implicit = syntax == "1.2.840.10008.1.2", big = syntax == "1.2.840.10008.1.2.2";
   DicomComposer meta(false, false);
   meta.element(0x0002, 0x0001, "OB", std::string("\0\1", 2));
@@ -150,8 +150,8 @@ std::string dicom(const std::string& syntax, int frames = 1) {
     }
     d.sequence(0x5200, 0x9230, per);
   }
-  d.us(0x0028, 0x0010, 2);
-  d.us(0x0028, 0x0011, 3);
+  d.us(0x0028, 0x0010, static_cast<std::uint16_t>(rows));
+  d.us(0x0028, 0x0011, static_cast<std::uint16_t>(cols));
   d.element(0x0028, 0x0030, "DS", "0.5\\0.7");
   d.us(0x0028, 0x0100, 16);
   d.us(0x0028, 0x0101, 16);
@@ -160,7 +160,7 @@ std::string dicom(const std::string& syntax, int frames = 1) {
   d.element(0x0028, 0x1052, "DS", "-1024");
   d.element(0x0028, 0x1053, "DS", "2");
   std::string pixels;
-  for (int k = 0; k < 6 * frames; ++k) pixels += d.u16(static_cast<std::uint16_t>(k * 37 - 50));
+  for (int k = 0; k < rows * cols * frames; ++k) pixels += d.u16(static_cast<std::uint16_t>(k * 37 - 50));
   d.element(0x7fe0, 0x0010, "OW", pixels);
   return std::string(128, '\0') + "DICM" + group_length.bytes() + meta.bytes() + d.bytes();
 }
@@ -292,6 +292,8 @@ int write_seeds(const fs::path& root) {
   put(root / "dicom", "implicit-little.dcm", dicom("1.2.840.10008.1.2"), count);
   put(root / "dicom", "explicit-big.dcm", dicom("1.2.840.10008.1.2.2"), count);
   put(root / "dicom", "enhanced-multiframe.dcm", dicom("1.2.840.10008.1.2.1", 3), count);
+  // Large enough for every codec (scripts/fuzz compresses it with gdcmconv).
+  put(root / "dicom", "explicit-little-16x16.dcm", dicom("1.2.840.10008.1.2.1", 1, 16, 16), count);
 #endif
   return count;
 }
