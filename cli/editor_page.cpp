@@ -197,12 +197,13 @@ bool is_volume_upload(const std::string& name) {
 }
 
 EditorPage::EditorPage(PageSink sink, std::shared_ptr<const EditorImage> image, Space space, LaplacianKind laplacian,
-                       std::shared_ptr<const EditorSegmentation> segmentation)
+                       std::shared_ptr<const EditorSegmentation> segmentation, LengthUnit upload_units)
     : sink_(std::move(sink)),
       image_(std::move(image)),
       space_(space),
       laplacian_(laplacian),
-      segmentation_(std::move(segmentation)) {}
+      segmentation_(std::move(segmentation)),
+      upload_units_(upload_units) {}
 
 // Names in messages come from the user's files (field and file names) and need not be
 // UTF-8; they are sent with U+FFFD in place of the bad bytes rather than thrown on.
@@ -214,7 +215,11 @@ void EditorPage::send_binary(std::string bytes) {
 }
 
 void EditorPage::load(Loaded l) {
-  session_ = std::make_unique<EditorSession>(l.data, image_ ? image_->edges : nullptr, space_, laplacian_);
+  // The session works in millimetres (the image's unit and the unit of every radius
+  // and displacement typed); save() scales back.
+  MeshData mm = l.data;
+  mm.V *= millimetres_per(l.units);
+  session_ = std::make_unique<EditorSession>(mm, image_ ? image_->edges : nullptr, space_, laplacian_);
   source_ = std::move(l);
   tissue_ = CorrectionParams{};
   intersections_ = 0;
@@ -226,7 +231,11 @@ void EditorPage::load(Loaded l) {
                     {"segment", segmentation_->segment.name},
                     {"output", fs::path(segmentation_->output).filename().string()}};
 #endif
-  const std::string units = units_warning(m, LengthUnit::Millimetre, source_.name, "a model in ");
+  // Checked in the unit the mesh came in, so that the advice names the right option.
+  const std::string units =
+      source_.units == LengthUnit::Millimetre
+          ? units_warning(m, LengthUnit::Millimetre, source_.name, "meshpde serve --units ")
+          : units_warning(Mesh(source_.data.V, source_.data.F), source_.units, source_.name, "meshpde serve --units ");
   send_json({{"type", "mesh"},
              {"name", source_.name},
              {"vertices", m.num_vertices()},
@@ -236,6 +245,7 @@ void EditorPage::load(Loaded l) {
              {"image", image_json()},
              {"segmentation", segmentation},
              {"held_vertices", session_->held_vertices().size()},
+             {"units", to_string(source_.units)},
              {"units_warning", units.empty() ? nlohmann::json() : nlohmann::json(units)},
              {"fields", [&] {
                 std::vector<std::string> names;
@@ -301,6 +311,7 @@ void EditorPage::upload_image(const std::string& bytes, const std::string& name)
 
 int EditorPage::upload(const std::string& bytes, const std::string& name) {
   Loaded l = parse_mesh_bytes(bytes, name);
+  l.units = upload_units_;
   const Mesh check(l.data.V, l.data.F);  // validates before the page's mesh is replaced
   load(std::move(l));
   return session_->mesh().num_vertices();
@@ -309,7 +320,9 @@ int EditorPage::upload(const std::string& bytes, const std::string& name) {
 std::pair<std::string, std::string> EditorPage::save() const {
   if (!session_) throw InputError("no mesh loaded");
   const fs::path n(source_.name);
-  return {mesh_bytes(session_->snapshot(), source_.name), n.stem().string() + "-edited" + n.extension().string()};
+  MeshData d = session_->snapshot();
+  d.V /= millimetres_per(source_.units);  // back in the unit it came in
+  return {mesh_bytes(d, source_.name), n.stem().string() + "-edited" + n.extension().string()};
 }
 
 void EditorPage::handle(const std::string& payload, bool binary) {

@@ -26,6 +26,7 @@
 #include "meshpde/apps/editor_session.h"
 #include "meshpde/image/volume.h"
 #include "meshpde/io/mesh_io.h"
+#include "meshpde/mesh/units.h"
 
 namespace meshpde::cli {
 
@@ -34,6 +35,9 @@ struct Loaded {
   MeshData data;
   std::string name = "mesh.ply";
   bool from_segmentation = false;  ///< the surface of the server's segment (saving writes it back)
+  /// Unit of `data`'s coordinates (meshpde serve --units). A page works in millimetres,
+  /// as the image and every length typed are, and saves in this unit.
+  LengthUnit units = LengthUnit::Millimetre;
 };
 
 /// The segmentation a server opened (meshpde serve --segmentation): its segment's
@@ -85,10 +89,12 @@ struct PageSink {
 class EditorPage {
  public:
   /// A page with no mesh yet; `image` (may be null) is shown and guides corrections,
-  /// `space` is the frame of the meshes' coordinates.
+  /// `space` is the frame of the meshes' coordinates, `upload_units` the unit of the
+  /// meshes uploaded to it.
   EditorPage(PageSink sink, std::shared_ptr<const EditorImage> image, Space space,
              LaplacianKind laplacian = LaplacianKind::Auto,
-             std::shared_ptr<const EditorSegmentation> segmentation = nullptr);
+             std::shared_ptr<const EditorSegmentation> segmentation = nullptr,
+             LengthUnit upload_units = LengthUnit::Millimetre);
 
   /// Opens `l` (a new session) and sends it: a "mesh" message and a MESH frame.
   /// \throw InputError (the page keeps its mesh).
@@ -128,6 +134,7 @@ class EditorPage {
   Space space_;
   LaplacianKind laplacian_;
   std::shared_ptr<const EditorSegmentation> segmentation_;
+  LengthUnit upload_units_;
   Loaded source_;
   std::unique_ptr<EditorSession> session_;
   Positions sent_;                 // positions as the page has them

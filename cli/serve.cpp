@@ -40,6 +40,7 @@
 #include "editor_page.h"
 #include "meshpde/core/errors.h"
 #include "meshpde/image/volume.h"
+#include "meshpde/mesh/units.h"
 #include "web_server.h"
 #ifdef MESHPDE_HAVE_MEDICAL
 #include "meshpde/io/medical_io.h"
@@ -53,6 +54,7 @@ namespace fs = std::filesystem;
 
 struct ServeArgs {
   std::string mesh, host = "127.0.0.1", image, series, segmentation, segment, space, web_root, laplacian = "auto";
+  std::string units = "mm";
   int port = 8080;
   double max_upload_mb = 64;
   bool overwrite = false;
@@ -218,13 +220,21 @@ class EditorServer {
           fmt::format("{}: no index.html (build the page: npm --prefix web ci && npm --prefix web run "
                       "build, or pass --web-root)",
                       web_root_.string()));
+    units_ = parse_length_unit(a.units);
     if (!a.segmentation.empty()) {
       if (!a.mesh.empty()) throw InputError("give a MESH or --segmentation, not both");
+      if (units_ != LengthUnit::Millimetre)
+        throw InputError("--units goes with a MESH: a segmentation's surface is made in millimetres");
       segmentation_ = load_editor_segmentation(a.segmentation, a.segment, a.overwrite);
       initial_ = segmentation_surface(*segmentation_);  // in LPS, as its space says
     } else if (!a.mesh.empty()) {
       initial_.data = read_mesh_file(a.mesh);
       initial_.name = fs::path(a.mesh).filename().string();
+      initial_.units = units_;
+      // Warned here as well as on the page: the terminal is where the user typed it.
+      const std::string warning =
+          units_warning(Mesh(initial_.data.V, initial_.data.F), units_, initial_.name, "--units ");
+      if (!warning.empty()) fmt::print(stderr, "warning: {}\n", warning);
     } else {
       initial_ = generated("dented");
     }
@@ -269,7 +279,7 @@ class EditorServer {
     page.editor = std::make_shared<EditorPage>(
         PageSink{.text = [this, h](std::string s) { server_.send_text(h, std::move(s)); },
                  .binary = [this, h](std::string s) { server_.send_binary(h, std::move(s)); }},
-        image_, space_, laplacian_, segmentation_);
+        image_, space_, laplacian_, segmentation_, units_);
     page.worker = std::make_unique<PageWorker>();
     send_json(h, {{"type", "hello"}, {"client", h}});
     EditorPage* c = page.editor.get();
@@ -421,6 +431,7 @@ class EditorServer {
   fs::path web_root_;
   Loaded initial_;
   Space space_ = Space::LPS;
+  LengthUnit units_ = LengthUnit::Millimetre;
   LaplacianKind laplacian_ = LaplacianKind::Auto;
   std::shared_ptr<const EditorImage> image_;
   std::shared_ptr<const EditorSegmentation> segmentation_;
@@ -460,6 +471,11 @@ void add_serve_command(CLI::App& app) {
   cmd->add_option("--segment", a->segment, "The segment to edit: name, ID or label value (needed among several)");
   cmd->add_flag("--overwrite", a->overwrite, "Saving writes the corrected segmentation over the input itself");
   cmd->add_option("--space", a->space, "Frame of the mesh coordinates: lps | ras");
+  cmd->add_option(
+         "--units", a->units,
+         "Unit of the mesh coordinates (the MESH and uploads): mm | cm | m. The page works in mm, as the image "
+         "and every length typed; saving writes the mesh back in its unit")
+      ->capture_default_str();
   add_laplacian_option(cmd, a->laplacian);
   cmd->add_option("--web-root", a->web_root, "Folder with the built page")->capture_default_str();
   cmd->add_option("--max-upload-mb", a->max_upload_mb, "Largest accepted upload")->capture_default_str();

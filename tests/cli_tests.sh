@@ -41,6 +41,10 @@ check "curvature's auto is cotan" [ "$(json "$T/c.json" "d['laplacian']")" = cot
 check "demo reports the Laplacian chosen" [ "$(json "$T/di.json" "d['laplacian']")" = intrinsic ]
 "$M" serve --laplacian bogus 2>"$T/err" >/dev/null
 check "serve refuses an unknown --laplacian" grep -q "bogus" "$T/err"
+"$M" serve "$T/l3.obj" --units inch 2>"$T/err" >/dev/null
+check "serve refuses an unknown --units" grep -q "inch" "$T/err"
+"$M" serve --segmentation "$T/none.seg.nrrd" --units cm 2>"$T/err" >/dev/null
+check "serve --units goes with a mesh, not a segmentation" grep -q "segmentation's surface is made in millimetres" "$T/err"
 
 check "curvature field written" grep -q "property double mean_curvature" "$T/c.ply"
 

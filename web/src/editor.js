@@ -210,6 +210,7 @@ ws.onmessage = (ev) => {
     const notes = [];
     if (m.segmentation) notes.push(`editing segment '${m.segmentation.segment}' of ${m.segmentation.input}`);
     if (m.held_vertices) notes.push(`${m.held_vertices} vertices of flat caps are held`);
+    if (m.units && m.units !== 'mm') notes.push(`${m.name} is in ${m.units}: shown and edited in mm, saved in ${m.units}`);
     if (m.units_warning) notes.push(m.units_warning);
     if (notes.length) status(notes.join('\n'));
     $('image').disabled = !m.has_image;

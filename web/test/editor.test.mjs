@@ -13,7 +13,7 @@
 // and not under CI=true, where a missing piece is a failure). Waits are generous:
 // under AddressSanitizer the server's probe runs several times slower.
 import { spawn, spawnSync } from 'node:child_process';
-import { existsSync, readFileSync, mkdirSync, mkdtempSync, rmSync } from 'node:fs';
+import { existsSync, readFileSync, mkdirSync, mkdtempSync, rmSync, writeFileSync } from 'node:fs';
 import { gunzipSync } from 'node:zlib';
 import net from 'node:net';
 import os from 'node:os';
@@ -214,6 +214,47 @@ async function segmentationChecks() {
       check('the correction changed voxels, all near the handle', changed > 0 && changed === saved.added + saved.removed && far === 0,
             `${changed} changed, ${far} far, ${JSON.stringify(saved)}`);
     }
+  } finally {
+    await context.close();
+    await stopServer(s);
+    rmSync(dir, { recursive: true, force: true });
+  }
+}
+
+// ------------------------------------------------------------------ a mesh in centimetres (serve --units cm)
+async function unitsChecks() {
+  const dir = mkdtempSync(join(os.tmpdir(), 'meshpde-units-'));
+  const mm = join(dir, 'tube-mm.obj'), cm = join(dir, 'tube-cm.obj');
+  const made = spawnSync(binary, ['generate', 'tube', '--radius', '3', '--length', '40', '--rings', '40', '-o', mm]);
+  check('units: the test tube is generated', made.status === 0, String(made.stderr));
+  // The same tube with its coordinates in centimetres, as SimVascular writes models.
+  const vertices = (text) => text.split('\n').filter((l) => l.startsWith('v ')).map((l) => l.split(/\s+/).slice(1, 4).map(Number));
+  writeFileSync(cm, readFileSync(mm, 'utf8').split('\n').map((l) => (l.startsWith('v ')
+    ? 'v ' + l.split(/\s+/).slice(1, 4).map((x) => (Number(x) / 10).toPrecision(9)).join(' ') : l)).join('\n'));
+  const inCm = vertices(readFileSync(cm, 'utf8'));
+  const s = await startServer([cm, '--units', 'cm']);
+  const context = await browser.newContext({ viewport: { width: 1280, height: 800 }, acceptDownloads: true });
+  try {
+    const page = await context.newPage();
+    page.on('pageerror', (e) => check('no page errors (units)', false, e.message));
+    await page.goto(s.url);
+    await page.waitForFunction(() => meshpde.ready && meshpde.name === 'tube-cm.obj', null, { timeout: 30000 });
+    const shown = await positions(page);
+    check('a mesh in cm is shown in mm', maxDiff(shown, inCm.flat().map((x) => 10 * x)) < 1e-4, String(maxDiff(shown, inCm.flat().map((x) => 10 * x))));
+    check('the status line says the file is in cm', /tube-cm\.obj is in cm: shown and edited in mm, saved in cm/.test(
+      await page.textContent('#status')), await page.textContent('#status'));
+    check('no units warning for a mesh whose unit was given', !/--units/.test(await page.textContent('#status')));
+    // A 2 mm correction over 8 mm: the saved file is in cm, moved by at most 0.2 of its units.
+    const oks = await page.evaluate(() => meshpde.oks);
+    await page.evaluate(() => meshpde.send({ type: 'correct', vertex: 500, move: [2, 0, 0], radius: 8, image: false }));
+    await page.waitForFunction((n) => meshpde.oks > n && meshpde.lastOk === 'correct', oks, { timeout: 60000 });
+    const [download] = await Promise.all([page.waitForEvent('download'), page.click('#save')]);
+    const saved = vertices(readFileSync(await download.path(), 'utf8'));
+    const moved = saved.map((p, i) => Math.hypot(p[0] - inCm[i][0], p[1] - inCm[i][1], p[2] - inCm[i][2]));
+    const most = Math.max(...moved), far = moved.filter((d, i) => d > 1e-6 && Math.hypot(
+      inCm[i][0] - inCm[500][0], inCm[i][1] - inCm[500][1], inCm[i][2] - inCm[500][2]) > 0.8 + 0.05).length;
+    check('the edited mesh is saved in cm: the handle moved 0.2 cm, nothing beyond 8 mm', saved.length === inCm.length &&
+          Math.abs(moved[500] - 0.2) < 0.02 && most < 0.21 && far === 0, `handle ${moved[500]}, most ${most}, far ${far}`);
   } finally {
     await context.close();
     await stopServer(s);
@@ -711,6 +752,7 @@ try {
 
   await imageChecks();
   await segmentationChecks();
+  await unitsChecks();
 } catch (e) {
   check('test script ran to the end', false, e.stack || String(e));
 } finally {
