@@ -2,7 +2,9 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <cctype>
 #include <chrono>
+#include <filesystem>
 #include <fstream>
 #include <map>
 #include <memory>
@@ -246,11 +248,17 @@ void add_fair_command(CLI::App& app) {
     params.laplacian = parse_laplacian_kind(a->laplacian);
     const FairResult r = fair(mesh, fixed, params);
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    // Everything the input carried (point and cell arrays, face labels, the frame) with
+    // the faired positions, and which vertices were free where the format holds fields.
     Eigen::VectorXd free_mask = Eigen::VectorXd::Ones(mesh.num_vertices());
     for (int v : fixed) free_mask[v] = 0;
-    save_mesh(a->out, r.V, mesh.triangles(),
-              format_from_path(a->out) == MeshFormat::Ply ? std::map<std::string, Eigen::VectorXd>{{"free", free_mask}}
-                                                          : std::map<std::string, Eigen::VectorXd>{});
+    d.V = r.V;
+    for (const auto& name : refresh_normal_fields(d))
+      fmt::print(stderr, "note: {}: normals '{}' recomputed on the faired surface\n", a->mesh, name);
+    std::string ext = std::filesystem::path(a->out).extension().string();
+    for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    if (ext == ".ply" || ext == ".vtp" || ext == ".vtk") d.vertex_scalars["free"] = free_mask;
+    for (const auto& w : write_mesh_file(a->out, d)) fmt::print(stderr, "warning: {}\n", w);
     if (!a->png.empty()) {
       RenderOptions ro = a->r;
       apply_view_options(ro, a->view, a->up, a->size);

@@ -39,6 +39,23 @@ def test_read_mesh_gives_the_cell_arrays_and_the_types(pipe, tmp_path):
         meshpde.write_mesh(tmp_path / "lost.ply", V, F, fields)
 
 
+@pytest.mark.parametrize("command", ["correct", "fair"])
+def test_the_tools_correct_and_fair_keep_every_array_and_type(pipe, tmp_path, cli, command):
+    V, F, fields = meshpde.read_mesh(pipe)
+    out = tmp_path / f"{command}.vtp"
+    if command == "correct":
+        cli("correct", pipe, "--units", "cm", "--vertex", 202, "--move", "normal:3", "--radius", 12, "-o", out)
+    else:
+        cli("fair", pipe, "--fixed", "halfspace:0,0,1:8", "--fixed", "halfspace:0,0,-1:-22", "--order", 2, "-o", out)
+    W, G, back = meshpde.read_mesh(out)
+    assert np.array_equal(G, F) and np.abs(W - V).max() > 1e-3  # the same cells, moved
+    for name, values in fields.cells.items():
+        assert back.cells[name].dtype == values.dtype, name
+        if name != "Normals":  # recomputed where vertices moved
+            assert np.array_equal(back.cells[name], values), name
+    assert back["GlobalNodeID"].dtype == np.int32 and np.array_equal(back["GlobalNodeID"], fields["GlobalNodeID"])
+
+
 def test_vtk_interop_keeps_cells_types_and_the_frame(pipe):
     pytest.importorskip("vtk")
     V, F, fields = meshpde.read_mesh(pipe)
