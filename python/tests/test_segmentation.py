@@ -118,6 +118,30 @@ def test_round_trip_without_a_correction(case, cli, tmp_path):
     assert np.array_equal(meshpde.read_segmentation(out2)[0], case["labels"])
 
 
+def test_round_trip_on_thick_slices(data, tmp_path, cli):
+    # The aorta on 3 x 3 x 10 mm voxels (a thick-slice CT's segmentation): the default
+    # smoothing still gives Dice >= 0.98 when every voxel is decided again.
+    ndimage = pytest.importorskip("scipy.ndimage")
+    phi, A = meshpde.read_volume(data("aorta-levelset.mha"))
+    spacing = np.linalg.norm(A[:3, :3], axis=0)
+    coarse = np.array([3.0, 3.0, 10.0])
+    dims = np.floor((np.array(phi.shape) - 1) * spacing / coarse).astype(int) + 1
+    B = A.copy()
+    B[:3, :3] = A[:3, :3] / spacing * coarse
+    grid = np.indices(dims).reshape(3, -1) * (coarse / spacing)[:, None]  # in the fine grid's voxels
+    labels = (ndimage.map_coordinates(phi, grid, order=1) < 0).reshape(dims).astype(np.int32)
+    seg = tmp_path / "thick.seg.nrrd"
+    meshpde.write_segmentation(seg, labels, B, [dict(name="aorta", label=1)])
+    surface = tmp_path / "thick.vtp"
+    cli("extract", seg, "-o", surface)
+    out = tmp_path / "back.seg.nrrd"
+    cli("voxelize", surface, "--reference", seg, "--full", "-o", out)
+    back = meshpde.read_segmentation(out)[0] == 1
+    dice = 2 * (back & (labels == 1)).sum() / (back.sum() + (labels == 1).sum())
+    print(f"thick-slice round trip: {labels.sum()} voxels, Dice {dice:.4f}")
+    assert dice >= 0.98
+
+
 def test_after_a_correction_only_voxels_near_the_handle_change(case, cli, tmp_path):
     surface = tmp_path / "aorta.vtp"
     cli("extract", case["seg"], "--segment", "aorta", "-o", surface)
