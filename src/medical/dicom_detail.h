@@ -97,8 +97,8 @@ std::vector<float> read_dicom_pixels(const std::filesystem::path& file, const Di
 std::vector<float> read_dicom_pixels_from_memory(const std::string& bytes, const std::string& name,
                                                  const DicomFrame& frame);
 
-/// Whether meshpde decodes pixel data of this transfer syntax: the native ones itself,
-/// RLE, the JPEG family and JPEG 2000 through GDCM's codecs.
+/// Whether meshpde decodes pixel data of this transfer syntax: the native ones, RLE,
+/// the JPEG family, JPEG-LS and JPEG 2000 (dicom_codecs.cpp).
 bool dicom_syntax_decoded(const std::string& syntax);
 /// Encapsulated pixel data decoded (dicom_codecs.cpp): frames x rows x columns values
 /// of bits_allocated / 8 bytes, little endian. \throw InputError naming the file.

@@ -1,7 +1,7 @@
 // A DICOM file's frames (position, orientation, spacing, rescale and pixel storage of
 // each image in it) and their pixels, from the data set dicom_parse.cpp parsed. Native
-// transfer syntaxes are decoded here; compressed ones by GDCM's codecs
-// (dicom_gdcm.cpp), after the Image Pixel module was checked here.
+// transfer syntaxes are decoded here; compressed ones in dicom_codecs.cpp, after the
+// Image Pixel module was checked here.
 #include <fmt/format.h>
 
 #include <cmath>

@@ -4,7 +4,8 @@
 // aborted the process on damaged and inconsistent files in the dicom fuzz target: a
 // truncated file, a length past its container, a value representation it did not
 // expect, a sequence without the item it assumes. So the headers are read here, every
-// length checked against the bytes present, and GDCM only decodes compressed pixels.
+// length checked against the bytes present; GDCM only decodes JPEG pixels
+// (dicom_codecs.cpp).
 #include <fmt/format.h>
 #include <zlib.h>
 

@@ -1,4 +1,6 @@
-// DICOM image series, in the component meshpde::medical (read with GDCM).
+// DICOM image series, in the component meshpde::medical. The files are parsed by
+// meshpde; compressed pixels are decoded by CharLS (JPEG-LS), OpenJPEG (JPEG 2000) and
+// GDCM (the JPEG family), RLE by meshpde.
 //
 // A series is the images of one SeriesInstanceUID. Its slices are ordered by their
 // position along the slice normal (row x column direction cosines), never by file name
@@ -10,16 +12,18 @@
 //   origin: ImagePositionPatient of the first slice in that order
 //
 // Voxel values are the stored values times RescaleSlope plus RescaleIntercept, slice by
-// slice (CT in Hounsfield units). Every transfer syntax GDCM decodes is read: implicit
-// and explicit VR little endian, explicit VR big endian, deflate, RLE, JPEG lossless,
-// JPEG-LS and JPEG 2000. Enhanced multi-frame files (one file, many frames) take each
-// frame's position and orientation from the per-frame and shared functional groups.
+// slice (CT in Hounsfield units). Transfer syntaxes read: implicit and explicit VR little
+// endian, explicit VR big endian, deflated, RLE, JPEG baseline, extended and lossless,
+// JPEG-LS and JPEG 2000 (lossless and lossy). Enhanced multi-frame files (one file, many
+// frames) take each frame's position and orientation from the per-frame and shared
+// functional groups.
 //
 // A series that is not one regular grid is refused with a message naming the series
 // and the slices: images of different sizes, orientations or pixel spacings, two
 // slices at one position (several echoes or acquisitions in one series), slices that
 // are not stacked along their normal (a gantry tilt), or unequal spacing between
-// slices (a missing slice shows as one gap twice the others). No resampling is done.
+// slices (a missing slice shows as one gap twice the others), an image without
+// ImageOrientationPatient, ImagePositionPatient or PixelSpacing. No resampling is done.
 //
 // Files are recognised by the DICM preamble of DICOM Part 10; anything else in a folder
 // (DICOMDIR, reports, pictures, files without pixel data) is passed over and listed.

@@ -14,7 +14,8 @@
 //    .nii.gz; sform preferred over qform as the NIfTI standard says, scl_slope and
 //    scl_inter applied) and NRRD (.nrrd, .nhdr; raw or gzip). Origin, spacing and
 //    direction matrix are honoured and returned in LPS (see image/volume.h).
-//  - DICOM series (io/dicom.h), read with GDCM.
+//  - DICOM series (io/dicom.h): parsed by meshpde, compressed pixels decoded by
+//    CharLS, OpenJPEG and GDCM.
 //
 // Errors name the file. Writers are atomic (temporary file, then rename).
 #pragma once
