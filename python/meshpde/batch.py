@@ -193,7 +193,7 @@ def _write_json(path: pathlib.Path, data) -> None:
     """Atomically: a temporary file in the same folder, renamed over the target."""
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     try:
-        with os.fdopen(fd, "w") as f:
+        with os.fdopen(fd, "w", encoding="utf-8") as f:
             json.dump(data, f, indent=2, allow_nan=False, default=lambda o: None)
             f.write("\n")
         os.replace(tmp, path)
@@ -311,7 +311,7 @@ def _done_before(path: pathlib.Path, report_path: pathlib.Path, name: str, optio
                  picture) -> dict | None:
     """The earlier report of a file that needs no re-run, or None."""
     try:
-        row = json.loads(report_path.read_text())
+        row = json.loads(report_path.read_text(encoding="utf-8"))
         if (row.get("status") == "ok"
                 and row.get("fingerprint") == _fingerprint(path, name, options, output_format, picture)
                 and all(row.get(k) is None or pathlib.Path(row[k]).exists() for k in ("output", "picture"))):
@@ -352,7 +352,7 @@ class BatchResult(list):
         extra = sorted({k for r in self for k, v in r.get("report", {}).items() if not isinstance(v, (dict, list))})
         path = pathlib.Path(path)
         fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-        with os.fdopen(fd, "w", newline="") as f:
+        with os.fdopen(fd, "w", newline="", encoding="utf-8") as f:
             w = csv.writer(f)
             w.writerow(keys + [f"report.{k}" for k in extra])
             for r in self:

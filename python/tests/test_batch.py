@@ -281,7 +281,7 @@ def test_the_snippets_of_docs_batch_md_run(tmp_path, monkeypatch, capsys):
     if not meshpde.has_medical:
         pytest.skip("docs/batch.md reads .vtp files: build with the medical component")
     doc = pathlib.Path(__file__).parents[2] / "docs" / "batch.md"
-    snippets = re.findall(r"```python\n(.*?)```", doc.read_text(), flags=re.S)
+    snippets = re.findall(r"```python\n(.*?)```", doc.read_text(encoding="utf-8"), flags=re.S)
     assert len(snippets) == 2
     monkeypatch.chdir(tmp_path)
     (tmp_path / "cohort").mkdir()

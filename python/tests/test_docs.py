@@ -10,7 +10,7 @@ DOC = pathlib.Path(__file__).parents[2] / "docs" / "python.md"
 
 
 def snippets():
-    return re.findall(r"```python\n(.*?)```", DOC.read_text(), flags=re.S)
+    return re.findall(r"```python\n(.*?)```", DOC.read_text(encoding="utf-8"), flags=re.S)
 
 
 def test_the_tutorial_has_snippets():

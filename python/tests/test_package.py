@@ -7,7 +7,7 @@ import meshpde
 
 
 def stub_names():
-    tree = ast.parse((pathlib.Path(meshpde.__file__).parent / "__init__.pyi").read_text())
+    tree = ast.parse((pathlib.Path(meshpde.__file__).parent / "__init__.pyi").read_text(encoding="utf-8"))
     names = set()
     for node in tree.body:
         if isinstance(node, (ast.FunctionDef, ast.ClassDef)):
@@ -41,5 +41,5 @@ def test_python_level_functions_document_themselves():
 
 
 def test_version_is_the_projects():
-    text = (pathlib.Path(__file__).parents[2] / "CMakeLists.txt").read_text()
+    text = (pathlib.Path(__file__).parents[2] / "CMakeLists.txt").read_text(encoding="utf-8")
     assert f"VERSION {meshpde.__version__} " in text

@@ -19,7 +19,7 @@ if not meshpde.has_medical:
 
 
 def blocks():
-    return re.findall(r"```(sh|python)\n(.*?)```", DOC.read_text(), flags=re.S)
+    return re.findall(r"```(sh|python)\n(.*?)```", DOC.read_text(encoding="utf-8"), flags=re.S)
 
 
 def test_the_doc_runs_and_corrects_the_segmentation(tmp_path, cli_path, monkeypatch):
@@ -42,7 +42,7 @@ def test_the_doc_runs_and_corrects_the_segmentation(tmp_path, cli_path, monkeypa
     for k, (kind, code) in enumerate(found):
         if kind == "sh":
             r = subprocess.run(["bash", "-euo", "pipefail", "-c", code], cwd=work, env=env, capture_output=True,
-                               text=True, timeout=600)
+                               encoding="utf-8", timeout=600)
             assert r.returncode == 0, f"docs/pipeline.md block {k + 1} failed:\n{code}\n{r.stdout}\n{r.stderr}"
         else:
             exec(compile(code, f"docs/pipeline.md block {k + 1}", "exec"), namespace)
