@@ -6,15 +6,16 @@
 #include <zlib.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstring>
 #include <fstream>
 #include <limits>
 #include <map>
 #include <optional>
-#include <regex>
 #include <set>
 #include <sstream>
+#include <string_view>
 
 #include "meshpde/core/errors.h"
 #include "meshpde/io/mesh_io.h"
@@ -244,14 +245,31 @@ std::vector<double> numbers_in(const std::string& text, const std::string& what,
   return v;
 }
 
+// A key SegmentN_FIELD (N of 1 to 6 digits, FIELD letters, digits and underscores):
+// its N and FIELD. (Hand-parsed: std::regex costs a compile per pattern and trips
+// GCC 12's maybe-uninitialized warnings in the sanitizer build.)
+bool segment_key(const std::string& key, int& index, std::string& field) {
+  constexpr std::string_view prefix = "Segment";
+  if (key.size() <= prefix.size() || key.compare(0, prefix.size(), prefix) != 0) return false;
+  std::size_t i = prefix.size();
+  const std::size_t digits = i;
+  while (i < key.size() && std::isdigit(static_cast<unsigned char>(key[i]))) ++i;
+  if (i == digits || i - digits > 6 || i >= key.size() || key[i] != '_' || i + 1 == key.size()) return false;
+  for (std::size_t j = i + 1; j < key.size(); ++j)
+    if (!std::isalnum(static_cast<unsigned char>(key[j])) && key[j] != '_') return false;
+  index = std::stoi(key.substr(digits, i - digits));
+  field = key.substr(i + 1);
+  return true;
+}
+
 // The SegmentN_* key/value pairs of a .seg.nrrd header: the segment table.
 std::vector<Segment> slicer_table(const std::vector<std::pair<std::string, std::string>>& key_values, int layers,
                                   const std::string& name) {
-  static const std::regex field(R"(Segment(\d+)_(\w+))");
   std::map<int, std::map<std::string, std::string>> by_index;
   for (const auto& [key, value] : key_values) {
-    std::smatch m;
-    if (std::regex_match(key, m, field) && m[1].str().size() < 7) by_index[std::stoi(m[1])][m[2]] = value;
+    int index = 0;
+    std::string field;
+    if (segment_key(key, index, field)) by_index[index][field] = value;
   }
   std::vector<Segment> out;
   for (const auto& entry : by_index) {
@@ -312,8 +330,13 @@ bool holds_segments(const std::filesystem::path& path) {
   in.read(head.data(), static_cast<std::streamsize>(head.size()));
   head.resize(static_cast<std::size_t>(in.gcount()));
   const auto end = head.find("\n\n");
-  static const std::regex field(R"((^|\n)Segment\d+_\w+:=)");
-  return std::regex_search(head.substr(0, end), field);
+  std::istringstream lines(head.substr(0, end));
+  int index = 0;
+  std::string line, field;
+  while (std::getline(lines, line))
+    if (const auto kv = line.find(":="); kv != std::string::npos && segment_key(line.substr(0, kv), index, field))
+      return true;
+  return false;
 }
 
 Segmentation read_segmentation(const std::filesystem::path& path) {
@@ -462,15 +485,15 @@ std::optional<std::array<int, 6>> layer_extent(const Segmentation& seg, int laye
 std::map<int, std::string> widened_extents(const Segmentation& seg,
                                            const std::vector<std::pair<std::string, std::string>>& key_values) {
   std::map<int, std::array<int, 6>> old;  // by segment index
-  static const std::regex field(R"(Segment(\d+)_Extent)");
   for (const auto& [key, value] : key_values) {
-    std::smatch m;
-    if (!std::regex_match(key, m, field) || m[1].str().size() > 6) continue;
+    int index = 0;
+    std::string field;
+    if (!segment_key(key, index, field) || field != "Extent") continue;
     std::istringstream ss(value);
     std::array<int, 6> e{};
     bool ok = true;
     for (int& x : e) ok = ok && static_cast<bool>(ss >> x);
-    if (ok) old[std::stoi(m[1])] = e;
+    if (ok) old[index] = e;
   }
   std::map<int, std::string> out;
   for (int layer = 0; layer < seg.layers; ++layer) {
@@ -508,16 +531,16 @@ std::string nrrd_file(const Segmentation& seg, bool slicer_fields) {
       if (const auto kv = line.find(":="); kv != std::string::npos && line[0] != '#')
         key_values.emplace_back(line.substr(0, kv), line.substr(kv + 2));
     const std::map<int, std::string> extents = widened_extents(seg, key_values);
-    static const std::regex extent_key(R"(Segment(\d+)_Extent)");
     bool endian = false;
     for (const auto& line : seg.source.header_lines) {
       const auto colon = line.find(": ");
       const std::string field = colon == std::string::npos ? "" : detail::lower(detail::trim(line.substr(0, colon)));
       if (line.find(":=") != std::string::npos && line[0] != '#') {
-        std::smatch m;
         const std::string key = line.substr(0, line.find(":="));
-        if (std::regex_match(key, m, extent_key) && extents.count(std::stoi(m[1]))) {
-          lines.push_back(key + ":=" + extents.at(std::stoi(m[1])));
+        int index = 0;
+        std::string name;
+        if (segment_key(key, index, name) && name == "Extent" && extents.count(index)) {
+          lines.push_back(key + ":=" + extents.at(index));
           continue;
         }
         lines.push_back(line);
