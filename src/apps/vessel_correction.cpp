@@ -129,7 +129,7 @@ void validate(const Mesh& mesh, const CorrectionParams& p) {
       if (is_held[static_cast<std::size_t>(h.vertex)])
         throw InputError(
             fmt::format("handle vertex {} lies on a cap, which is held: a cap's vertices do not move "
-                        "(let caps move to move it)",
+                        "(caps off lets it move: --caps off, caps=\"off\" in Python)",
                         h.vertex));
   }
   if (p.radius <= 0 && p.rings <= 0)
