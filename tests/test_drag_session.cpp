@@ -6,6 +6,7 @@
 #include <Eigen/SparseCore>
 #include <algorithm>
 #include <limits>
+#include <map>
 #include <queue>
 #include <random>
 #include <unordered_set>
@@ -330,6 +331,35 @@ TEST(DragSession, EditorSessionsShareOneOperatorBundlePerStateOfTheSurface) {
   EXPECT_LT(s.snapshot().vertex_scalars.at("heat").sum(), warmed);
   s.paint(3, 0.5, 0, 1);
   EXPECT_EQ(s.operator_builds(), 2);
+}
+
+TEST(DragSession, EditorPaintKeepsOneFactorAndEqualsAFreshInterpolation) {
+  const GeneratedMesh g = icosphere(3);
+  MeshData data;
+  data.V = g.V;
+  data.F = g.F;
+  EditorSession s(data);
+  std::map<int, double> painted;
+  auto click = [&](int v, double x, double g1, double g2) {
+    s.paint(v, x, g1, g2);
+    painted[v] = x;
+    std::vector<InterpolationConstraint> c;
+    for (const auto& [w, y] : painted) c.push_back({w, Eigen::VectorXd::Constant(1, y)});
+    const InterpolationResult fresh = interpolate(
+        s.mesh(), FieldKind::Scalar, c, InterpolationParams{.g1 = g1, .g2 = g2, .solver = SteadySolver::Direct});
+    const Eigen::VectorXd u = s.snapshot().vertex_scalars.at("paint");
+    EXPECT_LT((u - fresh.values.col(0)).cwiseAbs().maxCoeff(), 1e-10 * fresh.values.cwiseAbs().maxCoeff());
+  };
+  click(0, 1.0, 0, 1);
+  click(10, -1.0, 0, 1);
+  click(200, 0.5, 0, 1);
+  click(10, 2.0, 0, 1);  // a new value where one was painted
+  EXPECT_NE(s.last_solve_info().find("1 factorization"), std::string::npos) << s.last_solve_info();
+  click(300, 0.25, 1, 1);  // other weights: a new factor
+  EXPECT_NE(s.last_solve_info().find("1 factorization"), std::string::npos) << s.last_solve_info();
+  s.clear_paint();
+  painted.clear();
+  click(5, 1.0, 0, 1);
 }
 
 TEST(DragSession, EditorPreviewEqualsTheReleasedCorrectionWithStiffnessOnADentedVessel) {

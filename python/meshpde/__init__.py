@@ -31,6 +31,7 @@ from ._meshpde import (  # noqa: F401  (re-exported)
     GlobalBilaplacianSolver,
     HapticSession,
     InputError,
+    InterpolationSolver,
     PdeSession,
     SolverError,
     check_units,
@@ -115,7 +116,7 @@ if has_medical:
 
 __all__ = [
     "CorrectionResult", "CorrectionSession", "DragSession", "Error", "GlobalBilaplacianSolver", "HapticSession",
-    "InputError", "MeshFields", "PdeSession", "SolverError", "check_units", "correct", "curvature", "extract_surface", "fair",
+    "InputError", "InterpolationSolver", "MeshFields", "PdeSession", "SolverError", "check_units", "correct", "curvature", "extract_surface", "fair",
     "from_vtk", "generate", "geodesic_ball", "heat", "info", "interpolate", "intrinsic_delaunay", "mass", "read_mesh",
     "read_segmentation", "read_volume", "voxelize", "write_segmentation",
     "hausdorff_distance", "render", "ring_ball", "self_intersections", "stiffness", "to_vtk", "vertex_normals", "wave", "wave_energy",

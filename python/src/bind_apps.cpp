@@ -447,6 +447,69 @@ void bind_apps(py::module_& m) {
       py::arg("V"), py::arg("F"), py::arg("vertices"), py::arg("values"), py::arg("kind"), py::arg("method"),
       py::arg("g1"), py::arg("g2"), py::arg("solver"), py::arg("laplacian"));
 
+  py::class_<InterpolationSolver>(m, "InterpolationSolver",
+                                  R"doc(InterpolationSolver(V, F, kind="scalar", g1=0, g2=1, laplacian="auto")
+
+Scattered-data interpolation that keeps its factor between solves, for values set,
+changed and removed one at a time (painting). set_value(vertex, value) adds a constraint
+or changes its value, remove(vertex) frees it, solve() returns the field: (n,) for
+scalars, (n, 3) for displacements and tangent vectors (componentwise, projected). New
+values at the same vertices cost one solve with the kept factor; added or removed
+vertices a small Schur complement against it (factored afresh after max_changes of
+them). Answers equal interpolate(..., solver="direct") to rounding.)doc")
+      .def(py::init([](const py::handle& V, const py::handle& F, const std::string& kind, double g1, double g2,
+                       const std::string& laplacian) {
+             FieldKind k = FieldKind::Scalar;
+             if (kind == "displacement")
+               k = FieldKind::Displacement;
+             else if (kind == "tangent")
+               k = FieldKind::Tangent;
+             else if (kind != "scalar")
+               throw py::value_error(
+                   fmt::format("kind: expected 'scalar', 'displacement' or 'tangent', got '{}'", kind));
+             InterpolationParams p;
+             p.g1 = g1;
+             p.g2 = g2;
+             p.laplacian = parse_laplacian_kind(laplacian);
+             const Mesh mesh = mesh_arg(V, F);
+             py::gil_scoped_release release;
+             return std::make_unique<InterpolationSolver>(mesh, k, p);  // builds and owns its operators
+           }),
+           py::arg("V"), py::arg("F"), py::arg("kind") = "scalar", py::arg("g1") = 0.0, py::arg("g2") = 1.0,
+           py::arg("laplacian") = "auto")
+      .def(
+          "set_value",
+          [](InterpolationSolver& s, int vertex, const py::handle& value) {
+            const py::array_t<double> a = py::array_t<double, py::array::forcecast>::ensure(value);
+            if (!a) throw py::value_error("value: expected a number or 3 numbers");
+            Eigen::VectorXd x(a.size());
+            for (py::ssize_t k = 0; k < a.size(); ++k) x[k] = a.data()[k];
+            s.set_value(vertex, x);
+          },
+          py::arg("vertex"), py::arg("value"))
+      .def("remove", &InterpolationSolver::remove, py::arg("vertex"))
+      .def("clear", &InterpolationSolver::clear)
+      .def("solve",
+           [](InterpolationSolver& s) {
+             InterpolationResult r;
+             {
+               py::gil_scoped_release release;
+               r = s.solve();
+             }
+             if (r.values.cols() == 1) return py::object(to_numpy(Eigen::VectorXd(r.values.col(0))));
+             return py::object(to_numpy(r.values));
+           })
+      .def_property_readonly("num_constraints", &InterpolationSolver::num_constraints)
+      .def_property_readonly("vertices",
+                             [](const InterpolationSolver& s) {
+                               std::vector<int> v;
+                               for (const auto& c : s.constraints()) v.push_back(c.vertex);
+                               return v;
+                             })
+      .def_property_readonly("factorizations", &InterpolationSolver::factorizations)
+      .def_property_readonly("changed_constraints", &InterpolationSolver::changed_constraints)
+      .def_readwrite("max_changes", &InterpolationSolver::max_changes);
+
   py::class_<PyCorrectionResult>(
       m, "CorrectionResult",
       "A correction's report. Its scalar fields carry the names of `meshpde correct --json`'s keys.")

@@ -82,6 +82,31 @@ def test_interpolate_reproduces_linear_fields():
     assert np.abs(u - f(V)).max() < 1e-9
 
 
+@pytest.mark.parametrize("kind", ["scalar", "displacement"])
+def test_interpolation_solver_equals_interpolate_after_every_edit(ico, kind):
+    _, V, F = ico
+    rng = np.random.default_rng(3)
+    s = meshpde.InterpolationSolver(V, F, kind=kind, g1=0.1, g2=1.0)
+    shape = () if kind == "scalar" else (3,)
+    for step in range(30):
+        action = rng.integers(3) if s.num_constraints > 1 else 0
+        if action == 0:
+            s.set_value(int(rng.integers(len(V))), rng.normal(size=shape))
+        elif action == 1:
+            s.remove(int(rng.choice(s.vertices)))
+        else:
+            s.set_value(int(rng.choice(s.vertices)), rng.normal(size=shape))
+        u = s.solve()
+        fresh = meshpde.interpolate(V, F, s.vertices, u[s.vertices], kind=kind, g1=0.1, g2=1.0, solver="direct")
+        assert u.shape == fresh.shape
+        assert rel_diff(u, fresh) <= 1e-10, f"step {step}"
+    assert s.factorizations == 1  # every edit an update of the first factor
+    with pytest.raises(meshpde.InputError, match="not constrained"):
+        s.remove(next(v for v in range(len(V)) if v not in s.vertices))
+    with pytest.raises(ValueError, match="kind"):
+        meshpde.InterpolationSolver(V, F, kind="vector")
+
+
 def test_interpolate_displacement_equals_the_cli(cli, ico, tmp_path):
     path, V, F = ico
     cons = {"constraints": [{"vertex": 0, "value": [0, 0, 0.1]}, {"vertex": 50, "value": [0.2, 0, 0]},

@@ -204,19 +204,28 @@ void EditorSession::paint(int vertex, double value, double g1, double g2) {
   stop_poke();
   pause();
   painted_[vertex] = value;
-  std::vector<InterpolationConstraint> c;
-  for (const auto& [v, x] : painted_) c.push_back({v, Eigen::VectorXd::Constant(1, x)});
   const auto t0 = std::chrono::steady_clock::now();
   const std::shared_ptr<const MeshOperators> mo = geometry_.operators(mesh());
-  InterpolationParams ip;
-  ip.g1 = g1;
-  ip.g2 = g2;
-  const InterpolationResult r = interpolate(mo->mesh, mo->ops, FieldKind::Scalar, c, ip);
+  // One kept factor while the surface and the weights stay: a click costs an update of
+  // it (apps/interpolation.h), not a new factorization.
+  if (!paint_solver_ || paint_geometry_ != mo || paint_g1_ != g1 || paint_g2_ != g2) {
+    paint_solver_.reset();
+    paint_geometry_ = mo;
+    paint_g1_ = g1;
+    paint_g2_ = g2;
+    paint_solver_ = std::make_unique<InterpolationSolver>(mo->mesh, mo->ops, FieldKind::Scalar,
+                                                          InterpolationParams{.g1 = g1, .g2 = g2});
+    for (const auto& [v, x] : painted_) paint_solver_->set_value(v, Eigen::VectorXd::Constant(1, x));
+  } else {
+    paint_solver_->set_value(vertex, Eigen::VectorXd::Constant(1, value));
+  }
+  const InterpolationResult r = paint_solver_->solve();
   last_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   field_ = r.values.col(0);
   field_name_ = "paint";
-  info_ = fmt::format("paint: {} values interpolated (g1 {}, g2 {}), residual {:.1e}", painted_.size(), g1, g2,
-                      r.cg.relative_residual);
+  info_ = fmt::format("paint: {} values interpolated (g1 {}, g2 {}), residual {:.1e}, {} factorization{}",
+                      painted_.size(), g1, g2, r.cg.relative_residual, paint_solver_->factorizations(),
+                      paint_solver_->factorizations() == 1 ? "" : "s");
 }
 
 void EditorSession::paint_vector(int vertex, const Eigen::Vector3d& vector, double g1, double g2) {
@@ -252,6 +261,8 @@ void EditorSession::clear_paint() {
     field_name_.clear();
   }
   painted_.clear();
+  paint_solver_.reset();
+  paint_geometry_.reset();
   if (field_name_ == "paint") {
     field_.resize(0);
     field_name_.clear();

@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "meshpde/apps/haptics.h"
+#include "meshpde/apps/interpolation.h"
 #include "meshpde/apps/local_drag.h"
 #include "meshpde/apps/vessel_correction.h"
 #include "meshpde/io/mesh_io.h"
@@ -156,6 +157,10 @@ class EditorSession {
   Eigen::VectorXd field_;
   std::string field_name_;
   std::map<int, double> painted_;
+  // Paint's kept factor and what it was built for (the surface's operators, g1, g2).
+  std::shared_ptr<const MeshOperators> paint_geometry_;
+  std::unique_ptr<InterpolationSolver> paint_solver_;
+  double paint_g1_ = -1, paint_g2_ = -1;
   std::map<int, Eigen::Vector3d> painted_vectors_;
   Eigen::MatrixX3d vectors_;
   std::vector<int> sources_;

@@ -18,6 +18,7 @@
 
 #include <Eigen/Core>
 #include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -75,6 +76,74 @@ InterpolationResult interpolate(const Mesh& mesh, const FemOperators& ops, Field
 InterpolationResult interpolate(const Mesh& mesh, FieldKind kind,
                                 const std::vector<InterpolationConstraint>& constraints,
                                 const InterpolationParams& params = {});
+
+/// Interpolation that keeps its factor between solves, for values set and changed one
+/// at a time (painting; the stateful tier beside interpolate()). The first solve()
+/// factors the free block A_FF of A = g1 K + g2 K D K on the vertices free then
+/// (SteadyDirectSolver). Later solves reuse that factor:
+///  - new values at the same constrained vertices: one solve with the factor (two
+///    triangular sweeps per column) and one whole-mesh product for the right-hand side;
+///  - constraints added or removed since the factorization: the factored system is
+///    bordered by the changed vertices, a released constraint as an extra unknown and a
+///    new one as a Lagrange multiplier holding its value, and the small dense Schur
+///    complement S = H - G^T A_FF^-1 G of that border (k x k for k changed vertices;
+///    one solve a new vertex to build) is factored by LU. A solve then costs two
+///    solves with the factor. Once more than max_changes constraints differ from the
+///    factored set, or S is close to singular, the next solve() factors afresh.
+/// Every answer is checked by its residual through the whole-mesh products and refined
+/// (the same bordered solve on the residual) until it is at rounding level, so it equals
+/// a fresh interpolate() with the Direct solver to rounding (tests: 1e-10 relative).
+///
+/// Fields: scalars, displacements and tangent vectors componentwise (3 columns,
+/// projected onto the tangent planes); the connection method has no kept factor (use
+/// interpolate()). Always the direct solver: params.solver must be Auto or Direct, and
+/// params.cg is not used. Zero-area vertices are held at 0, as in interpolate().
+class InterpolationSolver {
+ public:
+  /// With the operators params.laplacian asks for, built here and owned.
+  /// \throw InputError for g1 < 0, g2 < 0, both 0, the connection method, or a solver
+  ///        other than Auto or Direct.
+  InterpolationSolver(const Mesh& mesh, FieldKind kind = FieldKind::Scalar, const InterpolationParams& params = {});
+  /// With the caller's operators (params.laplacian is not used); mesh and ops are
+  /// referenced and must outlive the solver.
+  InterpolationSolver(const Mesh& mesh, const FemOperators& ops, FieldKind kind = FieldKind::Scalar,
+                      const InterpolationParams& params = {});
+  ~InterpolationSolver();
+  InterpolationSolver(InterpolationSolver&&) noexcept;
+  InterpolationSolver& operator=(InterpolationSolver&&) noexcept;
+
+  /// Holds `vertex` at `value` (1 number for scalars, 3 otherwise): a new constraint, or
+  /// a new value for one already held. \throw InputError for a vertex not in the mesh or
+  /// without area, a value of the wrong size or not finite.
+  void set_value(int vertex, const Eigen::VectorXd& value);
+  /// Frees a constrained vertex. \throw InputError if it is not constrained.
+  void remove(int vertex);
+  /// Removes every constraint (the factor is kept for the next ones).
+  void clear();
+  bool constrained(int vertex) const;
+  int num_constraints() const;
+  /// The constraints in vertex order.
+  std::vector<InterpolationConstraint> constraints() const;
+
+  /// The field for the constraints as they are now (cg.iterations: the refinement
+  /// steps; cg.relative_residual: |b - A_FF x| / |b| through the products).
+  /// \throw InputError without constraints; SolverError where part of the mesh touches
+  /// no constraint (its values would be undetermined) or the factorization fails.
+  InterpolationResult solve();
+
+  /// Numeric factorizations so far (one per fresh start).
+  int factorizations() const;
+  /// Constraints that differ from the factored set (added or removed since), as of the
+  /// last solve(): the size of the Schur complement.
+  int changed_constraints() const;
+  /// More changed constraints than this and the next solve() factors afresh (the Schur
+  /// complement's cost grows with k^2 per solve and k^3 per change). Default 64.
+  int max_changes = 64;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
 
 /// Parses interpolation constraints, `values` numbers each (1 for scalars, 3 for
 /// displacements and tangent vectors), from the text of a constraints file:

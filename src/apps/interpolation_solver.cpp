@@ -1,0 +1,384 @@
+// InterpolationSolver: interpolation with a kept factor, updated for changed
+// constraints by a bordered system and its Schur complement (apps/interpolation.h).
+//
+// Notation: C0 the constrained vertices when the factor was made, F0 the free ones then
+// (A_00 = A restricted to F0 is what SteadyDirectSolver factored), C the constraints
+// now. P = C0 \ C (released: now unknowns outside F0), Q = C \ C0 (added: inside F0,
+// held by Lagrange multipliers). The unknowns y on F0 and P, with y_Q = u_Q, solve
+//
+//     [ A_00  G ] [ y0 ]   [ b0 ]      G = [ A_0P  E_Q ],  H = [ A_PP  0 ]
+//     [ G^T   H ] [ w  ] = [ c  ]                              [ 0     0 ]
+//
+// with c = (b_P, u_Q) and w = (y_P, multipliers): the rows of Q are met by their
+// multipliers, the rest are the current system's. Eliminating y0 gives
+// S w = c - G^T A_00^-1 b0 with S = H - G^T A_00^-1 G, then y0 = A_00^-1 (b0 - G w).
+#include <fmt/format.h>
+
+#include <Eigen/Eigenvalues>
+#include <Eigen/LU>
+#include <algorithm>
+#include <cmath>
+#include <map>
+
+#include "../pde/free_parts.h"
+#include "meshpde/apps/interpolation.h"
+#include "meshpde/core/errors.h"
+
+namespace meshpde {
+
+namespace {
+
+// Residuals above this relative size are refined by another bordered solve.
+constexpr double kRefineTolerance = 1e-13;
+constexpr int kMaxRefinements = 4;
+// Below this smallest eigenvalue of the scaled Schur complement (build_border) it is not
+// trusted and the system is factored afresh.
+constexpr double kMinSchurRcond = 1e-12;
+
+// One column of G: its nonzeros on F0's rows (local indices), and for a released vertex
+// its couplings to the other released vertices (the column of A_PP).
+struct BorderColumn {
+  int vertex = 0;
+  bool released = false;  // in P (an unknown), else in Q (a multiplier)
+  std::vector<std::pair<int, double>> g;
+};
+
+}  // namespace
+
+struct InterpolationSolver::Impl {
+  std::unique_ptr<MeshOperators> owned;  // the operators built by the owning constructor
+  const Mesh* mesh = nullptr;
+  const FemOperators* ops = nullptr;
+  FieldKind kind = FieldKind::Scalar;
+  InterpolationParams params;
+  int m = 1;
+  LaplacianKind laplacian = LaplacianKind::Cotan;
+  std::string laplacian_reason;
+  std::map<int, Eigen::VectorXd> cons;
+
+  std::unique_ptr<SteadyDirectSolver> base;
+  std::vector<char> base_held;  // #V: in C0
+  std::vector<BorderColumn> border;
+  std::vector<int> border_vertices;  // P then Q, the border S was built for
+  Eigen::MatrixXd S;
+  Eigen::PartialPivLU<Eigen::MatrixXd> S_lu;
+  int factorizations = 0;
+
+  static void check(FieldKind kind, const InterpolationParams& params) {
+    if (!(params.g1 >= 0 && params.g2 >= 0) || params.g1 + params.g2 <= 0)
+      throw InputError("interpolation needs g1, g2 >= 0, not both 0");
+    if (kind == FieldKind::Tangent && params.method == TangentMethod::Connection)
+      throw InputError(
+          "InterpolationSolver interpolates tangent fields componentwise; the connection method has no kept factor "
+          "(use interpolate())");
+    if (params.solver != SteadySolver::Auto && params.solver != SteadySolver::Direct)
+      throw InputError(
+          fmt::format("InterpolationSolver keeps a direct factor; solver {} is not one", to_string(params.solver)));
+  }
+
+  void init(const Mesh& the_mesh, const FemOperators& the_ops, FieldKind the_kind, const InterpolationParams& p) {
+    if (the_ops.mass.size() != the_mesh.num_vertices())
+      throw InputError(
+          fmt::format("operators of {} vertices for a mesh of {}", the_ops.mass.size(), the_mesh.num_vertices()));
+    mesh = &the_mesh;
+    ops = &the_ops;
+    kind = the_kind;
+    params = p;
+    m = the_kind == FieldKind::Scalar ? 1 : 3;
+  }
+
+  PdeCoefficients coefficients() const { return PdeCoefficients{.g0 = 0, .g1 = params.g1, .g2 = params.g2}; }
+
+  // A U over the whole mesh (U is #V x m).
+  Field apply(const Field& U) const {
+    Field Y = Field::Zero(U.rows(), U.cols());
+    if (params.g1 != 0) Y += params.g1 * apply_stiffness(*mesh, *ops, U);
+    if (params.g2 != 0) Y += params.g2 * apply_bilaplacian(*mesh, *ops, U);
+    return Y;
+  }
+
+  void factor() {
+    const int nv = mesh->num_vertices();
+    base_held.assign(static_cast<std::size_t>(nv), 0);
+    for (const auto& [v, x] : cons) base_held[static_cast<std::size_t>(v)] = 1;
+    std::vector<int> free;
+    for (int v = 0; v < nv; ++v)
+      if (!base_held[static_cast<std::size_t>(v)] && ops->mass[v] > 0) free.push_back(v);
+    base.reset();  // a failed factorization leaves no stale factor behind
+    border.clear();
+    border_vertices.clear();
+    base = std::make_unique<SteadyDirectSolver>(*mesh, *ops, coefficients(), std::move(free));
+    ++factorizations;
+  }
+
+  std::vector<int> changed() const {
+    std::vector<int> p, q;
+    for (int v = 0; v < static_cast<int>(base_held.size()); ++v)
+      if (base_held[static_cast<std::size_t>(v)] && !cons.count(v)) p.push_back(v);
+    for (const auto& [v, x] : cons)
+      if (!base_held[static_cast<std::size_t>(v)]) q.push_back(v);
+    p.insert(p.end(), q.begin(), q.end());
+    return p;
+  }
+
+  // Builds G's columns and S for the border `vertices` (P then Q). Returns false when S
+  // is close to singular.
+  bool build_border(const std::vector<int>& vertices) {
+    border.clear();
+    border_vertices = vertices;
+    const int k = static_cast<int>(vertices.size());
+    if (k == 0) return true;
+    std::map<int, int> position;  // released vertex -> its place in the border
+    for (int j = 0; j < k; ++j) {
+      BorderColumn col;
+      col.vertex = vertices[static_cast<std::size_t>(j)];
+      col.released = base_held[static_cast<std::size_t>(col.vertex)] != 0;
+      if (col.released) {
+        position[col.vertex] = j;
+        // A_{i,p} = -coupling: steady_coupling gives the right-hand side of a unit value.
+        for (const auto& [i, value] : steady_coupling(*mesh, *ops, coefficients(), col.vertex))
+          if (const int li = base->free_index(i); li >= 0) col.g.emplace_back(li, -value);
+      } else {
+        col.g.emplace_back(base->free_index(col.vertex), 1.0);
+      }
+      border.push_back(std::move(col));
+    }
+    S = Eigen::MatrixXd::Zero(k, k);
+    std::vector<double> H_diagonal(static_cast<std::size_t>(k), 0.0);
+    for (int j = 0; j < k; ++j) {
+      const BorderColumn& cj = border[static_cast<std::size_t>(j)];
+      if (cj.released)  // H: A_PP
+        for (const auto& [i, value] : steady_coupling(*mesh, *ops, coefficients(), cj.vertex))
+          if (const auto it = position.find(i); it != position.end()) S(it->second, j) = -value;
+      H_diagonal[static_cast<std::size_t>(j)] = S(j, j);
+      Eigen::VectorXd gj = Eigen::VectorXd::Zero(base->num_free());
+      for (const auto& [li, value] : cj.g) gj[li] = value;
+      const Eigen::VectorXd t = base->solve_rhs(gj).col(0);
+      for (int i = 0; i < k; ++i)
+        for (const auto& [li, value] : border[static_cast<std::size_t>(i)].g) S(i, j) -= value * t[li];
+    }
+    S = 0.5 * (S + S.transpose()).eval();
+    S_lu.compute(S);
+    // Conditioning judged on S scaled by what its diagonal would be without the
+    // elimination: A_pp for a released vertex (S_pp cancels towards rounding as p's
+    // part of the mesh loses its last constraint), |S_qq| for an added one; the scaled
+    // entries are of order 1, so a tiny eigenvalue means a nearly singular border.
+    // rcond of S itself cannot see that (a 1 x 1 S has rcond 1).
+    Eigen::VectorXd scale(k);
+    for (int j = 0; j < k; ++j) {
+      const double d =
+          border[static_cast<std::size_t>(j)].released ? H_diagonal[static_cast<std::size_t>(j)] : std::abs(S(j, j));
+      if (!(d > 0)) return false;
+      scale[j] = 1 / std::sqrt(d);
+    }
+    const Eigen::MatrixXd scaled = scale.asDiagonal() * S * scale.asDiagonal();
+    const Eigen::VectorXd eigenvalues = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(scaled).eigenvalues();
+    return eigenvalues.cwiseAbs().minCoeff() >= kMinSchurRcond;
+  }
+
+  // The bordered solve: y0 on F0 (rows in the order of the factor's free list) and w.
+  std::pair<Eigen::MatrixXd, Eigen::MatrixXd> bordered_solve(const Eigen::MatrixXd& b0,
+                                                             const Eigen::MatrixXd& c) const {
+    Eigen::MatrixXd z0 = base->solve_rhs(b0);
+    const Eigen::Index k = static_cast<Eigen::Index>(border.size());
+    if (k == 0) return {std::move(z0), Eigen::MatrixXd(0, b0.cols())};
+    Eigen::MatrixXd rhs = c;
+    for (Eigen::Index i = 0; i < k; ++i)
+      for (const auto& [li, value] : border[static_cast<std::size_t>(i)].g) rhs.row(i) -= value * z0.row(li);
+    const Eigen::MatrixXd w = S_lu.solve(rhs);
+    Eigen::MatrixXd Gw = Eigen::MatrixXd::Zero(b0.rows(), b0.cols());
+    for (Eigen::Index j = 0; j < k; ++j)
+      for (const auto& [li, value] : border[static_cast<std::size_t>(j)].g) Gw.row(li) += value * w.row(j);
+    z0 -= base->solve_rhs(Gw);
+    return {std::move(z0), w};
+  }
+
+  // -(A U) on the rows of F0 and of the border's released vertices, and the values of
+  // its added ones: the right-hand side (b0, c) of the bordered system for the load
+  // -(A U) (the values given are `q_values`, #V x m read at Q's vertices).
+  void right_hand_side(const Field& AU, const Field& q_values, Eigen::MatrixXd& b0, Eigen::MatrixXd& c) const {
+    const std::vector<int>& free = base->free_vertices();
+    b0.resize(static_cast<Eigen::Index>(free.size()), m);
+    for (std::size_t i = 0; i < free.size(); ++i) b0.row(static_cast<Eigen::Index>(i)) = -AU.row(free[i]);
+    c.resize(static_cast<Eigen::Index>(border.size()), m);
+    for (std::size_t j = 0; j < border.size(); ++j) {
+      const BorderColumn& col = border[j];
+      c.row(static_cast<Eigen::Index>(j)) =
+          col.released ? Eigen::RowVectorXd(-AU.row(col.vertex)) : Eigen::RowVectorXd(q_values.row(col.vertex));
+    }
+  }
+};
+
+InterpolationSolver::InterpolationSolver(const Mesh& mesh, FieldKind kind, const InterpolationParams& params)
+    : impl_(std::make_unique<Impl>()) {
+  if (kind == FieldKind::Tangent && params.laplacian == LaplacianKind::IntrinsicDelaunay)
+    throw InputError("tangent fields need the cotangent operators of the input triangles (laplacian cotan or auto)");
+  impl_->check(kind, params);
+  // Owned behind a pointer: the solver refers to this mesh and these operators.
+  impl_->owned = std::make_unique<MeshOperators>(
+      build_mesh_operators(mesh, kind == FieldKind::Tangent ? LaplacianKind::Cotan : params.laplacian));
+  impl_->init(impl_->owned->mesh, impl_->owned->ops, kind, params);
+  impl_->laplacian = impl_->owned->kind;
+  impl_->laplacian_reason = kind == FieldKind::Tangent && params.laplacian == LaplacianKind::Auto
+                                ? "tangent fields use the input triangles"
+                                : impl_->owned->reason;
+}
+
+InterpolationSolver::InterpolationSolver(const Mesh& mesh, const FemOperators& ops, FieldKind kind,
+                                         const InterpolationParams& params)
+    : impl_(std::make_unique<Impl>()) {
+  impl_->check(kind, params);
+  impl_->init(mesh, ops, kind, params);
+}
+
+InterpolationSolver::~InterpolationSolver() = default;
+InterpolationSolver::InterpolationSolver(InterpolationSolver&&) noexcept = default;
+InterpolationSolver& InterpolationSolver::operator=(InterpolationSolver&&) noexcept = default;
+
+void InterpolationSolver::set_value(int vertex, const Eigen::VectorXd& value) {
+  Impl& s = *impl_;
+  const int nv = s.mesh->num_vertices();
+  if (vertex < 0 || vertex >= nv)
+    throw InputError(fmt::format("constraint vertex {} does not exist (the mesh has {})", vertex, nv));
+  if (value.size() != s.m)
+    throw InputError(fmt::format("constraint at vertex {} has {} values, expected {}", vertex, value.size(), s.m));
+  if (!value.allFinite()) throw InputError(fmt::format("constraint at vertex {} is not finite", vertex));
+  if (s.ops->mass[vertex] <= 0) throw InputError(fmt::format("constraint vertex {} has no incident area", vertex));
+  s.cons[vertex] = value;
+}
+
+void InterpolationSolver::remove(int vertex) {
+  if (impl_->cons.erase(vertex) == 0) throw InputError(fmt::format("vertex {} is not constrained", vertex));
+}
+
+void InterpolationSolver::clear() {
+  impl_->cons.clear();
+}
+bool InterpolationSolver::constrained(int vertex) const {
+  return impl_->cons.count(vertex) != 0;
+}
+int InterpolationSolver::num_constraints() const {
+  return static_cast<int>(impl_->cons.size());
+}
+int InterpolationSolver::factorizations() const {
+  return impl_->factorizations;
+}
+int InterpolationSolver::changed_constraints() const {
+  return static_cast<int>(impl_->border_vertices.size());
+}
+
+std::vector<InterpolationConstraint> InterpolationSolver::constraints() const {
+  std::vector<InterpolationConstraint> out;
+  for (const auto& [v, x] : impl_->cons) out.push_back({v, x});
+  return out;
+}
+
+InterpolationResult InterpolationSolver::solve() {
+  Impl& s = *impl_;
+  if (s.cons.empty()) throw InputError("interpolation needs at least one constrained vertex");
+  const int nv = s.mesh->num_vertices();
+  if (!s.base) s.factor();
+  std::vector<int> border = s.changed();
+  if (static_cast<int>(border.size()) > max_changes) {
+    s.factor();
+    border.clear();
+  }
+  if (border != s.border_vertices) {
+    // A released constraint may leave its part of the mesh without any: undetermined,
+    // which the bordered system would only show as rounding. Checked on the mesh.
+    if (std::any_of(border.begin(), border.end(),
+                    [&](int v) { return s.base_held[static_cast<std::size_t>(v)] != 0; })) {
+      std::vector<int> local(static_cast<std::size_t>(nv), -1), free_now;
+      for (int v = 0; v < nv; ++v)
+        if (!s.cons.count(v) && s.ops->mass[v] > 0) {
+          local[static_cast<std::size_t>(v)] = static_cast<int>(free_now.size());
+          free_now.push_back(v);
+        }
+      detail::require_held_parts(
+          *s.mesh, free_now, [&](int v) { return local[static_cast<std::size_t>(v)]; }, [](int) { return false; });
+    }
+  }
+  if (border != s.border_vertices && !s.build_border(border)) {
+    s.factor();  // S near singular: start from the current constraints
+    border.clear();
+    s.build_border(border);
+  }
+
+  // u: the held values where they are held now; the unknowns are solved below.
+  Field given = Field::Zero(nv, s.m);
+  for (const auto& [v, x] : s.cons) given.row(v) = x.transpose();
+  // The load of the held values outside the bordered system (C0 still held; Q's values
+  // enter as the border's right-hand side).
+  Field outside = given;
+  for (const BorderColumn& col : s.border)
+    if (!col.released) outside.row(col.vertex).setZero();
+  Eigen::MatrixXd b0, c;
+  s.right_hand_side(s.apply(outside), given, b0, c);
+  auto [y0, w] = s.bordered_solve(b0, c);
+
+  Field u = given;
+  const std::vector<int>& free = s.base->free_vertices();
+  auto place = [&](const Eigen::MatrixXd& x0, const Eigen::MatrixXd& xw, double sign) {
+    for (std::size_t i = 0; i < free.size(); ++i)
+      if (!s.cons.count(free[i])) u.row(free[i]) += sign * x0.row(static_cast<Eigen::Index>(i));
+    for (std::size_t j = 0; j < s.border.size(); ++j)
+      if (s.border[j].released) u.row(s.border[j].vertex) += sign * xw.row(static_cast<Eigen::Index>(j));
+  };
+  place(y0, w, 1);
+
+  // Residual of the current system on its free rows, through the products; refined by
+  // the same bordered solve (the added vertices' rows are their multipliers').
+  std::vector<int> now_free;
+  for (int v = 0; v < nv; ++v)
+    if (!s.cons.count(v) && s.ops->mass[v] > 0) now_free.push_back(v);
+  const Field load = s.apply(given);
+  auto worst = [&](const Field& AU) {
+    double r = 0;
+    for (int k = 0; k < s.m; ++k) {
+      double rk = 0, bk = 0;
+      for (int v : now_free) {
+        rk += AU(v, k) * AU(v, k);
+        bk += load(v, k) * load(v, k);
+      }
+      r = std::max(r, bk > 0 ? std::sqrt(rk / bk) : std::sqrt(rk));
+    }
+    return r;
+  };
+  Field AU = s.apply(u);
+  double residual = worst(AU);
+  int steps = 0;
+  const Field zero = Field::Zero(nv, s.m);
+  while (residual > kRefineTolerance && steps < kMaxRefinements) {
+    Field AUfree = AU;
+    for (const auto& [v, x] : s.cons) AUfree.row(v).setZero();
+    Eigen::MatrixXd r0, rc;
+    s.right_hand_side(AUfree, zero, r0, rc);  // -(A u) on the free rows: the residual
+    auto [d0, dw] = s.bordered_solve(r0, rc);
+    place(d0, dw, 1);
+    AU = s.apply(u);
+    const double next = worst(AU);
+    ++steps;
+    if (!(next < residual)) {
+      residual = std::min(residual, next);
+      break;
+    }
+    residual = next;
+  }
+
+  InterpolationResult r;
+  r.values = std::move(u);
+  if (s.kind == FieldKind::Tangent) {
+    const Eigen::MatrixX3d N = vertex_normals(*s.mesh);
+    for (int i = 0; i < nv; ++i) {
+      const Eigen::RowVector3d n = N.row(i);
+      r.values.row(i) -= r.values.row(i).dot(n) * n;
+    }
+  }
+  r.cg = CgResult{.status = CgStatus::Converged, .iterations = steps, .relative_residual = residual, .message = {}};
+  r.solver = SteadySolver::Direct;
+  r.laplacian = s.laplacian;
+  r.laplacian_reason = s.laplacian_reason;
+  return r;
+}
+
+}  // namespace meshpde
