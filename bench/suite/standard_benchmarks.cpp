@@ -9,10 +9,12 @@
 #include <memory>
 #include <numeric>
 #include <optional>
+#include <random>
 #include <span>
 #include <thread>
 
 #include "meshpde/apps/haptics.h"
+#include "meshpde/apps/interpolation.h"
 #include "meshpde/apps/local_drag.h"
 #include "meshpde/core/errors.h"
 #include "meshpde/core/parallel.h"
@@ -172,6 +174,74 @@ PokeFigures poke(const Mesh& mesh, const FemOperators& ops, int steps, bool full
 }
 
 // The haptic_* figures (BenchOptions::only = "haptic" runs these alone).
+// Painting in the editor: InterpolationSolver's kept factor against a fresh direct
+// interpolate() of the same constraints (what a paint click cost before), on igea-134k
+// as it is and, with `large`, subdivided twice (2.15M vertices: minutes), with
+// the editor's operators (LaplacianKind::Auto). Eight values painted and solved first
+// (the factorization, paint_first_ms_*); then clicks that alternate a new value at a
+// painted vertex and a new vertex, each timed from set_value to the field
+// (paint_update_ms_*, the median; _max the slowest), and the fresh solve of the same
+// constraints after some of them (paint_resolve_ms_*, the median). The largest
+// difference between the two answers is reported relative to the field's largest value.
+void paint_figures(const BenchOptions& options, nlohmann::json& j, bool large) {
+  const auto progress = [&](const std::string& what) {
+    if (options.progress) options.progress(what);
+  };
+  const auto igea = options.data_dir / "igea-134k.ply";
+  if (!std::filesystem::exists(igea)) {
+    if (options.warning) options.warning(igea.string() + " not found; the paint_* figures skipped");
+    return;
+  }
+  const MeshData d = read_mesh(igea);
+  GeneratedMesh g{d.V, d.F, {}};
+  for (int level = 0; level < (large ? 3 : 1); ++level) {
+    if (level) g = subdivide_midpoint(g.V, g.F);
+    if (level == 1) continue;  // 537k: neither of the two sizes
+    const std::string tag = level ? "1m" : "134k";
+    progress("paint on igea-134k" + std::string(level ? " x2" : "") + ": operators");
+    const MeshOperators mo = build_mesh_operators(Mesh(g.V, g.F), LaplacianKind::Auto);
+    const int nv = mo.mesh.num_vertices();
+    std::mt19937 rng(7);
+    std::uniform_int_distribution<int> vertex(0, nv - 1);
+    std::uniform_real_distribution<double> value(-1, 1);
+    InterpolationSolver solver(mo.mesh, mo.ops, FieldKind::Scalar, InterpolationParams{.g1 = 0, .g2 = 1});
+    for (int k = 0; k < 8; ++k) solver.set_value(vertex(rng), Eigen::VectorXd::Constant(1, value(rng)));
+    progress("paint on " + tag + ": the first solve (factorization)");
+    auto t0 = clock_type::now();
+    solver.solve();
+    j["paint_first_ms_" + tag] = seconds_since(t0) * 1e3;
+    const int clicks = options.quick ? 6 : 20;
+    const int resolves = level ? (options.quick ? 1 : 2) : (options.quick ? 2 : 5);
+    std::vector<double> update_ms, resolve_ms;
+    double worst = 0;
+    for (int c = 0; c < clicks; ++c) {
+      progress(fmt::format("paint on {}: click {} of {}", tag, c + 1, clicks));
+      const std::vector<InterpolationConstraint> now = solver.constraints();
+      const int v = c % 2 == 0 ? now[rng() % now.size()].vertex : vertex(rng);
+      t0 = clock_type::now();
+      solver.set_value(v, Eigen::VectorXd::Constant(1, value(rng)));
+      const InterpolationResult kept = solver.solve();
+      update_ms.push_back(seconds_since(t0) * 1e3);
+      if (c >= clicks - resolves) {
+        t0 = clock_type::now();
+        const InterpolationResult fresh =
+            interpolate(mo.mesh, mo.ops, FieldKind::Scalar, solver.constraints(),
+                        InterpolationParams{.g1 = 0, .g2 = 1, .solver = SteadySolver::Direct});
+        resolve_ms.push_back(seconds_since(t0) * 1e3);
+        worst =
+            std::max(worst, (kept.values - fresh.values).cwiseAbs().maxCoeff() / fresh.values.cwiseAbs().maxCoeff());
+      }
+    }
+    j["paint_vertices_" + tag] = nv;
+    j["paint_update_ms_" + tag] = percentiles(update_ms).p50;
+    j["paint_update_ms_max_" + tag] = *std::max_element(update_ms.begin(), update_ms.end());
+    j["paint_resolve_ms_" + tag] = percentiles(resolve_ms).p50;
+    j["paint_update_over_resolve_" + tag] = percentiles(update_ms).p50 / percentiles(resolve_ms).p50;
+    j["paint_max_relative_difference_" + tag] = worst;
+    j["paint_factorizations_" + tag] = solver.factorizations();
+  }
+}
+
 void haptic_figures(const BenchOptions& options, nlohmann::json& j) {
   const auto progress = [&](const std::string& what) {
     if (options.progress) options.progress(what);
@@ -494,8 +564,8 @@ nlohmann::json run_standard_benchmarks(const BenchOptions& options) {
   };
   const bool quick = options.quick, large = options.large;
   nlohmann::json j;
-  if (!options.only.empty() && options.only != "haptic" && options.only != "global_real")
-    throw InputError(fmt::format("bench: no section '{}' (--only takes: haptic, global_real)", options.only));
+  if (!options.only.empty() && options.only != "haptic" && options.only != "global_real" && options.only != "paint")
+    throw InputError(fmt::format("bench: no section '{}' (--only takes: haptic, global_real, paint)", options.only));
   const int reps = quick ? 3 : 10;
   const int steps = quick ? 300 : 1000;
   j["quick"] = quick;
@@ -508,6 +578,10 @@ nlohmann::json run_standard_benchmarks(const BenchOptions& options) {
   }
   if (options.only == "global_real") {
     global_real_figures(options, j, /*every=*/true);
+    return j;
+  }
+  if (options.only == "paint") {
+    paint_figures(options, j, large);
     return j;
   }
 
@@ -988,6 +1062,7 @@ nlohmann::json run_standard_benchmarks(const BenchOptions& options) {
       "handle moved along the inward normal to depth 0.5 and back; CG rel. tol 1e-6";
 
   haptic_figures(options, j);
+  paint_figures(options, j, large);
 
   const auto bunny = options.data_dir / "bunny-36k.obj";
   if (std::filesystem::exists(bunny)) {

@@ -16,8 +16,9 @@ struct BenchOptions {
   bool quick = false;  ///< fewer repetitions and steps (the same meshes)
   bool large = false;  ///< also the global solves on the 655k and 2.6M icospheres (minutes, several GB)
   int threads = 0;     ///< thread limit for the whole run; 0: every core
-  /// One section alone: "haptic" (the haptic_* figures) or "global_real" (the global
-  /// bi-Laplacian on the real meshes, global_bilap_*_<mesh>); empty: everything.
+  /// One section alone: "haptic" (the haptic_* figures), "global_real" (the global
+  /// bi-Laplacian on the real meshes, global_bilap_*_<mesh>) or "paint" (the paint_*
+  /// figures); empty: everything.
   std::string only;
   /// Where the real meshes are (igea-134k.ply, bunny-36k.obj, fertility-4k.off); a
   /// missing one leaves its figures out with a warning.

@@ -31,7 +31,7 @@ namespace {
 // Residuals above this relative size are refined by another bordered solve.
 constexpr double kRefineTolerance = 1e-13;
 constexpr int kMaxRefinements = 4;
-// Below this smallest eigenvalue of the scaled Schur complement (build_border) it is not
+// Below this smallest eigenvalue of the scaled Schur complement (update_border) it is not
 // trusted and the system is factored afresh.
 constexpr double kMinSchurRcond = 1e-12;
 
@@ -41,6 +41,7 @@ struct BorderColumn {
   int vertex = 0;
   bool released = false;  // in P (an unknown), else in Q (a multiplier)
   std::vector<std::pair<int, double>> g;
+  double h_diagonal = 0;  // A_pp of a released vertex
 };
 
 }  // namespace
@@ -59,7 +60,7 @@ struct InterpolationSolver::Impl {
   std::unique_ptr<SteadyDirectSolver> base;
   std::vector<char> base_held;  // #V: in C0
   std::vector<BorderColumn> border;
-  std::vector<int> border_vertices;  // P then Q, the border S was built for
+  std::vector<int> border_vertices;  // P and Q (sorted), the border S was built for
   Eigen::MatrixXd S;
   Eigen::PartialPivLU<Eigen::MatrixXd> S_lu;
   int factorizations = 0;
@@ -118,46 +119,64 @@ struct InterpolationSolver::Impl {
     for (const auto& [v, x] : cons)
       if (!base_held[static_cast<std::size_t>(v)]) q.push_back(v);
     p.insert(p.end(), q.begin(), q.end());
+    std::sort(p.begin(), p.end());
     return p;
   }
 
-  // Builds G's columns and S for the border `vertices` (P then Q). Returns false when S
-  // is close to singular.
-  bool build_border(const std::vector<int>& vertices) {
-    border.clear();
+  // A_00^-1 B with the kept factor alone: two triangular sweeps a column. Its rounding
+  // is removed by solve()'s refinement against the products.
+  Eigen::MatrixXd sweep(const Eigen::MatrixXd& B) const { return base->factor().solve(B); }
+
+  // Brings the border to `vertices` (sorted): the columns of vertices no longer in it are
+  // dropped from S, each new one costs one solve (its column of A_00^-1 G gives its row
+  // and column of S). Returns false when S is close to singular.
+  bool update_border(const std::vector<int>& vertices) {
+    std::vector<BorderColumn> kept;
+    std::vector<int> from;  // kept column -> its index in the old S
+    for (std::size_t j = 0; j < border.size(); ++j)
+      if (std::binary_search(vertices.begin(), vertices.end(), border[j].vertex)) {
+        kept.push_back(std::move(border[j]));
+        from.push_back(static_cast<int>(j));
+      }
+    const int k0 = static_cast<int>(kept.size()), k = static_cast<int>(vertices.size());
+    Eigen::MatrixXd S2 = Eigen::MatrixXd::Zero(k, k);
+    for (int i = 0; i < k0; ++i)
+      for (int j = 0; j < k0; ++j) S2(i, j) = S(from[static_cast<std::size_t>(i)], from[static_cast<std::size_t>(j)]);
+    border = std::move(kept);
     border_vertices = vertices;
-    const int k = static_cast<int>(vertices.size());
-    if (k == 0) return true;
-    std::map<int, int> position;  // released vertex -> its place in the border
-    for (int j = 0; j < k; ++j) {
+    for (const int v : vertices) {
+      if (std::any_of(border.begin(), border.begin() + k0, [v](const BorderColumn& c) { return c.vertex == v; }))
+        continue;
       BorderColumn col;
-      col.vertex = vertices[static_cast<std::size_t>(j)];
-      col.released = base_held[static_cast<std::size_t>(col.vertex)] != 0;
+      col.vertex = v;
+      col.released = base_held[static_cast<std::size_t>(v)] != 0;
+      const int j = static_cast<int>(border.size());
       if (col.released) {
-        position[col.vertex] = j;
         // A_{i,p} = -coupling: steady_coupling gives the right-hand side of a unit value.
-        for (const auto& [i, value] : steady_coupling(*mesh, *ops, coefficients(), col.vertex))
+        for (const auto& [i, value] : steady_coupling(*mesh, *ops, coefficients(), v)) {
           if (const int li = base->free_index(i); li >= 0) col.g.emplace_back(li, -value);
+          if (i == v) col.h_diagonal = -value;
+          for (int r = 0; r < j; ++r)  // H = A_PP between released vertices
+            if (border[static_cast<std::size_t>(r)].released && border[static_cast<std::size_t>(r)].vertex == i)
+              S2(r, j) = S2(j, r) = -value;
+        }
+        S2(j, j) = col.h_diagonal;
       } else {
-        col.g.emplace_back(base->free_index(col.vertex), 1.0);
+        col.g.emplace_back(base->free_index(v), 1.0);
       }
       border.push_back(std::move(col));
-    }
-    S = Eigen::MatrixXd::Zero(k, k);
-    std::vector<double> H_diagonal(static_cast<std::size_t>(k), 0.0);
-    for (int j = 0; j < k; ++j) {
-      const BorderColumn& cj = border[static_cast<std::size_t>(j)];
-      if (cj.released)  // H: A_PP
-        for (const auto& [i, value] : steady_coupling(*mesh, *ops, coefficients(), cj.vertex))
-          if (const auto it = position.find(i); it != position.end()) S(it->second, j) = -value;
-      H_diagonal[static_cast<std::size_t>(j)] = S(j, j);
       Eigen::VectorXd gj = Eigen::VectorXd::Zero(base->num_free());
-      for (const auto& [li, value] : cj.g) gj[li] = value;
-      const Eigen::VectorXd t = base->solve_rhs(gj).col(0);
-      for (int i = 0; i < k; ++i)
-        for (const auto& [li, value] : border[static_cast<std::size_t>(i)].g) S(i, j) -= value * t[li];
+      for (const auto& [li, value] : border.back().g) gj[li] = value;
+      const Eigen::VectorXd t = sweep(gj).col(0);
+      for (int r = 0; r <= j; ++r) {
+        double gt = 0;
+        for (const auto& [li, value] : border[static_cast<std::size_t>(r)].g) gt += value * t[li];
+        S2(r, j) -= gt;
+        if (r != j) S2(j, r) = S2(r, j);
+      }
     }
-    S = 0.5 * (S + S.transpose()).eval();
+    S = std::move(S2);
+    if (k == 0) return true;
     S_lu.compute(S);
     // Conditioning judged on S scaled by what its diagonal would be without the
     // elimination: A_pp for a released vertex (S_pp cancels towards rounding as p's
@@ -166,8 +185,8 @@ struct InterpolationSolver::Impl {
     // rcond of S itself cannot see that (a 1 x 1 S has rcond 1).
     Eigen::VectorXd scale(k);
     for (int j = 0; j < k; ++j) {
-      const double d =
-          border[static_cast<std::size_t>(j)].released ? H_diagonal[static_cast<std::size_t>(j)] : std::abs(S(j, j));
+      const BorderColumn& c = border[static_cast<std::size_t>(j)];
+      const double d = c.released ? c.h_diagonal : std::abs(S(j, j));
       if (!(d > 0)) return false;
       scale[j] = 1 / std::sqrt(d);
     }
@@ -298,10 +317,9 @@ InterpolationResult InterpolationSolver::solve() {
           *s.mesh, free_now, [&](int v) { return local[static_cast<std::size_t>(v)]; }, [](int) { return false; });
     }
   }
-  if (border != s.border_vertices && !s.build_border(border)) {
+  if (border != s.border_vertices && !s.update_border(border)) {
     s.factor();  // S near singular: start from the current constraints
     border.clear();
-    s.build_border(border);
   }
 
   // u: the held values where they are held now; the unknowns are solved below.

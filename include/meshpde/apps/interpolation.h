@@ -82,14 +82,15 @@ InterpolationResult interpolate(const Mesh& mesh, FieldKind kind,
 /// factors the free block A_FF of A = g1 K + g2 K D K on the vertices free then
 /// (SteadyDirectSolver). Later solves reuse that factor:
 ///  - new values at the same constrained vertices: one solve with the factor (two
-///    triangular sweeps per column) and one whole-mesh product for the right-hand side;
+///    triangular sweeps a column, and the refinement steps of
+///    SteadyDirectSolver::solve_rhs) and whole-mesh products for the right-hand side;
 ///  - constraints added or removed since the factorization: the factored system is
 ///    bordered by the changed vertices, a released constraint as an extra unknown and a
 ///    new one as a Lagrange multiplier holding its value, and the small dense Schur
 ///    complement S = H - G^T A_FF^-1 G of that border (k x k for k changed vertices;
-///    one solve a new vertex to build) is factored by LU. A solve then costs two
-///    solves with the factor. Once more than max_changes constraints differ from the
-///    factored set, or S is close to singular, the next solve() factors afresh.
+///    one pair of sweeps for each vertex that joins it) is factored by LU. A solve then
+///    costs two solves with the factor. Once more than max_changes constraints differ
+///    from the factored set, or S is close to singular, the next solve() factors afresh.
 /// Every answer is checked by its residual through the whole-mesh products and refined
 /// (the same bordered solve on the residual) until it is at rounding level, so it equals
 /// a fresh interpolate() with the Direct solver to rounding (tests: 1e-10 relative).
