@@ -33,7 +33,7 @@ constexpr double kRefineTolerance = 1e-13;
 constexpr int kMaxRefinements = 4;
 // Below this smallest eigenvalue of the scaled Schur complement (update_border) it is not
 // trusted and the system is factored afresh.
-constexpr double kMinSchurRcond = 1e-12;
+constexpr double kMinSchurEigenvalue = 1e-12;
 
 // One column of G: its nonzeros on F0's rows (local indices), and for a released vertex
 // its couplings to the other released vertices (the column of A_PP).
@@ -192,7 +192,7 @@ struct InterpolationSolver::Impl {
     }
     const Eigen::MatrixXd scaled = scale.asDiagonal() * S * scale.asDiagonal();
     const Eigen::VectorXd eigenvalues = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(scaled).eigenvalues();
-    return eigenvalues.cwiseAbs().minCoeff() >= kMinSchurRcond;
+    return eigenvalues.cwiseAbs().minCoeff() >= kMinSchurEigenvalue;
   }
 
   // The bordered solve: y0 on F0 (rows in the order of the factor's free list) and w.
