@@ -54,6 +54,14 @@ std::vector<std::pair<int, double>> vertex_values_arg(const py::handle& obj, con
   return out;
 }
 
+// "scalar", "displacement" or "tangent", as interpolate() and InterpolationSolver take it.
+FieldKind field_kind_arg(const std::string& kind) {
+  if (kind == "scalar") return FieldKind::Scalar;
+  if (kind == "displacement") return FieldKind::Displacement;
+  if (kind == "tangent") return FieldKind::Tangent;
+  throw py::value_error(fmt::format("kind: expected 'scalar', 'displacement' or 'tangent', got '{}'", kind));
+}
+
 SteadySolver solver_arg(const std::string& name) {
   try {
     return parse_steady_solver(name);
@@ -416,13 +424,7 @@ void bind_apps(py::module_& m) {
          const std::string& laplacian) {
         const Mesh mesh = mesh_arg(V, F);
         const std::vector<int> at = vertices_arg(vertices, "vertices", mesh.num_vertices());
-        FieldKind k = FieldKind::Scalar;
-        if (kind == "displacement")
-          k = FieldKind::Displacement;
-        else if (kind == "tangent")
-          k = FieldKind::Tangent;
-        else if (kind != "scalar")
-          throw py::value_error(fmt::format("kind: expected 'scalar', 'displacement' or 'tangent', got '{}'", kind));
+        const FieldKind k = field_kind_arg(kind);
         const Field x =
             field_arg(values, "values", static_cast<Eigen::Index>(at.size()), k == FieldKind::Scalar ? 1 : 3);
         if (method != "componentwise" && method != "connection")
@@ -459,14 +461,7 @@ vertices a small Schur complement against it (factored afresh after max_changes 
 them). Answers equal interpolate(..., solver="direct") to rounding.)doc")
       .def(py::init([](const py::handle& V, const py::handle& F, const std::string& kind, double g1, double g2,
                        const std::string& laplacian) {
-             FieldKind k = FieldKind::Scalar;
-             if (kind == "displacement")
-               k = FieldKind::Displacement;
-             else if (kind == "tangent")
-               k = FieldKind::Tangent;
-             else if (kind != "scalar")
-               throw py::value_error(
-                   fmt::format("kind: expected 'scalar', 'displacement' or 'tangent', got '{}'", kind));
+             const FieldKind k = field_kind_arg(kind);
              InterpolationParams p;
              p.g1 = g1;
              p.g2 = g2;

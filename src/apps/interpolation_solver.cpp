@@ -302,24 +302,22 @@ InterpolationResult InterpolationSolver::solve() {
     s.factor();
     border.clear();
   }
+  // The vertices free now: the rows of the current system.
+  std::vector<int> now_free;
+  for (int v = 0; v < nv; ++v)
+    if (!s.cons.count(v) && s.ops->mass[v] > 0) now_free.push_back(v);
   if (border != s.border_vertices) {
     // A released constraint may leave its part of the mesh without any: undetermined,
     // which the bordered system would only show as rounding. Checked on the mesh.
     if (std::any_of(border.begin(), border.end(),
                     [&](int v) { return s.base_held[static_cast<std::size_t>(v)] != 0; })) {
-      std::vector<int> local(static_cast<std::size_t>(nv), -1), free_now;
-      for (int v = 0; v < nv; ++v)
-        if (!s.cons.count(v) && s.ops->mass[v] > 0) {
-          local[static_cast<std::size_t>(v)] = static_cast<int>(free_now.size());
-          free_now.push_back(v);
-        }
+      std::vector<int> local(static_cast<std::size_t>(nv), -1);
+      for (std::size_t k = 0; k < now_free.size(); ++k)
+        local[static_cast<std::size_t>(now_free[k])] = static_cast<int>(k);
       detail::require_held_parts(
-          *s.mesh, free_now, [&](int v) { return local[static_cast<std::size_t>(v)]; }, [](int) { return false; });
+          *s.mesh, now_free, [&](int v) { return local[static_cast<std::size_t>(v)]; }, [](int) { return false; });
     }
-  }
-  if (border != s.border_vertices && !s.update_border(border)) {
-    s.factor();  // S near singular: start from the current constraints
-    border.clear();
+    if (!s.update_border(border)) s.factor();  // S near singular: start from the current constraints
   }
 
   // u: the held values where they are held now; the unknowns are solved below.
@@ -336,19 +334,17 @@ InterpolationResult InterpolationSolver::solve() {
 
   Field u = given;
   const std::vector<int>& free = s.base->free_vertices();
-  auto place = [&](const Eigen::MatrixXd& x0, const Eigen::MatrixXd& xw, double sign) {
+  // Adds a bordered solve's answer (or correction) to u's unknowns.
+  auto place = [&](const Eigen::MatrixXd& x0, const Eigen::MatrixXd& xw) {
     for (std::size_t i = 0; i < free.size(); ++i)
-      if (!s.cons.count(free[i])) u.row(free[i]) += sign * x0.row(static_cast<Eigen::Index>(i));
+      if (!s.cons.count(free[i])) u.row(free[i]) += x0.row(static_cast<Eigen::Index>(i));
     for (std::size_t j = 0; j < s.border.size(); ++j)
-      if (s.border[j].released) u.row(s.border[j].vertex) += sign * xw.row(static_cast<Eigen::Index>(j));
+      if (s.border[j].released) u.row(s.border[j].vertex) += xw.row(static_cast<Eigen::Index>(j));
   };
-  place(y0, w, 1);
+  place(y0, w);
 
   // Residual of the current system on its free rows, through the products; refined by
   // the same bordered solve (the added vertices' rows are their multipliers').
-  std::vector<int> now_free;
-  for (int v = 0; v < nv; ++v)
-    if (!s.cons.count(v) && s.ops->mass[v] > 0) now_free.push_back(v);
   const Field load = s.apply(given);
   auto worst = [&](const Field& AU) {
     double r = 0;
@@ -372,7 +368,7 @@ InterpolationResult InterpolationSolver::solve() {
     Eigen::MatrixXd r0, rc;
     s.right_hand_side(AUfree, zero, r0, rc);  // -(A u) on the free rows: the residual
     auto [d0, dw] = s.bordered_solve(r0, rc);
-    place(d0, dw, 1);
+    place(d0, dw);
     AU = s.apply(u);
     const double next = worst(AU);
     ++steps;
