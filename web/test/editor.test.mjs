@@ -244,6 +244,9 @@ async function unitsChecks() {
     check('the status line says the file is in cm', /tube-cm\.obj is in cm: shown and edited in mm, saved in cm/.test(
       await page.textContent('#status')), await page.textContent('#status'));
     check('no units warning for a mesh whose unit was given', !/--units/.test(await page.textContent('#status')));
+    const drawn = await drawnFraction(page);
+    check('the mesh in cm is drawn (rendered pixels)', drawn > 0.01, String(drawn));
+    await page.screenshot({ path: join(shots, 'editor-units.png') });
     // A 2 mm correction over 8 mm: the saved file is in cm, moved by at most 0.2 of its units.
     const oks = await page.evaluate(() => meshpde.oks);
     await page.evaluate(() => meshpde.send({ type: 'correct', vertex: 500, move: [2, 0, 0], radius: 8, image: false }));
