@@ -273,6 +273,12 @@ void check_jpeg_header(const DicomFile& d, const std::string& s, const DicomFram
     throw InputError(fmt::format("{}: frame {}: damaged JPEG pixel data at byte {}: {}", d.name, frame + 1, at, what));
   };
   if (s.size() < 4 || p[0] != 0xff || p[1] != 0xd8) fail(0, "no start-of-image marker");
+  // A fragment is padded to an even length with a zero byte; before that, the stream
+  // ends with its end-of-image marker, or it was cut short.
+  std::size_t end = s.size();
+  while (end > 2 && p[end - 1] == 0) --end;
+  if (end < 4 || p[end - 2] != 0xff || p[end - 1] != 0xd9)
+    fail(end, "no end-of-image marker at the end of the stream (the stream is cut short)");
   bool frame_seen = false;
   std::size_t at = 2;
   while (true) {

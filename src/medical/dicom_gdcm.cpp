@@ -46,8 +46,14 @@ std::string decode_jpeg_with_gdcm(const DicomFile& d, const std::string& stream,
   if (!codec.CanDecode(ts)) fail("no codec for transfer syntax " + d.syntax);
   try {
     gdcm::SmartPointer<gdcm::SequenceOfFragments> sq = new gdcm::SequenceOfFragments;
+    // IJG's decoder suspends when its source runs dry, and GDCM returns from a
+    // suspended decode without releasing the decoder (its memory leaks). Behind the
+    // stream: end-of-image markers for longer than any marker segment can skip
+    // (65,535 bytes), so every read past the end finds one and the decode finishes.
+    std::string padded = stream;
+    for (int k = 0; k < 32768 + 2; ++k) padded += "\xff\xd9";
     gdcm::Fragment frag;
-    frag.SetByteValue(stream.data(), static_cast<std::uint32_t>(stream.size()));
+    frag.SetByteValue(padded.data(), static_cast<std::uint32_t>(padded.size()));
     sq->AddFragment(frag);
     gdcm::DataElement in(gdcm::Tag(0x7fe0, 0x0010));
     in.SetVR(gdcm::VR::OB);
