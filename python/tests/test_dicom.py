@@ -275,6 +275,29 @@ def test_commands_take_a_dicom_series_as_their_image(tmp_path, data, cli, cli_pa
     assert r["image"]["pulled_vertices"] > 0 and out.exists()
 
 
+def test_a_jpeg_stream_cut_short_is_refused_naming_the_file_and_frame(tmp_path, volume, expected):
+    # A fragment whose JPEG stream lost its end (and so its end-of-image marker): an
+    # error naming the file and the frame, not a silently zero-filled slice.
+    from pydicom.encaps import encapsulate, generate_pixel_data_frame
+    D = np.eye(3)
+    plain = dw.write_enhanced(tmp_path / "enhanced.dcm", volume, SPACING, ORIGIN, D, slope=SLOPE,
+                              intercept=INTERCEPT, frame_order=np.arange(volume.shape[2]))
+    out = tmp_path / "jpeg.dcm"
+    subprocess.run([gdcmconv(), "--jpeg", str(plain), str(out)], check=True, capture_output=True)
+    assert_same_volume(out, expected, dw.affine_of(SPACING, ORIGIN, D))  # whole, it reads
+    ds = dw.pydicom.dcmread(out)
+    frames = list(generate_pixel_data_frame(ds.PixelData, int(ds.NumberOfFrames)))
+    assert frames[2].rstrip(b"\0").endswith(b"\xff\xd9")
+    frames[2] = frames[2].rstrip(b"\0")[:-40]
+    ds.PixelData = encapsulate(frames)
+    cut = tmp_path / "cut.dcm"
+    ds.save_as(cut)
+    with pytest.raises(meshpde.InputError) as e:
+        meshpde.read_volume(cut)
+    for w in ("cut.dcm", "frame 3", "end-of-image"):
+        assert w in str(e.value), f"'{w}' not in {e.value}"
+
+
 def test_bad_dicom_input_names_the_file_and_exits_1(tmp_path, plain_series, cli_path):
     paths, _ = plain_series
     cases = {}
