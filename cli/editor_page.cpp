@@ -80,8 +80,21 @@ Loaded parse_mesh_bytes(const std::string& bytes, const std::string& name) {
 #else
     throw InputError(fmt::format("{}: .vtp/.vtk need meshpde built with meshpde::medical", l.name));
 #endif
-  } else {
+  } else if (ext == ".obj" || ext == ".off" || ext == ".ply" || ext == ".stl") {
     l.data = read_mesh_from_memory(bytes, format_from_path(l.name), l.name);
+  } else {
+    // Everything the page opens, meshes and volumes: the upload is either.
+#ifdef MESHPDE_HAVE_MEDICAL
+    throw InputError(
+        fmt::format("{}: the editor opens meshes (.obj .off .ply .stl .vtp .vtk) and volumes (.mha "
+                    ".nii .nii.gz .nrrd, or a DICOM series zipped into one .zip)",
+                    l.name));
+#else
+    throw InputError(
+        fmt::format("{}: the editor opens meshes (.obj .off .ply .stl; .vtp and .vtk, and volumes, "
+                    "need meshpde built with meshpde::medical)",
+                    l.name));
+#endif
   }
   return l;
 }
@@ -246,6 +259,7 @@ void EditorPage::load(Loaded l) {
              {"segmentation", segmentation},
              {"held_vertices", session_->held_vertices().size()},
              {"units", to_string(source_.units)},
+             {"space", to_string(space_)},  // the patient frame of the coordinates: the page's standard views
              {"units_warning", units.empty() ? nlohmann::json() : nlohmann::json(units)},
              {"fields", [&] {
                 std::vector<std::string> names;
@@ -379,6 +393,8 @@ void EditorPage::handle(const std::string& payload, bool binary) {
       const CorrectionResult r = s.correct(p);
       intersections_ = s.self_intersections();
       reply.update({{"moved_vertices", r.moved_vertices},
+                    {"max_displacement", r.max_displacement},
+                    {"region_vertices", r.region.size()},
                     {"new_self_intersections", r.new_self_intersections},
                     {"intersection_action", r.intersection_action},
                     {"applied_fraction", r.applied_fraction},

@@ -272,8 +272,8 @@ TEST(SelfIntersectionsCgal, FoldsCoplanarOverlapsAndCornerOverlapsAreCounted) {
 // radius of 2 to 10 mean edges, dragged 1 to 3 region radii, on a real aorta, the
 // generated bifurcation and a non-manifold vessel; every result, and every step of a
 // CorrectionSession going on from one drag to the next, has no pair that CGAL counts
-// and the input did not have. MESHPDE_RANDOM_DRAGS sets another count (the sanitizer
-// build runs 60: its Debug CGAL and solves are 30 times slower).
+// and the input did not have. MESHPDE_RANDOM_DRAGS sets another count (a quick run by
+// hand; the sanitizer build does not build these tests).
 TEST(SelfIntersectionsCgal, RandomDragsNeverCreateAPairCgalCounts) {
   const char* env = std::getenv("MESHPDE_RANDOM_DRAGS");
   const int total = env ? std::max(3, std::atoi(env)) : 300;

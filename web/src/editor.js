@@ -27,14 +27,23 @@ const sun = new THREE.DirectionalLight(0xffffff, 1.6);
 camera.add(sun);
 sun.position.set(0.5, 1, 1);
 scene.add(camera);
-const controls = new OrbitControls(camera, renderer.domElement);
-controls.enableDamping = false;
+// Orbit controls turn about the camera's up axis as it is when they are made: a
+// standard view with another up (superior, for the patient's views) makes new ones.
+let controls = null;
+function makeControls() {
+  const target = controls ? controls.target.clone() : new THREE.Vector3();
+  if (controls) controls.dispose();
+  controls = new OrbitControls(camera, renderer.domElement);
+  controls.enableDamping = false;
+  controls.target.copy(target);
+  controls.addEventListener('change', () => invalidate());
+}
+makeControls();
 // The scene is drawn when something changed, not every animation frame: an idle page
 // then costs nothing, and a software-rendered page (no GPU) answers the server's
 // frames instead of queueing them behind its own drawing.
 let dirty = true;
 const invalidate = () => { dirty = true; };
-controls.addEventListener('change', invalidate);
 document.addEventListener('input', invalidate);
 document.addEventListener('change', invalidate);
 
@@ -108,23 +117,56 @@ function buildMesh(buf) {
   mesh = new THREE.Mesh(geometry, material);
   wire = new THREE.Mesh(geometry, wireMaterial);
   wire.visible = $('wireframe').checked;
+  mesh.visible = $('surface').checked;
   scene.add(mesh, wire);
   state.vertexCount = nv; state.faceCount = nf;
   state.positions = pos; state.rest = pos.slice(); state.field = null; state.fieldName = '';
   state.triangles = idx;
   $('legend').hidden = true;
   paintColors();
-  const s = geometry.boundingSphere;
-  controls.target.copy(s.center);
-  // Far enough for the whole bounding sphere to fit the (vertical) field of view.
-  const distance = 1.15 * s.radius / Math.sin(THREE.MathUtils.degToRad(camera.fov / 2));
-  camera.position.copy(s.center).add(new THREE.Vector3(0.3, 0.4, 1).normalize().multiplyScalar(distance));
-  camera.near = s.radius / 100; camera.far = s.radius * 100;
-  camera.updateProjectionMatrix();
-  controls.update();
+  fitView(HOME_DIRECTION, HOME_UP);
+  imageView.onMeshLoaded();
   imageView.onPositions();
   state.ready = true;
 }
+
+// The view a mesh opens with, and reset view: from the front right above, y up.
+const HOME_DIRECTION = new THREE.Vector3(0.3, 0.4, 1), HOME_UP = new THREE.Vector3(0, 1, 0);
+// The camera on the side `direction` of the mesh (its bounding sphere whole in view),
+// looking at its centre with `up` up.
+function fitView(direction, up) {
+  if (!geometry) return;
+  const s = geometry.boundingSphere;
+  // Far enough for the whole bounding sphere to fit the (vertical) field of view.
+  const distance = 1.15 * s.radius / Math.sin(THREE.MathUtils.degToRad(camera.fov / 2));
+  camera.up.copy(up);
+  camera.position.copy(s.center).add(direction.clone().normalize().multiplyScalar(distance));
+  camera.near = s.radius / 100; camera.far = s.radius * 100;
+  camera.updateProjectionMatrix();
+  camera.lookAt(s.center);
+  makeControls();
+  controls.target.copy(s.center);
+  controls.update();
+  invalidate();
+}
+// Standard views in the patient's frame: the mesh's coordinates are LPS (x to the
+// patient's left, y posterior) or RAS (x right, y anterior); z is superior in both.
+// From above and below, anterior is up on the screen.
+function standardView(name) {
+  const ras = state.space === 'RAS';
+  const anterior = new THREE.Vector3(0, ras ? 1 : -1, 0), left = new THREE.Vector3(ras ? -1 : 1, 0, 0);
+  const superior = new THREE.Vector3(0, 0, 1);
+  const views = {
+    anterior: [anterior, superior], posterior: [anterior.clone().negate(), superior],
+    left: [left, superior], right: [left.clone().negate(), superior],
+    superior: [superior, anterior], inferior: [superior.clone().negate(), anterior],
+  };
+  fitView(...views[name]);
+  state.view = name;
+}
+state.view = 'home';
+window.meshpde.cameraDirection = () => camera.position.clone().sub(controls.target).normalize().toArray();
+window.meshpde.cameraUp = () => camera.up.toArray();
 
 function applyPositions(buf) {
   const dv = new DataView(buf);
@@ -178,6 +220,20 @@ function applyField(buf) {
 }
 
 // ---------------------------------------------------------------- connection
+// The status line after an action that has no figures of its own to report.
+const DONE = {
+  undo: 'undone: the surface is as it was before the last correction',
+  redo: 'redone: the correction is applied again',
+  paint: 'painted: the values spread smoothly from every painted vertex',
+  paint_vector: 'painted: the vectors spread smoothly from every painted vertex',
+  clear_paint: 'paint cleared',
+  source: 'source added: play to let it spread',
+  clear_sources: 'sources cleared',
+  play: 'playing',
+  pause: 'paused',
+  poke_begin: 'poking: the surface pushes back; release to let it settle',
+  poke_end: 'released: the surface settles back',
+};
 const status = (text, error = false) => { $('status').textContent = text; $('status').className = error ? 'error' : ''; };
 const ws = new WebSocket(`ws://${location.host}/`);
 ws.binaryType = 'arraybuffer';
@@ -201,7 +257,7 @@ ws.onmessage = (ev) => {
   if (m.type !== 'stats') invalidate();
   if (m.type === 'hello') state.client = m.client;
   else if (m.type === 'mesh') {
-    state.ready = false; state.name = m.name; state.meanEdge = m.mean_edge;
+    state.ready = false; state.name = m.name; state.meanEdge = m.mean_edge; state.space = m.space || 'LPS';
     state.segmentation = m.segmentation;
     $('mesh-name').textContent = `${m.name}: ${m.vertices.toLocaleString()} vertices`;
     $('save').title = m.segmentation
@@ -212,7 +268,7 @@ ws.onmessage = (ev) => {
     if (m.held_vertices) notes.push(`${m.held_vertices} vertices of flat caps are held`);
     if (m.units && m.units !== 'mm') notes.push(`${m.name} is in ${m.units}: shown and edited in mm, saved in ${m.units}`);
     if (m.units_warning) notes.push(m.units_warning);
-    if (notes.length) status(notes.join('\n'));
+    status(notes.length ? notes.join('\n') : `opened ${m.name}`);
     $('image').disabled = !m.has_image;
     if (!m.has_image) $('image').checked = false;
     imageView.onMeshMessage(m);
@@ -231,9 +287,18 @@ ws.onmessage = (ev) => {
   } else if (m.type === 'stats') updateStats(m);
   else if (m.type === 'ok') {
     state.lastOk = m.request; state.oks += 1;
+    // One message per action, replaced by the next: what this one did.
+    if (m.request in DONE) status(DONE[m.request]);
     if (m.request === 'drag_begin')
       status(`dragging: region of ${m.region_vertices} vertices ready in ${m.setup_ms.toFixed(1)} ms`);
-    if (m.request === 'correct') state.lastCorrect = m;
+    if (m.request === 'correct') {
+      state.lastCorrect = m;
+      $('last-correction').hidden = false;
+      $('stat-moved').textContent = m.moved_vertices.toLocaleString();
+      $('stat-largest').textContent = m.max_displacement.toFixed(2);
+      $('stat-region').textContent = m.region_vertices.toLocaleString();
+      $('stat-time').textContent = m.time_ms.toFixed(0);
+    }
     if (m.request === 'correct')
       status(`corrected: ${m.moved_vertices} vertices moved in ${m.time_ms.toFixed(1)} ms, ` +
              `${m.new_self_intersections} new self-intersections (${m.intersection_action})` +
@@ -392,11 +457,32 @@ renderer.domElement.addEventListener('pointercancel', endDrag);
 $('load-generated').onclick = () => send({ type: 'generate', kind: $('generate').value });
 $('undo').onclick = () => send({ type: 'undo' });
 $('redo').onclick = () => send({ type: 'redo' });
+$('view-reset').onclick = () => { fitView(HOME_DIRECTION, HOME_UP); state.view = 'home'; };
+const STANDARD_VIEWS = ['anterior', 'posterior', 'left', 'right', 'superior', 'inferior'];
+for (const name of STANDARD_VIEWS) $(`view-${name}`).onclick = () => standardView(name);
+// Keys: Ctrl+Z undo, Ctrl+Shift+Z or Ctrl+Y redo (Cmd on a Mac), Home or 0 resets the
+// view, 1 to 6 the standard views. Not while typing in a field.
+document.addEventListener('keydown', (e) => {
+  const typing = e.target instanceof HTMLElement && (e.target.tagName === 'INPUT' || e.target.tagName === 'SELECT' ||
+    e.target.tagName === 'TEXTAREA') && e.target.type !== 'checkbox' && e.target.type !== 'radio' && e.target.type !== 'range';
+  if (typing) return;
+  const key = e.key.toLowerCase();
+  if ((e.ctrlKey || e.metaKey) && (key === 'z' || key === 'y')) {
+    const redo = key === 'y' || e.shiftKey;
+    if (!$(redo ? 'redo' : 'undo').disabled) send({ type: redo ? 'redo' : 'undo' });
+    e.preventDefault();
+  } else if (!e.ctrlKey && !e.metaKey && !e.altKey) {
+    if (e.key === 'Home' || e.key === '0') $('view-reset').click();
+    else if (e.key >= '1' && e.key <= '6') standardView(STANDARD_VIEWS[+e.key - 1]);
+  }
+});
 $('clear-paint').onclick = () => send({ type: 'clear_paint' });
 $('play').onclick = () => send({ type: 'play', kind: tool() === 'wave' ? 'wave' : 'heat' });
 $('pause').onclick = () => send({ type: 'pause' });
 $('clear-sources').onclick = () => send({ type: 'clear_sources' });
 $('wireframe').onchange = () => { if (wire) wire.visible = $('wireframe').checked; };
+// Hiding the surface shows the image planes whole (the wireframe, if on, stays).
+$('surface').onchange = () => { if (mesh) mesh.visible = $('surface').checked; };
 for (const id of ['g1', 'g2']) $(id).oninput = () => { $(`${id}-value`).textContent = $(id).value; };
 // Stiffness multiplies (any value > 0); mass, elasticity and viscosity are in [0, 1].
 const brushDefaults = { stiffness: 5, mass: 0.8, elasticity: 0.3, viscosity: 1 };
@@ -446,6 +532,13 @@ window.meshpde.screenOf = (i) => {
   const v = new THREE.Vector3(P[3 * i], P[3 * i + 1], P[3 * i + 2]).project(camera);
   const r = renderer.domElement.getBoundingClientRect();
   return { x: r.left + (v.x + 1) / 2 * r.width, y: r.top + (1 - v.y) / 2 * r.height };
+};
+
+// A point of the scene as a pixel of the 3D view's canvas (device pixels, origin top
+// left): where a test reads the rendered colour of that point.
+window.meshpde.canvasPixelOf = (p) => {
+  const v = new THREE.Vector3(p[0], p[1], p[2]).project(camera), c = renderer.domElement;
+  return { x: (v.x + 1) / 2 * c.width, y: (1 - v.y) / 2 * c.height, inside: Math.abs(v.x) < 1 && Math.abs(v.y) < 1 && Math.abs(v.z) < 1 };
 };
 
 function loop() {

@@ -23,10 +23,17 @@ export function createImageView({ scene, state, send, $, correctOptions, invalid
   };
   state.imageView = view;
   const planes = [], lines = [];
+  // A slice's texture: RGBA bytes, grey in each colour, in sRGB like every other colour
+  // on the page. (WebGL 2 has no luminance format with storage, and three.js no longer
+  // offers one; a red-only texture would draw red.)
+  const sliceTexture = (width, height) => {
+    const tex = new THREE.DataTexture(new Uint8Array(4 * width * height), width, height, THREE.RGBAFormat);
+    tex.colorSpace = THREE.SRGBColorSpace;
+    tex.magFilter = tex.minFilter = THREE.LinearFilter;
+    return tex;
+  };
   for (let k = 0; k < 3; ++k) {
-    const tex = new THREE.DataTexture(new Uint8Array(1), 1, 1, THREE.LuminanceFormat);
-    tex.magFilter = THREE.LinearFilter;
-    tex.minFilter = THREE.LinearFilter;
+    const tex = sliceTexture(1, 1);
     const plane = new THREE.Mesh(new THREE.BufferGeometry(),
       new THREE.MeshBasicMaterial({ map: tex, side: THREE.DoubleSide, transparent: true, opacity: 0.92 }));
     plane.visible = false;
@@ -85,6 +92,29 @@ export function createImageView({ scene, state, send, $, correctOptions, invalid
     $('img-window').value = im.window; $('img-level').value = im.level;
     $('img-name').textContent = `${im.name}: ${im.dims.join(' × ')} voxels, mesh in ${im.space}`;
     $('slice-box').hidden = $('img-2d').value === 'none';
+    // The planes start through the mesh, so that each one cuts the wall: now for a
+    // volume uploaded beside a mesh, once its positions are here for a new mesh.
+    if (m.type === 'mesh') { centrePending = true; return; }
+    centreOnMesh();
+    askAll();
+  };
+  let centrePending = false;
+  // Each plane through the centre of the mesh's bounding box (within the volume).
+  function centreOnMesh() {
+    const P = state.positions, im = view.image;
+    if (!P || !im) return;
+    const [lo, hi] = im.bounds;
+    for (let k = 0; k < 3; ++k) {
+      const n = NORMAL[k];
+      let a = Infinity, b = -Infinity;
+      for (let i = n; i < P.length; i += 3) { a = Math.min(a, P[i]); b = Math.max(b, P[i]); }
+      $(`img-${AXES[k]}`).value = Math.min(Math.max((a + b) / 2, lo[n]), hi[n]);
+    }
+  }
+  view.onMeshLoaded = () => {
+    if (!centrePending) return;
+    centrePending = false;
+    centreOnMesh();
     askAll();
   };
 
@@ -99,19 +129,22 @@ export function createImageView({ scene, state, send, $, correctOptions, invalid
     const arrived = performance.now();
     const s = { axis: k, width, height, position, origin, u, v, pixels };
     view.slices[k] = s;
-    // The texture: one grey byte a pixel, as sent; row b of the slice is row b of the
-    // texture (v up). Same size as the last one: its storage is reused.
+    // The texture: the grey byte of each pixel, as sent, in R, G and B; row b of the
+    // slice is row b of the texture (v up). Same size as the last one: its storage is
+    // reused.
     const plane = planes[k];
     let tex = plane.material.map;
-    if (tex.image.width !== width || tex.image.height !== height || tex.format !== THREE.LuminanceFormat) {
+    if (tex.image.width !== width || tex.image.height !== height) {
       tex.dispose();
-      tex = new THREE.DataTexture(new Uint8Array(width * height), width, height, THREE.LuminanceFormat);
-      tex.unpackAlignment = 1;  // rows of any width
-      tex.magFilter = tex.minFilter = THREE.LinearFilter;
+      tex = sliceTexture(width, height);
       plane.material.map = tex;
       plane.material.needsUpdate = true;
     }
-    tex.image.data.set(pixels);
+    const rgba = tex.image.data;
+    for (let i = 0, j = 0; i < pixels.length; ++i, j += 4) {
+      rgba[j] = rgba[j + 1] = rgba[j + 2] = pixels[i];
+      rgba[j + 3] = 255;
+    }
     tex.needsUpdate = true;
     // The quad covers the pixels' squares: half a pixel beyond the outer centres.
     const corner = (a, b) => [0, 1, 2].map((c) => origin[c] + a * u[c] + b * v[c]);
@@ -285,6 +318,20 @@ export function createImageView({ scene, state, send, $, correctOptions, invalid
   view.mmPerCanvasPixel = () => {
     const k = twoD(), s = k >= 0 ? view.slices[k] : null;
     return s ? Math.hypot(...s.u) / fit(s).scale : 0;
+  };
+  // An n x n grid of pixel centres of plane k's slice, inside its outer tenth, each as
+  // a point of the 3D view and the grey the server sent for it. For tests, which read
+  // the rendered 3D view there.
+  view.planeSamples3d = (k, n) => {
+    const s = view.slices[k], out = [];
+    if (!s) return out;
+    for (let i = 0; i < n; ++i)
+      for (let j = 0; j < n; ++j) {
+        const a = Math.round((0.1 + 0.8 * i / (n - 1)) * (s.width - 1));
+        const b = Math.round((0.1 + 0.8 * j / (n - 1)) * (s.height - 1));
+        out.push({ p: [0, 1, 2].map((c) => s.origin[c] + a * s.u[c] + b * s.v[c]), grey: s.pixels[b * s.width + a] });
+      }
+    return out;
   };
   // Points of the cut line on the 2D view, for tests: canvas pixels, two a segment.
   view.cutLine2d = () => {

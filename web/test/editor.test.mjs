@@ -125,6 +125,13 @@ async function dragBy(page, from, dx, dy, steps = 12) {
   }
 }
 
+// The largest distance a vertex moved between two position arrays (x, y, z a vertex).
+const maxDiffNorm = (a, b) => {
+  let m = 0;
+  for (let i = 0; i < a.length; i += 3) m = Math.max(m, Math.hypot(a[i] - b[i], a[i + 1] - b[i + 1], a[i + 2] - b[i + 2]));
+  return m;
+};
+
 // Rendered pixels of the 3D view that are not its background (the corner pixel's colour),
 // as a fraction: the surface is drawn, not just sent.
 const drawnFraction = (page) => page.evaluate(() => {
@@ -320,6 +327,52 @@ const slicesShown = (page, after) => page.waitForFunction((n) => meshpde.imageVi
   .then(() => page.waitForTimeout(150)).then(() => page.evaluate(() => meshpde.imageView.shown));
 const quantile = (xs, q) => { const s = [...xs].sort((a, b) => a - b); return s[Math.min(s.length - 1, Math.floor(q * s.length))]; };
 
+// The 3D view's planes show the slices the server sent (they were once drawn black: a
+// texture format WebGL 2 cannot store). With the surface hidden and one plane shown at
+// a time, the rendered colour at 81 pixel centres of each slice is grey and equals the
+// sent grey over the background at the plane's opacity.
+async function planeChecks(page) {
+  const axes = ['axial', 'coronal', 'sagittal'];
+  let shown = await page.evaluate(() => meshpde.imageView.shown);
+  await setRange(page, 'img-window', await page.evaluate(() => +document.getElementById('img-window').max));
+  shown = await slicesShown(page, shown + 2);
+  await page.uncheck('#surface');
+  for (const [k, axis] of axes.entries()) {
+    for (const [j, other] of axes.entries()) await page.setChecked(`#img-${other}-show`, j === k);
+    await page.waitForTimeout(300);
+    const samples = await page.evaluate((kk) => {
+      const gl = document.querySelector('#viewport > canvas');
+      const c = document.createElement('canvas');
+      c.width = gl.width; c.height = gl.height;
+      const ctx = c.getContext('2d');
+      ctx.drawImage(gl, 0, 0);
+      const d = ctx.getImageData(0, 0, c.width, c.height).data, out = [];
+      for (const s of meshpde.imageView.planeSamples3d(kk, 9)) {
+        const q = meshpde.canvasPixelOf(s.p);
+        if (!q.inside) continue;
+        const i = 4 * (Math.min(Math.floor(q.y), c.height - 1) * c.width + Math.min(Math.floor(q.x), c.width - 1));
+        out.push({ sent: s.grey, rgb: [d[i], d[i + 1], d[i + 2]] });
+      }
+      return out;
+    }, k);
+    const background = 0xfa, opacity = 0.92;
+    const err = samples.map((s) => Math.abs(s.rgb[1] - (opacity * s.sent + (1 - opacity) * background)));
+    const colour = samples.map((s) => Math.abs(s.rgb[0] - s.rgb[1]) + Math.abs(s.rgb[1] - s.rgb[2]));
+    const spread = Math.max(...samples.map((s) => s.sent)) - Math.min(...samples.map((s) => s.sent));
+    // The volume reaches beyond the view: some of the grid's points are off screen.
+    check(`${axis} plane in 3D: enough of its points on screen to compare`, samples.length >= 12, String(samples.length));
+    const figures = `|rendered - sent| median ${quantile(err, 0.5)?.toFixed(1)}, 90th percentile ` +
+      `${quantile(err, 0.9)?.toFixed(1)} grey levels over ${samples.length} points (the slice spans ${spread})`;
+    console.log(`${axis} plane in 3D: ${figures}`);
+    check(`${axis} plane in 3D: the rendered grey is the server's slice`, quantile(err, 0.5) <= 6 && quantile(err, 0.9) <= 24 && spread > 40,
+          figures);
+    check(`${axis} plane in 3D: grey, not tinted`, quantile(colour, 0.5) <= 3, `median |r-g|+|g-b| ${quantile(colour, 0.5)}`);
+  }
+  for (const other of axes) await page.check(`#img-${other}-show`);
+  await page.check('#surface');
+  await page.waitForTimeout(200);
+}
+
 async function imageChecks() {
   const mesh = join(dataDir, 'aorta-closed-6k.vtp'), levelset = join(dataDir, 'aorta-levelset.mha');
   if (!existsSync(mesh) || !existsSync(levelset)) {
@@ -337,6 +390,15 @@ async function imageChecks() {
     await page.waitForFunction(() => meshpde.ready && meshpde.imageView.shown >= 3, null, { timeout: 30000 });
     check('the image panel shows with --image', await page.isVisible('#image-options'));
     check('three planes arrive', await page.evaluate(() => meshpde.imageView.slices.every((s) => s && s.width > 1)));
+    // They start through the middle of the mesh (not of the volume): each cuts the wall.
+    const through = await page.evaluate(() => ['axial', 'coronal', 'sagittal'].map((axis, k) => {
+      const n = [2, 1, 0][k], P = meshpde.positions;
+      let lo = Infinity, hi = -Infinity;
+      for (let i = n; i < P.length; i += 3) { lo = Math.min(lo, P[i]); hi = Math.max(hi, P[i]); }
+      const at = meshpde.imageView.slices[k].position;
+      return { axis, at, lo, hi, ok: Math.abs(at - (lo + hi) / 2) < 0.05 * (hi - lo) };
+    }));
+    check('the planes start through the middle of the mesh', through.every((t) => t.ok), JSON.stringify(through));
     check('the window slider stops above 0 (the server refuses a window of 0)',
           await page.evaluate(() => +document.getElementById('img-window').min > 0));
     // Window 7 at level 0: grey g shows the level set's value (g / 255 - 0.5) * 7 mm.
@@ -397,6 +459,7 @@ async function imageChecks() {
       if (process.env.VERBOSE) console.log(`${axis}: view ${medOn} / ${p90On}, held ${heldMed} / ${held90}, beside ${medOff}`);
     }
     await page.screenshot({ path: join(shots, 'editor-image.png') });
+    await planeChecks(page);
     // Zoom: the wheel over the 2D view magnifies about the cursor; the cut line still
     // lies on the zero level as drawn, now finer; a double click fits the slice again.
     {
@@ -593,6 +656,21 @@ try {
   const corrected = await positions(page);
   check('correct moves vertices', maxDiff(corrected, rest) > 0.5, `max move ${maxDiff(corrected, rest)}`);
   check('no self-intersections after a correction', (await page.evaluate(() => meshpde.intersections)) === 0);
+  // The stats panel shows what the correction did, as the reply says and as the
+  // positions show; the solvers' figures wait under a closed "details".
+  {
+    const shown = await page.evaluate(() => ({
+      visible: !document.getElementById('last-correction').hidden,
+      moved: document.getElementById('stat-moved').textContent, largest: +document.getElementById('stat-largest').textContent,
+      region: document.getElementById('stat-region').textContent, reply: meshpde.lastCorrect,
+      detailsOpen: document.getElementById('stat-details').open }));
+    const largest = maxDiffNorm(corrected, rest);
+    check('the stats panel shows the moved vertices, the largest move and the region', shown.visible &&
+          shown.moved === shown.reply.moved_vertices.toLocaleString() && shown.reply.moved_vertices > 0 &&
+          shown.region === shown.reply.region_vertices.toLocaleString() && shown.reply.region_vertices >= shown.reply.moved_vertices &&
+          Math.abs(shown.largest - largest) < 0.01 + 0.01 * largest && !shown.detailsOpen && await page.isHidden('#stat-solve'),
+          JSON.stringify({ ...shown, reply: undefined, largest_from_positions: largest }));
+  }
   await page.screenshot({ path: join(shots, 'editor-correct.png') });
   await page.click('#undo');
   await page.waitForTimeout(500);
@@ -634,6 +712,23 @@ try {
   await page.click('#undo');
   await page.waitForTimeout(500);
   check('undo after the dynamic correction', maxDiff(await positions(page), corrected) < 1e-5);
+  const statusLine = () => page.evaluate(() => ({ text: document.getElementById('status').textContent,
+    error: document.getElementById('status').classList.contains('error') }));
+  let line = await statusLine();
+  check('the status line says what undo did, in place of the correction', /^undone/.test(line.text) && !line.error,
+        JSON.stringify(line));
+  // The keys: Ctrl+Shift+Z redoes the dynamic correction, Ctrl+Z undoes it again.
+  await page.evaluate(() => document.activeElement?.blur());
+  let keyOks = await page.evaluate(() => meshpde.oks);
+  await page.keyboard.press('Control+Shift+Z');
+  await page.waitForFunction((n) => meshpde.oks > n && meshpde.lastOk === 'redo', keyOks, { timeout: 20000 }).catch(() => {});
+  await page.waitForTimeout(300);
+  check('Ctrl+Shift+Z redoes', maxDiff(await positions(page), corrected) > 0.3);
+  keyOks = await page.evaluate(() => meshpde.oks);
+  await page.keyboard.press('Control+Z');
+  await page.waitForFunction((n) => meshpde.oks > n && meshpde.lastOk === 'undo', keyOks, { timeout: 20000 }).catch(() => {});
+  await page.waitForTimeout(300);
+  check('Ctrl+Z undoes', maxDiff(await positions(page), corrected) < 1e-5);
 
   // ---------------------------------------------------------------- paint
   await page.check('input[name=tool][value=paint]');
@@ -645,6 +740,9 @@ try {
   await page.waitForTimeout(300);
   const range = await page.evaluate(() => [Math.min(...meshpde.field), Math.max(...meshpde.field)]);
   check('painted values spread over the mesh', range[1] - range[0] > 0.5, JSON.stringify(range));
+  line = await statusLine();
+  check('the status line says what paint did, nothing of the correction before it',
+        /^painted/.test(line.text) && !/corrected/.test(line.text) && !line.error, JSON.stringify(line));
   await page.screenshot({ path: join(shots, 'editor-paint.png') });
   // Vectors: drag from a vertex; the tangent field comes back as arrows.
   await page.check('input[name=paint-kind][value=vector]');
@@ -700,6 +798,35 @@ try {
   await page.waitForFunction((n) => meshpde.oks > n, okBefore, { timeout: 10000 }).catch(() => {});
   check('the session stays usable after bad messages', (await page.evaluate(() => meshpde.lastOk)) === 'ping');
 
+  // ---------------------------------------------------------------- views
+  // Keys 1 to 6 are the patient's standard views (the mesh is in LPS: anterior is -y),
+  // Home the view the mesh opened with; the mesh stays drawn in each.
+  {
+    await page.evaluate(() => document.activeElement?.blur());
+    const home = await page.evaluate(() => meshpde.cameraDirection());
+    const near = (a, b) => a.every((x, i) => Math.abs(x - b[i]) < 1e-6);
+    const expected = { 1: [[0, -1, 0], [0, 0, 1]], 2: [[0, 1, 0], [0, 0, 1]], 3: [[1, 0, 0], [0, 0, 1]],
+                       4: [[-1, 0, 0], [0, 0, 1]], 5: [[0, 0, 1], [0, -1, 0]], 6: [[0, 0, -1], [0, -1, 0]] };
+    for (const [key, [dir, up]] of Object.entries(expected)) {
+      await page.keyboard.press(key);
+      await page.waitForTimeout(150);
+      const got = await page.evaluate(() => [meshpde.view, meshpde.cameraDirection(), meshpde.cameraUp()]);
+      const drawn = await drawnFraction(page);
+      check(`key ${key}: the ${got[0]} view, looking from ${dir}, ${up} up, the mesh drawn`,
+            near(got[1], dir) && near(got[2], up) && drawn > 0.01, JSON.stringify([got, drawn]));
+    }
+    await page.screenshot({ path: join(shots, 'editor-view-inferior.png') });
+    await page.keyboard.press('Home');
+    await page.waitForTimeout(150);
+    const back = await page.evaluate(() => meshpde.cameraDirection());
+    const homeDir = [0.3, 0.4, 1].map((x) => x / Math.hypot(0.3, 0.4, 1));
+    check('Home: the view the mesh opens with', near(back, homeDir), JSON.stringify([home, back]));
+    // Every control says what it does: a title on itself or on its label.
+    const untitled = await page.evaluate(() => [...document.querySelectorAll('input, select, button')]
+      .filter((e) => !e.title && !e.closest('[title]')).map((e) => e.id || e.name || e.outerHTML.slice(0, 60)));
+    check('every control has a tooltip', untitled.length === 0, JSON.stringify(untitled));
+  }
+
   // ---------------------------------------------------------------- upload limit
   const big = await page.evaluate(async () => {
     const body = new Uint8Array(2 * 1024 * 1024);
@@ -711,6 +838,13 @@ try {
     }
   });
   check('uploads over the limit are refused', big === 413 || big === -1, `status ${big}`);
+  const unknown = await page.evaluate(async () => {
+    const r = await fetch(`/api/upload?client=${meshpde.client}&name=notes.txt`, { method: 'POST', body: 'hello' });
+    return { status: r.status, error: (await r.json()).error };
+  });
+  check('an upload of another format lists every format the page opens', unknown.status === 400 &&
+        ['notes.txt', '.obj', '.off', '.ply', '.stl', '.vtp', '.vtk', '.mha', '.nii.gz', '.nrrd', '.zip'].every((w) => unknown.error.includes(w)),
+        JSON.stringify(unknown));
   check('the page survives a refused upload', (await page.evaluate(() => meshpde.vertexCount)) === 2562);
 
   // ---------------------------------------------------------------- a volume uploaded beside the mesh
