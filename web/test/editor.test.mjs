@@ -714,6 +714,9 @@ try {
   check('undo after the dynamic correction', maxDiff(await positions(page), corrected) < 1e-5);
   const statusLine = () => page.evaluate(() => ({ text: document.getElementById('status').textContent,
     error: document.getElementById('status').classList.contains('error') }));
+  // (The reply may come after the positions: the sanitizer build is slow.)
+  await page.waitForFunction(() => /^undone/.test(document.getElementById('status').textContent), null,
+                             { timeout: 20000 }).catch(() => {});
   let line = await statusLine();
   check('the status line says what undo did, in place of the correction', /^undone/.test(line.text) && !line.error,
         JSON.stringify(line));
@@ -722,12 +725,18 @@ try {
   let keyOks = await page.evaluate(() => meshpde.oks);
   await page.keyboard.press('Control+Shift+Z');
   await page.waitForFunction((n) => meshpde.oks > n && meshpde.lastOk === 'redo', keyOks, { timeout: 20000 }).catch(() => {});
-  await page.waitForTimeout(300);
+  const movedFrom = (r, d) => page.waitForFunction(([ref, dist]) => {
+    const P = meshpde.positions;
+    let m = 0;
+    for (let i = 0; i < P.length; ++i) m = Math.max(m, Math.abs(P[i] - ref[i]));
+    return dist > 0 ? m > dist : m < -dist;
+  }, [r, d], { timeout: 20000 }).catch(() => {});
+  await movedFrom(corrected, 0.3);
   check('Ctrl+Shift+Z redoes', maxDiff(await positions(page), corrected) > 0.3);
   keyOks = await page.evaluate(() => meshpde.oks);
   await page.keyboard.press('Control+Z');
   await page.waitForFunction((n) => meshpde.oks > n && meshpde.lastOk === 'undo', keyOks, { timeout: 20000 }).catch(() => {});
-  await page.waitForTimeout(300);
+  await movedFrom(corrected, -1e-5);
   check('Ctrl+Z undoes', maxDiff(await positions(page), corrected) < 1e-5);
 
   // ---------------------------------------------------------------- paint
@@ -740,6 +749,8 @@ try {
   await page.waitForTimeout(300);
   const range = await page.evaluate(() => [Math.min(...meshpde.field), Math.max(...meshpde.field)]);
   check('painted values spread over the mesh', range[1] - range[0] > 0.5, JSON.stringify(range));
+  await page.waitForFunction(() => /^painted/.test(document.getElementById('status').textContent), null,
+                             { timeout: 20000 }).catch(() => {});
   line = await statusLine();
   check('the status line says what paint did, nothing of the correction before it',
         /^painted/.test(line.text) && !/corrected/.test(line.text) && !line.error, JSON.stringify(line));
