@@ -246,12 +246,18 @@ TEST(DragSession, BadRequestsAreRefused) {
   EXPECT_THROW((void)s.displacements(Eigen::MatrixXd::Zero(2, 3)), InputError);
 }
 
-TEST(DragSession, EditorPreviewFollowsTheHandleAndCorrectReplacesIt) {
-  const GeneratedMesh g = icosphere(4);
+namespace {
+// A generated mesh as the data an EditorSession opens.
+MeshData as_mesh_data(const GeneratedMesh& g) {
   MeshData data;
   data.V = g.V;
   data.F = g.F;
-  EditorSession s(data);
+  return data;
+}
+}  // namespace
+
+TEST(DragSession, EditorPreviewFollowsTheHandleAndCorrectReplacesIt) {
+  EditorSession s(as_mesh_data(icosphere(4)));
   const Mesh& mesh = s.mesh();
   int handle = 0;
   mesh.positions().col(2).maxCoeff(&handle);
@@ -304,11 +310,7 @@ TEST(DragSession, EditorPreviewFollowsTheHandleAndCorrectReplacesIt) {
 }
 
 TEST(DragSession, EditorSessionsShareOneOperatorBundlePerStateOfTheSurface) {
-  const GeneratedMesh g = icosphere(3);
-  MeshData data;
-  data.V = g.V;
-  data.F = g.F;
-  EditorSession s(data);
+  EditorSession s(as_mesh_data(icosphere(3)));
   EXPECT_EQ(s.operator_builds(), 0);
   s.paint(0, 1.0, 0, 1);
   s.paint(10, -1.0, 0, 1);
@@ -334,11 +336,7 @@ TEST(DragSession, EditorSessionsShareOneOperatorBundlePerStateOfTheSurface) {
 }
 
 TEST(DragSession, EditorPaintKeepsOneFactorAndEqualsAFreshInterpolation) {
-  const GeneratedMesh g = icosphere(3);
-  MeshData data;
-  data.V = g.V;
-  data.F = g.F;
-  EditorSession s(data);
+  EditorSession s(as_mesh_data(icosphere(3)));
   std::map<int, double> painted;
   auto click = [&](int v, double x, double g1, double g2) {
     s.paint(v, x, g1, g2);
@@ -366,10 +364,7 @@ TEST(DragSession, EditorPreviewEqualsTheReleasedCorrectionWithStiffnessOnADented
   // A generated vessel with a dent, a stiffer band painted on it, a drag over a region
   // much smaller than the mesh (so both solve on the region's copy): the preview at the
   // last mouse position equals the correction applied on release.
-  const GeneratedMesh g = y_bifurcation(BifurcationParams{.cell = 0.7, .dent = true});
-  MeshData data;
-  data.V = g.V;
-  data.F = g.F;
+  const MeshData data = as_mesh_data(y_bifurcation(BifurcationParams{.cell = 0.7, .dent = true}));
   EditorSession s(data);
   const Mesh& mesh = s.mesh();
   const Eigen::Vector3d target(2.5, 0, -10);
@@ -401,10 +396,7 @@ TEST(DragSession, TheEditorsLaplacianChoiceReachesEveryTool) {
   // serve --laplacian: the session's operators (paint, heat, probe) and its corrections
   // and previews use the kind chosen, not Auto's pick. An icosphere is well shaped, so
   // Auto would take the cotangent operator everywhere.
-  const GeneratedMesh g = icosphere(3);
-  MeshData data;
-  data.V = g.V;
-  data.F = g.F;
+  const MeshData data = as_mesh_data(icosphere(3));
   for (const LaplacianKind kind : {LaplacianKind::Auto, LaplacianKind::IntrinsicDelaunay}) {
     EditorSession s(data, nullptr, Space::LPS, kind);
     EXPECT_EQ(s.laplacian(), kind);

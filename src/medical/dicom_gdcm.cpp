@@ -50,8 +50,12 @@ std::string decode_jpeg_with_gdcm(const DicomFile& d, const std::string& stream,
     // suspended decode without releasing the decoder (its memory leaks). Behind the
     // stream: end-of-image markers for longer than any marker segment can skip
     // (65,535 bytes), so every read past the end finds one and the decode finishes.
-    std::string padded = stream;
-    for (int k = 0; k < 32768 + 2; ++k) padded += "\xff\xd9";
+    static const std::string tail = [] {
+      std::string t;
+      for (int k = 0; k < 32768 + 2; ++k) t += "\xff\xd9";
+      return t;
+    }();
+    const std::string padded = stream + tail;
     gdcm::Fragment frag;
     frag.SetByteValue(padded.data(), static_cast<std::uint32_t>(padded.size()));
     sq->AddFragment(frag);
