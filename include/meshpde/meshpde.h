@@ -20,6 +20,7 @@
 #include "meshpde/io/mesh_io.h"
 #include "meshpde/mesh/field.h"
 #include "meshpde/mesh/generators.h"
+#include "meshpde/mesh/geodesic_distance.h"
 #include "meshpde/mesh/mesh.h"
 #include "meshpde/mesh/regions.h"
 #include "meshpde/mesh/self_intersections.h"

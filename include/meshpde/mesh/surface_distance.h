@@ -1,6 +1,7 @@
 // Distances between triangle surfaces: point to surface and the symmetric
 // Hausdorff distance, for comparing corrections (the resolution-independence
-// tests) and for users checking a result against a reference.
+// tests) and for users checking a result against a reference; points on a surface
+// (a triangle and barycentric coordinates), found as the closest to a point in space.
 //
 // The Hausdorff distance is sampled at every vertex and triangle centroid of each
 // surface and measured exactly to the other surface (closest point on a triangle,
@@ -10,10 +11,33 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <span>
+#include <vector>
 
 #include "meshpde/mesh/mesh.h"
 
 namespace meshpde {
+
+/// A point on a triangle mesh: triangle `face` and barycentric coordinates `bary` (one
+/// weight per corner F(face, k), each >= 0, summing to 1). It stays on the surface when
+/// the vertices move, which is what a handle needs.
+struct SurfacePoint {
+  int face = -1;
+  Eigen::Vector3d bary = Eigen::Vector3d(1, 0, 0);
+};
+
+/// The point's position: the barycentric combination of its triangle's corners.
+Eigen::Vector3d position(const Mesh& mesh, const SurfacePoint& point);
+
+/// Barycentric coordinates (weights of a, b, c) of the point of the closed triangle
+/// (a, b, c) nearest to p.
+Eigen::Vector3d closest_point_on_triangle(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                                          const Eigen::Vector3d& c);
+
+/// The surface point nearest to each of `points` (a bounding-volume hierarchy built once
+/// over the triangles; of equally near ones, the first found). \throw InputError for a mesh
+/// without triangles or a point that is not finite (the message gives its index).
+std::vector<SurfacePoint> closest_surface_points(const Mesh& mesh, std::span<const Eigen::Vector3d> points);
 
 /// Distance from point p to the closed triangle (a, b, c).
 double point_triangle_distance(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b,

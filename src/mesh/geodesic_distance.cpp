@@ -1,0 +1,141 @@
+#include "meshpde/mesh/geodesic_distance.h"
+
+#include <fmt/format.h>
+
+#include <cmath>
+#include <queue>
+
+#include "meshpde/core/errors.h"
+#include "meshpde/mesh/topology.h"
+
+namespace meshpde {
+
+namespace {
+
+// c's distance through the triangle (a, b, c) from a point source at distances da from a
+// and db from b, unfolded across ab away from c: |S c| when the segment S c crosses the
+// edge ab, else infinity (the path then runs through a or b, which the edge candidates
+// give).
+double through_triangle(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c, double da,
+                        double db) {
+  const Eigen::Vector3d ab = b - a;
+  const double L = ab.norm();
+  if (!(L > 0)) return std::numeric_limits<double>::infinity();
+  const Eigen::Vector3d ex = ab / L;
+  const Eigen::Vector3d ac = c - a;
+  const double cx = ac.dot(ex);
+  const double cy = (ac - cx * ex).norm();  // c on the +y side
+  if (!(cy > 0)) return std::numeric_limits<double>::infinity();
+  const double sx = (da * da - db * db + L * L) / (2 * L);
+  const double sy2 = da * da - sx * sx;
+  if (sy2 < 0) return std::numeric_limits<double>::infinity();  // da + db < L: no such source
+  const double sy = -std::sqrt(sy2);
+  // Where S c meets the line of ab (y = 0).
+  const double t = -sy / (cy - sy);
+  const double x = sx + t * (cx - sx);
+  if (x < 0 || x > L) return std::numeric_limits<double>::infinity();
+  return std::hypot(cx - sx, cy - sy);
+}
+
+// Most sweeps after the first pass (each one a pass over the vertices reached).
+constexpr int kGeodesicSweeps = 16;
+
+}  // namespace
+
+std::vector<std::pair<int, double>> geodesic_distances_from(const Mesh& mesh, const GeodesicSources& sources,
+                                                            double radius) {
+  const int nv = mesh.num_vertices();
+  const auto& V = mesh.positions();
+  const auto& F = mesh.triangles();
+  std::vector<double> dist(static_cast<std::size_t>(nv), std::numeric_limits<double>::infinity());
+  std::vector<char> done(static_cast<std::size_t>(nv), 0);
+  std::priority_queue<std::pair<double, int>, std::vector<std::pair<double, int>>, std::greater<>> queue;
+  auto offer = [&](int v, double d) {
+    if (!done[static_cast<std::size_t>(v)] && d < dist[static_cast<std::size_t>(v)] && d < radius) {
+      dist[static_cast<std::size_t>(v)] = d;
+      queue.emplace(d, v);
+    }
+  };
+  for (const int v : sources.vertices) {
+    if (v < 0 || v >= nv)
+      throw InputError(fmt::format("source vertex {} does not exist (the mesh has {} vertices)", v, nv));
+    offer(v, 0.0);
+  }
+  for (std::size_t i = 0; i < sources.points.size(); ++i) {
+    const SurfacePoint& p = sources.points[i];
+    if (p.face < 0 || p.face >= mesh.num_faces())
+      throw InputError(fmt::format("source point {}: triangle {} does not exist (the mesh has {} triangles)", i, p.face,
+                                   mesh.num_faces()));
+    if (!p.bary.allFinite() || p.bary.minCoeff() < -1e-9 || std::abs(p.bary.sum() - 1) > 1e-9)
+      throw InputError(fmt::format("source point {}: barycentric coordinates ({}, {}, {}) must be >= 0 and sum to 1", i,
+                                   p.bary[0], p.bary[1], p.bary[2]));
+    const Eigen::Vector3d x = position(mesh, p);
+    for (int k = 0; k < 3; ++k) offer(F(p.face, k), (V.row(F(p.face, k)).transpose() - x).norm());
+  }
+  const VertexFaces around = vertex_faces(mesh);
+  // c's best candidate through the triangles around it, from the values of its
+  // neighbours that pass `known`.
+  auto candidate = [&](int c, auto&& known) {
+    const Eigen::Vector3d pc = V.row(c).transpose();
+    double best = std::numeric_limits<double>::infinity();
+    for (int q = around.offsets[static_cast<std::size_t>(c)]; q < around.offsets[static_cast<std::size_t>(c) + 1];
+         ++q) {
+      const int f = around.faces[static_cast<std::size_t>(q)];
+      const int k = F(f, 0) == c ? 0 : F(f, 1) == c ? 1 : 2;
+      const int a = F(f, (k + 1) % 3), b = F(f, (k + 2) % 3);
+      const bool ka = a != c && known(a), kb = b != c && known(b);
+      const double da = dist[static_cast<std::size_t>(a)], db = dist[static_cast<std::size_t>(b)];
+      if (ka) best = std::min(best, da + (V.row(a).transpose() - pc).norm());
+      if (kb) best = std::min(best, db + (V.row(b).transpose() - pc).norm());
+      if (ka && kb && a != b)
+        best = std::min(best, through_triangle(V.row(a).transpose(), V.row(b).transpose(), pc, da, db));
+    }
+    return best;
+  };
+  auto is_done = [&](int v) { return done[static_cast<std::size_t>(v)] != 0; };
+  std::vector<std::pair<int, double>> out;
+  while (!queue.empty()) {
+    const auto [d, v] = queue.top();
+    queue.pop();
+    if (done[static_cast<std::size_t>(v)] || d > dist[static_cast<std::size_t>(v)]) continue;  // stale
+    done[static_cast<std::size_t>(v)] = 1;
+    out.emplace_back(v, d);
+    // The triangles at v update their other corners, now that v is known.
+    for (int q = around.offsets[static_cast<std::size_t>(v)]; q < around.offsets[static_cast<std::size_t>(v) + 1];
+         ++q) {
+      const int f = around.faces[static_cast<std::size_t>(q)];
+      for (int k = 0; k < 3; ++k)
+        if (const int c = F(f, k); c != v && !done[static_cast<std::size_t>(c)]) offer(c, candidate(c, is_done));
+    }
+  }
+  // Dijkstra's order makes a vertex final before an obtuse triangle's far corner, which
+  // the straight line to it crosses, is known: sweeps over the vertices reached, in that
+  // order, give each the better candidates of its triangles until nothing changes (a
+  // few sweeps; sources keep their values).
+  std::vector<char> fixed(static_cast<std::size_t>(nv), 0);
+  for (const int v : sources.vertices) fixed[static_cast<std::size_t>(v)] = 1;
+  for (const auto& p : sources.points)
+    for (int k = 0; k < 3; ++k) fixed[static_cast<std::size_t>(F(p.face, k))] = 1;
+  for (int sweep = 0; sweep < kGeodesicSweeps; ++sweep) {
+    bool changed = false;
+    for (auto& [v, d] : out) {
+      if (fixed[static_cast<std::size_t>(v)]) continue;
+      const double better = candidate(v, is_done);
+      if (better < d * (1 - 1e-14)) {
+        d = dist[static_cast<std::size_t>(v)] = better;
+        changed = true;
+      }
+    }
+    if (!changed) break;
+  }
+  std::stable_sort(out.begin(), out.end(), [](const auto& x, const auto& y) { return x.second < y.second; });
+  return out;
+}
+
+Eigen::VectorXd geodesic_distance(const Mesh& mesh, const GeodesicSources& sources, double radius) {
+  Eigen::VectorXd out = Eigen::VectorXd::Constant(mesh.num_vertices(), std::numeric_limits<double>::infinity());
+  for (const auto& [v, d] : geodesic_distances_from(mesh, sources, radius)) out[v] = d;
+  return out;
+}
+
+}  // namespace meshpde
