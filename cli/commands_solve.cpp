@@ -82,9 +82,10 @@ std::map<std::string, Eigen::VectorXd> displacement_fields(const DragResult& r) 
 }
 
 struct CorrectArgs {
-  std::string mesh, out, method = "fem", boundary = "clamp", laplacian = "auto", stiffness, image, series, space,
+  std::string mesh, out, method = "fem", boundary = "smooth", laplacian = "auto", stiffness, image, series, space,
                          solver = "auto", units = "mm", caps = "labels";
-  std::vector<std::string> vertices, moves, brushes;
+  std::vector<std::string> vertices, points, moves, brushes;
+  double handle_radius = -1;
   int rings = 0, steps = 50, cube = 0, passes = 4;
   double radius = 0, g1 = 0, g2 = 1, tol = 1e-10, image_weight = 30.0, image_sigma = 1.0, search = 3.0;
   std::string mass = "0.1", elasticity = "0.9", viscosity = "0.6";  // a number or a vertex field's name
@@ -144,9 +145,10 @@ void tissue_fields(const Mesh& mesh, const MeshData& d, const CorrectArgs& a, do
 
 void run_correct(const CorrectArgs& a) {
   if (a.radius <= 0 && a.rings <= 0) throw InputError("give --radius MM or --rings K");
-  if (a.vertices.size() != a.moves.size())
-    throw InputError(
-        fmt::format("{} --vertex but {} --move: give one displacement per handle", a.vertices.size(), a.moves.size()));
+  if (a.vertices.size() + a.points.size() != a.moves.size())
+    throw InputError(fmt::format("{} --vertex and {} --point but {} --move: give one displacement per handle",
+                                 a.vertices.size(), a.points.size(), a.moves.size()));
+  if (a.vertices.empty() && a.points.empty()) throw InputError("give a handle: --vertex V or --point X,Y,Z");
   MeshData data;
   const Mesh mesh = load_mesh(a.mesh, &data);
   warn_about_shape(mesh, a.mesh);
@@ -155,11 +157,24 @@ void run_correct(const CorrectArgs& a) {
   if (const std::string w = units_warning(mesh, p.units, a.mesh); !w.empty()) fmt::print(stderr, "warning: {}\n", w);
   std::vector<int> handle_vertices;
   for (const auto& spec : a.vertices) handle_vertices.push_back(parse_vertex(mesh, spec, "--vertex"));
+  // Moves pair with the --vertex handles first, then the --point handles.
+  const std::vector<std::string> vertex_moves(a.moves.begin(), a.moves.begin() + static_cast<long>(a.vertices.size())),
+      point_moves(a.moves.begin() + static_cast<long>(a.vertices.size()), a.moves.end());
+  std::vector<Eigen::Vector3d> points;
+  for (const auto& spec : a.points) {
+    try {
+      points.push_back(parse_point_spec(spec));
+    } catch (const InputError& e) {
+      throw InputError(fmt::format("--point: {}", e.what()));
+    }
+  }
   try {
-    p.handles = parse_handles(mesh, handle_vertices, a.moves);
+    p.handles = parse_handles(mesh, handle_vertices, vertex_moves);
+    for (auto& h : parse_point_handles(mesh, points, point_moves)) p.handles.push_back(std::move(h));
   } catch (const InputError& e) {
     throw InputError(fmt::format("--move: {}", e.what()));
   }
+  p.handle_radius = a.handle_radius;
   p.radius = a.radius;
   p.rings = a.rings;
   p.method = parse_correction_method(a.method);
@@ -226,6 +241,7 @@ void run_correct(const CorrectArgs& a) {
          {"substeps", r.substeps},
          {"intersection_action", r.intersection_action},
          {"handles", p.handles.size()},
+         {"handle_radius", r.handle_radius},
          {"solver", to_string(r.solver)},
          {"units", to_string(p.units)}};
     nlohmann::json held = nlohmann::json::array();
@@ -235,6 +251,19 @@ void run_correct(const CorrectArgs& a) {
                       {"vertices", c.vertices.size()},
                       {"centre", {c.centre.x(), c.centre.y(), c.centre.z()}},
                       {"normal", {c.normal.x(), c.normal.y(), c.normal.z()}}});
+    nlohmann::json handle_points = nlohmann::json::array();
+    for (const CorrectionHandle& h : p.handles) {
+      nlohmann::json hj = {{"vertex", h.vertex},
+                           {"displacement", {h.displacement.x(), h.displacement.y(), h.displacement.z()}}};
+      if (h.point) {
+        const Eigen::Vector3d x = position(mesh, *h.point);
+        hj["triangle"] = h.point->face;
+        hj["barycentric"] = {h.point->bary.x(), h.point->bary.y(), h.point->bary.z()};
+        hj["position"] = {x.x(), x.y(), x.z()};
+      }
+      handle_points.push_back(hj);
+    }
+    j["handle_points"] = handle_points;
     j["caps"] = {{"rule", a.caps},
                  {"label_array", label_array.empty() ? nlohmann::json() : nlohmann::json(label_array)},
                  {"held_vertices", p.held.size()},
@@ -281,15 +310,21 @@ void add_solve_commands(CLI::App& app) {
     auto a = std::make_shared<CorrectArgs>();
     cmd->add_option("MESH", a->mesh, "Mesh file (.obj .off .ply .stl .vtp .vtk)")->required();
     cmd->add_option("--vertex", a->vertices,
-                    "Handle vertex: index (0-based) or @X,Y,Z (nearest; in the mesh's units); repeat for several")
-        ->required();
+                    "Handle vertex: index (0-based) or @X,Y,Z (nearest; in the mesh's units); repeat for several");
+    cmd->add_option("--point", a->points,
+                    "Handle at the surface point nearest to X,Y,Z (in the mesh's units): that point moves, not a "
+                    "vertex; repeatable, mixable with --vertex (moves pair with the --vertex handles first)");
+    cmd->add_option("--handle-radius", a->handle_radius,
+                    "Handle size in mm: the surface within it carries the drag's force as a smooth bump; 0: a single "
+                    "point. Default: a quarter of --radius with the smooth boundary, 0 with clamp and fade");
     cmd->add_option("--units", a->units,
                     "Unit of the mesh's coordinates: mm | cm | m. Lengths on the command line stay in mm; the output "
                     "is written in the mesh's unit")
         ->check(CLI::IsMember({"mm", "cm", "m"}))
         ->capture_default_str();
     cmd->add_option("--move", a->moves,
-                    "Displacement DX,DY,DZ in mm, or normal:D (D mm along the outward normal), one per --vertex")
+                    "Displacement DX,DY,DZ in mm, or normal:D (D mm along the outward normal), one per --vertex and "
+                    "--point")
         ->required();
     auto* radius = cmd->add_option("--radius", a->radius, "Region of influence: distance in mm from a handle");
     auto* rings =
@@ -299,9 +334,10 @@ void add_solve_commands(CLI::App& app) {
         ->check(CLI::IsMember({"fem", "springs"}))
         ->capture_default_str();
     cmd->add_option("--boundary", a->boundary,
-                    "How a fem region ends: clamp (held at the radius) | fade (an elastic foundation from 0.6 R, "
-                    "free to 2 R: closer agreement between resolutions)")
-        ->check(CLI::IsMember({"clamp", "fade"}))
+                    "How a fem region ends: smooth (the surface within R, measured on the surface; the displacement "
+                    "and its slope fall to zero at R, the same on any triangulation) | clamp (held beyond R - h by "
+                    "edge paths: the rule before smooth) | fade (an elastic foundation from 0.6 R, free to 2 R)")
+        ->check(CLI::IsMember({"smooth", "clamp", "fade"}))
         ->capture_default_str();
     cmd->add_flag("--dynamic", a->dynamic,
                   "Settle like tissue (mass, viscosity, elasticity) instead of a static solve (springs: the thesis's "

@@ -58,6 +58,12 @@ Eigen::Vector3d vec3(const nlohmann::json& j, const char* key) {
   if (!v.allFinite()) throw InputError(fmt::format("'{}' is not finite", key));
   return v;
 }
+// The surface point nearest to the message's "point" [x, y, z] (mm, the page's frame).
+SurfacePoint surface_point_of(const Mesh& mesh, const nlohmann::json& j) {
+  const Eigen::Vector3d x = vec3(j, "point");
+  return closest_surface_points(mesh, std::span<const Eigen::Vector3d>(&x, 1))[0];
+}
+
 int vertex_of(const nlohmann::json& j) {
   if (!j.contains("vertex") || !j["vertex"].is_number_integer()) throw InputError("'vertex' must be an integer");
   return j["vertex"].get<int>();
@@ -366,7 +372,11 @@ void EditorPage::handle(const std::string& payload, bool binary) {
       reply["brushed"] = to_string(property);
     } else if (type == "drag_begin") {
       const double radius = number(j, "radius", 8);
-      reply["setup_ms"] = s.drag_begin(vertex_of(j), radius, tissue_.stiffness, tissue_.tissue);
+      // A picked surface point (the page sends it) gets the correction's default rule; a
+      // vertex alone, the clamp with the vertex held.
+      reply["setup_ms"] = j.contains("point")
+                              ? s.drag_begin(surface_point_of(s.mesh(), j), radius, tissue_.stiffness, tissue_.tissue)
+                              : s.drag_begin(vertex_of(j), radius, tissue_.stiffness, tissue_.tissue);
       reply["region_vertices"] = s.drag_region_vertices();
     } else if (type == "drag_move") {
       // Moves after a refused drag_begin (a region too large to preview) are dropped
@@ -378,8 +388,17 @@ void EditorPage::handle(const std::string& payload, bool binary) {
       s.drag_end();
     } else if (type == "correct") {
       CorrectionParams p;
-      p.handles = {{vertex_of(j), vec3(j, "move")}};
       p.radius = number(j, "radius", 8);
+      // The rule of the drag preview (EditorSession::drag_begin), so that the release
+      // equals what the page showed: at a picked surface point, the default rule; at a
+      // vertex alone, the clamp with the vertex held.
+      if (j.contains("point")) {
+        p.handles = {CorrectionHandle(s.mesh(), surface_point_of(s.mesh(), j), vec3(j, "move"))};
+      } else {
+        p.handles = {{vertex_of(j), vec3(j, "move")}};
+        p.boundary = RegionBoundary::Clamp;
+        p.handle_radius = 0;
+      }
       if (!(p.radius > 0)) throw InputError("radius must be > 0");
       p.method = parse_correction_method(j.value("method", std::string("fem")));
       if (p.method == CorrectionMethod::Springs) {

@@ -175,6 +175,33 @@ import sys
 v = lambda f: [list(map(float, l.split()[1:4])) for l in open(f) if l.startswith('v ')]
 a, b = v('$T/umm.obj'), v('$T/ucm.obj')
 sys.exit(not (len(a) == len(b) and max(abs(x - 10 * y) for p, q in zip(a, b) for x, y in zip(p, q)) < 1e-9))"
+# correct --point: the surface point nearest X,Y,Z moves by the move (not a vertex); the
+# JSON gives its triangle and barycentric coordinates; the default boundary is smooth with
+# a handle of a quarter of the radius; nothing at or beyond the radius moves
+"$M" correct "$T/tmm.obj" --point 5,0.3,30.2 --move 1,0,0.5 --radius 8 -o "$T/upt.obj" --json >"$T/upt.json" \
+  2>"$T/err" || bad "correct --point"
+check "correct --point reports smooth and the handle size" python3 -c "
+import json, sys
+d = json.load(open('$T/upt.json'))
+h = d['handle_points'][0]
+sys.exit(not (d['boundary'] == 'smooth' and abs(d['handle_radius'] - 2.0) < 1e-12 and 'triangle' in h
+              and abs(sum(h['barycentric']) - 1) < 1e-9 and min(h['barycentric']) >= 0))"
+check "the handle point moved by the move, nothing beyond the radius moved" python3 -c "
+import json, math, sys
+v = lambda f: [list(map(float, l.split()[1:4])) for l in open(f) if l.startswith('v ')]
+t = lambda f: [[int(x.split('/')[0]) - 1 for x in l.split()[1:4]] for l in open(f) if l.startswith('f ')]
+a, b, F = v('$T/tmm.obj'), v('$T/upt.obj'), t('$T/tmm.obj')
+h = json.load(open('$T/upt.json'))['handle_points'][0]
+tri, w = F[h['triangle']], h['barycentric']
+moved = [sum(w[k] * (b[tri[k]][c] - a[tri[k]][c]) for k in range(3)) for c in range(3)]
+far = max(math.dist(p, q) for p, q in zip(a, b) if math.dist(p, h['position']) > 8.01)
+sys.exit(not (max(abs(x - y) for x, y in zip(moved, [1, 0, 0.5])) < 1e-9 and far == 0))"
+"$M" correct "$T/tmm.obj" --point 5,0,30 --vertex 600 --move 1,0,0 --radius 8 -o "$T/x.obj" 2>"$T/err" >/dev/null
+check "a --vertex and a --point need two moves" grep -q "1 --vertex and 1 --point but 1 --move" "$T/err"
+"$M" correct "$T/tmm.obj" --point 5,zero,30 --move 1,0,0 --radius 8 -o "$T/x.obj" 2>"$T/err" >/dev/null
+check "a bad --point is named" grep -q -- "--point" "$T/err"
+"$M" correct "$T/tmm.obj" --vertex 600 --move 1,0,0.5 --radius 8 --solver global -o "$T/x.obj" 2>"$T/err" >/dev/null
+check "the global solver asks for the clamp" grep -q "clamp boundary" "$T/err"
 # correct --boundary fade: reported, and refused with rings
 "$M" correct "$T/tmm.obj" --vertex 600 --move 1,0,0.5 --radius 8 --boundary fade -o "$T/ufade.obj" --json \
   >"$T/ufade.json" 2>"$T/err" || bad "correct --boundary fade"

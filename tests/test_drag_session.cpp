@@ -21,6 +21,7 @@
 #include "meshpde/core/parallel.h"
 #include "meshpde/mesh/generators.h"
 #include "meshpde/mesh/regions.h"
+#include "meshpde/mesh/surface_distance.h"
 #include "meshpde/mesh/topology.h"
 #include "meshpde/operators/fem_operators.h"
 #include "meshpde/pde/global_bilaplacian.h"
@@ -276,6 +277,7 @@ TEST(DragSession, EditorPreviewFollowsTheHandleAndCorrectReplacesIt) {
   CorrectionParams release;
   release.handles = {{handle, offset}};
   release.radius = 0.6;
+  release.boundary = RegionBoundary::Clamp;  // the preview's rule
   const CorrectionResult expected = correct_vessel(mesh, release);
   EXPECT_LE((P - expected.V).cwiseAbs().maxCoeff(), 1e-9 * offset.norm());
   EXPECT_THROW(s.drag_move(Eigen::Vector3d(NAN, 0, 0)), InputError);
@@ -285,6 +287,7 @@ TEST(DragSession, EditorPreviewFollowsTheHandleAndCorrectReplacesIt) {
   CorrectionParams p;
   p.handles = {{handle, offset}};
   p.radius = 0.6;
+  p.boundary = RegionBoundary::Clamp;
   const CorrectionResult r = s.correct(p);
   EXPECT_FALSE(s.dragging());
   EXPECT_LE((s.display_positions() - r.V).cwiseAbs().maxCoeff(), 0.0);
@@ -381,6 +384,7 @@ TEST(DragSession, EditorPreviewEqualsTheReleasedCorrectionWithStiffnessOnADented
   CorrectionParams p;
   p.handles = {{handle, offset}};
   p.radius = radius;
+  p.boundary = RegionBoundary::Clamp;  // the preview's rule
   p.stiffness = stiffness;
   const CorrectionResult r = s.correct(p);
   EXPECT_EQ(r.new_self_intersections, 0);
@@ -403,6 +407,7 @@ TEST(DragSession, TheEditorsLaplacianChoiceReachesEveryTool) {
     CorrectionParams p;
     p.handles = {{0, Eigen::Vector3d(0, 0, 0.1)}};
     p.radius = 0.5;
+    p.boundary = RegionBoundary::Clamp;  // the preview's rule
     const CorrectionResult r = s.correct(p);
     EXPECT_EQ(r.laplacian, kind == LaplacianKind::Auto ? LaplacianKind::Cotan : LaplacianKind::IntrinsicDelaunay);
     // The preview solves with the same operator as the release: they agree.
@@ -412,4 +417,46 @@ TEST(DragSession, TheEditorsLaplacianChoiceReachesEveryTool) {
     EXPECT_LE((s.display_positions() - r.V).cwiseAbs().maxCoeff(), 1e-9);
     s.drag_end();
   }
+}
+
+// A drag at a surface point (what the page sends): the preview uses the correction's
+// default rule (the point moves, the region on the surface, the smooth boundary, a
+// handle of a quarter of the radius) and equals the release with that point handle to
+// 1e-9 of the drag; with a stiffness field and a labelled cap held too.
+TEST(DragSession, APointDragPreviewEqualsTheReleasedPointCorrection) {
+  const GeneratedMesh g = tube(5.0, 60.0, 50, 32, true);
+  MeshData data = as_mesh_data(g);
+  data.cell_arrays["CellEntityIds"] = DataArray{g.face_labels.cast<double>(), "Int32"};
+  EditorSession s(data);
+  ASSERT_FALSE(s.held_vertices().empty());
+  const Mesh mesh = s.mesh();
+  const Eigen::Vector3d x(5.0, 0.3, 7.5);  // near the cap at z = 0: the held rim is inside the region
+  const SurfacePoint sp = closest_surface_points(mesh, std::span<const Eigen::Vector3d>(&x, 1))[0];
+  Eigen::VectorXd stiffness = Eigen::VectorXd::Ones(mesh.num_vertices());
+  for (int v = 0; v < mesh.num_vertices(); ++v)
+    if (mesh.positions()(v, 1) > 2) stiffness[v] = 4;
+  s.drag_begin(sp, 9.0, stiffness);
+  EXPECT_TRUE(s.dragging());
+  EXPECT_GT(s.drag_region_vertices(), 50);
+  const Eigen::Vector3d offset(-1.2, 0.2, 0.4);
+  for (double t : {0.3, 1.0}) s.drag_move(t * offset);
+  const Positions preview = s.display_positions();
+  // The picked point itself follows the drag exactly.
+  Eigen::Vector3d moved = Eigen::Vector3d::Zero();
+  for (int k = 0; k < 3; ++k)
+    moved +=
+        sp.bary[k] *
+        (preview.row(mesh.triangles()(sp.face, k)) - mesh.positions().row(mesh.triangles()(sp.face, k))).transpose();
+  EXPECT_LE((moved - offset).norm(), 1e-9);
+  CorrectionParams p;
+  p.handles = {CorrectionHandle(mesh, sp, offset)};
+  p.radius = 9.0;
+  p.stiffness = stiffness;
+  const CorrectionResult r = s.correct(p);
+  EXPECT_EQ(r.intersection_action, "none");
+  EXPECT_LE((preview - r.V).cwiseAbs().maxCoeff(), 1e-9 * offset.norm());
+  for (const int v : s.held_vertices()) EXPECT_EQ(r.displacement.row(v).norm(), 0.0);
+  EXPECT_FALSE(s.dragging());
+  // A point outside the mesh's triangles is refused in words.
+  EXPECT_THROW(s.drag_begin(SurfacePoint{mesh.num_faces()}, 9.0), InputError);
 }

@@ -151,6 +151,7 @@ TEST(AortaCorrection, TheRegionsCopyGivesTheWholeMeshAnswer) {
     CorrectionParams p;
     p.handles = {{kTrunk, Eigen::Vector3d(0, 0, 5)}};
     p.radius = 15;
+    p.boundary = RegionBoundary::Clamp;  // the held handle and region the construction below repeats
     p.laplacian = kind;
     const CorrectionResult r = correct_vessel(mesh, p);
     const MeshOperators whole = build_mesh_operators(mesh, kind);
@@ -184,6 +185,7 @@ TEST(AortaCorrection, TheEditorsPreviewEqualsTheReleasedCorrection) {
   CorrectionParams p;
   p.handles = {{kTrunk, offset}};
   p.radius = 9.0;
+  p.boundary = RegionBoundary::Clamp;  // the preview's rule
   const CorrectionResult r = s.correct(p);
   EXPECT_EQ(r.laplacian, LaplacianKind::IntrinsicDelaunay);
   EXPECT_EQ(r.intersection_action, "none");

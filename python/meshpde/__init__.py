@@ -35,9 +35,11 @@ from ._meshpde import (  # noqa: F401  (re-exported)
     PdeSession,
     SolverError,
     check_units,
+    closest_surface_points,
     curvature,
     generate,
     geodesic_ball,
+    geodesic_distance,
     info,
     intrinsic_delaunay,
     mass,
@@ -116,8 +118,8 @@ if has_medical:
 
 __all__ = [
     "CorrectionResult", "CorrectionSession", "DragSession", "Error", "GlobalBilaplacianSolver", "HapticSession",
-    "InputError", "InterpolationSolver", "MeshFields", "PdeSession", "SolverError", "check_units", "correct", "curvature", "extract_surface", "fair",
-    "from_vtk", "generate", "geodesic_ball", "heat", "info", "interpolate", "intrinsic_delaunay", "mass", "read_mesh",
+    "InputError", "InterpolationSolver", "MeshFields", "PdeSession", "SolverError", "check_units", "closest_surface_points", "correct", "curvature", "extract_surface", "fair",
+    "from_vtk", "generate", "geodesic_ball", "geodesic_distance", "heat", "info", "interpolate", "intrinsic_delaunay", "mass", "read_mesh",
     "read_segmentation", "read_volume", "voxelize", "write_segmentation",
     "hausdorff_distance", "render", "ring_ball", "self_intersections", "stiffness", "to_vtk", "vertex_normals", "wave", "wave_energy",
     "write_mesh",
@@ -200,8 +202,10 @@ def interpolate(V, F, vertices, values, *, kind=None, method="componentwise", g1
 
 def _correction_options(radius, rings, method, g1, g2, laplacian, stiffness, dynamic, steps, mass, elasticity,
                         viscosity, allow_intersections, max_substeps, image, space, image_weight, image_sigma,
-                        search_radius, cube, passes, solver, units, boundary="clamp", caps="labels", face_labels=None):
+                        search_radius, cube, passes, solver, units, boundary="smooth", caps="labels", face_labels=None,
+                        points=None, handle_radius=-1.0):
     return dict(units=units, radius=radius, rings=rings, method=method, boundary=boundary, g1=g1, g2=g2,
+                points=points, handle_radius=handle_radius,
                 laplacian=laplacian,
                 stiffness=stiffness, dynamic=dynamic, steps=steps, mass=mass, elasticity=elasticity, viscosity=viscosity,
                 allow_intersections=allow_intersections, max_substeps=max_substeps, image=image, space=space,
@@ -210,17 +214,25 @@ def _correction_options(radius, rings, method, g1, g2, laplacian, stiffness, dyn
 
 
 _CORRECT_DOC = """
-    vertices: handle vertex indices; moves: one per handle, (dx, dy, dz) in mm
-    or "normal:D" (D mm along the outward normal, outward even on inward-oriented meshes).
+    vertices: handle vertex indices (or "@X,Y,Z", the vertex nearest to that point);
+    points: (k, 3) handle points in V's coordinates, each the surface point nearest to
+    it, which moves (not a vertex); moves: one per handle, the vertices' first, then the
+    points', (dx, dy, dz) in mm or "normal:D" (D mm along the outward normal, outward
+    even on inward-oriented meshes; at a point, the corners' normals interpolated).
+    handle_radius: the handles' size in mm: the surface within it carries the force that
+    moves the handle, a smooth bump instead of a cusp; 0 is a single point. Default
+    (negative): a quarter of radius with the smooth boundary, 0 with clamp and fade.
     units: "mm" (default), "cm" or "m", the unit of V's coordinates; every length given
     here is in mm whatever it is, and V and displacement come back in V's unit (a
     UserWarning names a mesh whose size is unlike a vessel's in that unit).
-    radius: region of influence, edge-path distance from a handle (mm), or
+    radius: region of influence, distance from a handle (mm) on the surface (smooth
+    boundary) or along edges (clamp, fade), or
     rings: the region in rings of neighbours (the thesis's level of influence).
     method: "fem" (bi-Laplacian, ours) or "springs" (the thesis's mass-spring baseline).
-    boundary: how a fem region given by radius ends: "clamp" (default: held at the
-    radius) or "fade" (an elastic foundation from 0.6 radius, free to twice the radius:
-    results on two resolutions of a surface agree about three times better).
+    boundary: how a fem region given by radius ends: "smooth" (default: the displacement
+    and its slope fall to zero at radius on the surface, the same on any triangulation
+    of it), "clamp" (held beyond radius - h by edge paths: the rule before smooth) or
+    "fade" (an elastic foundation from 0.6 radius, free to twice the radius).
     g1, g2: membrane and plate stiffness (default 0, 1).
     laplacian: "auto" (intrinsic Delaunay on badly shaped or non-manifold meshes),
     "cotan" or "intrinsic".
@@ -244,7 +256,8 @@ _CORRECT_DOC = """
     solver: "auto" (default: for a static, unguided fem region of 50,000 free vertices
     or more without angles under 20 degrees, the multigrid, kept where it converges;
     else "direct"), "direct", "global" (multigrid-CG, for very large regions) or
-    "iterative" (Jacobi-CG); the last two for the static fem correction without image.
+    "iterative" (Jacobi-CG); the last two for the static fem correction without image,
+    with boundary="clamp" and vertex handles of size 0.
     The result's ``solver`` says which one ran.
 
     Returns a :class:`CorrectionResult`: V, displacement, region and the report fields
@@ -252,15 +265,15 @@ _CORRECT_DOC = """
 """
 
 
-def correct(V, F, vertices, moves, *, radius=0.0, rings=0, method="fem", g1=0.0, g2=1.0, laplacian="auto",
+def correct(V, F, vertices=None, moves=None, *, points=None, handle_radius=-1.0, radius=0.0, rings=0, method="fem", g1=0.0, g2=1.0, laplacian="auto",
             stiffness=None, dynamic=False, steps=50, mass=0.1, elasticity=0.9, viscosity=0.6,
             allow_intersections=False, max_substeps=8, image=None, space="lps", image_weight=30.0, image_sigma=1.0,
-            search_radius=3.0, cube=0, passes=4, solver="auto", units="mm", boundary="clamp", caps="labels",
+            search_radius=3.0, cube=0, passes=4, solver="auto", units="mm", boundary="smooth", caps="labels",
             face_labels=None):
     return _meshpde._correct(V, F, vertices, moves, _correction_options(
         radius, rings, method, g1, g2, laplacian, stiffness, dynamic, steps, mass, elasticity, viscosity,
         allow_intersections, max_substeps, image, space, image_weight, image_sigma, search_radius, cube, passes,
-        solver, units, boundary, caps, face_labels))
+        solver, units, boundary, caps, face_labels, points, handle_radius))
 
 
 correct.__doc__ = "Vessel-wall correction (seed 001), as ``meshpde correct``; the input is not modified.\n" + _CORRECT_DOC
@@ -272,15 +285,15 @@ class CorrectionSession(_meshpde._CorrectionSession):
     ``V`` is the current positions, ``original`` the first ones.
     """
 
-    def apply(self, vertices, moves, *, radius=0.0, rings=0, method="fem", g1=0.0, g2=1.0, laplacian="auto",
+    def apply(self, vertices=None, moves=None, *, points=None, handle_radius=-1.0, radius=0.0, rings=0, method="fem", g1=0.0, g2=1.0, laplacian="auto",
               stiffness=None, dynamic=False, steps=50, mass=0.1, elasticity=0.9, viscosity=0.6,
               allow_intersections=False, max_substeps=8, image=None, space="lps", image_weight=30.0,
-              image_sigma=1.0, search_radius=3.0, cube=0, passes=4, solver="auto", units="mm", boundary="clamp",
+              image_sigma=1.0, search_radius=3.0, cube=0, passes=4, solver="auto", units="mm", boundary="smooth",
               caps="labels", face_labels=None):
         return self._apply(vertices, moves, _correction_options(
             radius, rings, method, g1, g2, laplacian, stiffness, dynamic, steps, mass, elasticity, viscosity,
             allow_intersections, max_substeps, image, space, image_weight, image_sigma, search_radius, cube, passes,
-            solver, units, boundary, caps, face_labels))
+            solver, units, boundary, caps, face_labels, points, handle_radius))
 
     apply.__doc__ = "Applies a correction to the current positions; clears the redo history.\n" + _CORRECT_DOC
 

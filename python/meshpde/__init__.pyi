@@ -56,6 +56,10 @@ def vertex_normals(V: ArrayLike, F: ArrayLike, outward: bool = True) -> np.ndarr
     """(n, 3) unit normals; outward: away from the enclosed volume of a closed mesh."""
 def geodesic_ball(V: ArrayLike, F: ArrayLike, vertex: int, radius: float) -> np.ndarray:
     """Vertices within edge-path distance `radius` of `vertex`, nearest first."""
+def closest_surface_points(V: ArrayLike, F: ArrayLike, points: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+    """(faces (k,), barycentric (k, 3)) of the surface point nearest to each point."""
+def geodesic_distance(V: ArrayLike, F: ArrayLike, sources: ArrayLike, radius: float = ...) -> np.ndarray:
+    """(n,) distance along the surface from the nearest source (vertex indices or (k, 3) points); inf beyond radius."""
 def ring_ball(V: ArrayLike, F: ArrayLike, vertex: int, rings: int) -> np.ndarray:
     """Vertices within `rings` edges of `vertex`."""
 def hausdorff_distance(VA: ArrayLike, FA: ArrayLike, VB: ArrayLike, FB: ArrayLike, directed: bool = False) -> float:
@@ -152,13 +156,14 @@ class CorrectionResult:
     image: dict[str, Any] | None
     def to_dict(self) -> dict[str, Any]: ...
 
-def correct(V: ArrayLike, F: ArrayLike, vertices: ArrayLike, moves: Sequence[Move], *, radius: float = 0.0,
+def correct(V: ArrayLike, F: ArrayLike, vertices: ArrayLike | None = None, moves: Sequence[Move] | None = None, *,
+            points: ArrayLike | None = None, handle_radius: float = -1.0, radius: float = 0.0,
             rings: int = 0, method: str = "fem", g1: float = 0.0, g2: float = 1.0, laplacian: str = "auto",
             stiffness: ArrayLike | None = None, dynamic: bool = False, steps: int = 50,
             mass: float | ArrayLike = 0.1, elasticity: float | ArrayLike = 0.9, viscosity: float | ArrayLike = 0.6,
             allow_intersections: bool = False, max_substeps: int = 8, image: Union[Path, tuple[ArrayLike, ArrayLike], None] = None, space: str = "lps",
             image_weight: float = 30.0, image_sigma: float = 1.0, search_radius: float = 3.0, cube: int = 0,
-            passes: int = 4, solver: str = "auto", units: str = "mm", boundary: str = "clamp", caps: str = "labels",
+            passes: int = 4, solver: str = "auto", units: str = "mm", boundary: str = "smooth", caps: str = "labels",
             face_labels: ArrayLike | None = None) -> CorrectionResult: ...
 
 class CorrectionSession:
@@ -168,13 +173,14 @@ class CorrectionSession:
     can_undo: bool
     can_redo: bool
     def __init__(self, V: ArrayLike, F: ArrayLike) -> None: ...
-    def apply(self, vertices: ArrayLike, moves: Sequence[Move], *, radius: float = 0.0, rings: int = 0,
+    def apply(self, vertices: ArrayLike | None = None, moves: Sequence[Move] | None = None, *,
+              points: ArrayLike | None = None, handle_radius: float = -1.0, radius: float = 0.0, rings: int = 0,
               method: str = "fem", g1: float = 0.0, g2: float = 1.0, laplacian: str = "auto",
               stiffness: ArrayLike | None = None, dynamic: bool = False, steps: int = 50,
               mass: float | ArrayLike = 0.1, elasticity: float | ArrayLike = 0.9, viscosity: float | ArrayLike = 0.6,
               allow_intersections: bool = False, max_substeps: int = 8, image: Union[Path, tuple[ArrayLike, ArrayLike], None] = None,
               space: str = "lps", image_weight: float = 30.0, image_sigma: float = 1.0, search_radius: float = 3.0,
-              cube: int = 0, passes: int = 4, solver: str = "auto", units: str = "mm", boundary: str = "clamp",
+              cube: int = 0, passes: int = 4, solver: str = "auto", units: str = "mm", boundary: str = "smooth",
               caps: str = "labels", face_labels: ArrayLike | None = None) -> CorrectionResult: ...
     def undo(self) -> None: ...
     def redo(self) -> None: ...

@@ -168,23 +168,58 @@ CorrectionOptions correction_options(const Mesh& mesh, const py::handle& vertice
                                      const py::dict& o) {
   CorrectionOptions c;
   CorrectionParams& p = c.params;
-  const std::vector<int> handles = vertices_arg(vertices, "vertices", mesh.num_vertices());
-  const py::sequence seq = py::reinterpret_borrow<py::sequence>(moves);
-  if (!py::isinstance<py::sequence>(moves) || py::isinstance<py::str>(moves))
-    throw py::value_error("moves: expected one move per vertex: (dx, dy, dz) or 'normal:D'");
-  if (seq.size() != handles.size())
-    throw py::value_error(
-        fmt::format("moves: {} moves for {} vertices: give one move per vertex", seq.size(), handles.size()));
-  for (std::size_t k = 0; k < handles.size(); ++k) {
-    const py::handle mv = seq[k];
-    if (py::isinstance<py::str>(mv)) {
-      p.handles.push_back(parse_handles(mesh, {handles[k]}, {mv.cast<std::string>()})[0]);
+  auto get = [&](const char* key) -> py::object { return o.contains(key) ? o[key] : py::object(py::none()); };
+  // Handle vertices: indices, or "@X,Y,Z" (the nearest vertex) as the command line takes them.
+  std::vector<int> handles;
+  if (!vertices.is_none()) {
+    const bool listed = py::isinstance<py::list>(vertices) || py::isinstance<py::tuple>(vertices);
+    bool spelled = py::isinstance<py::str>(vertices);
+    if (listed)
+      for (const py::handle x : py::reinterpret_borrow<py::sequence>(vertices))
+        spelled = spelled || py::isinstance<py::str>(x);
+    if (spelled) {
+      const py::tuple vs = py::isinstance<py::str>(vertices) ? py::make_tuple(vertices)
+                                                             : py::tuple(py::reinterpret_borrow<py::object>(vertices));
+      for (const py::handle x : vs)
+        handles.push_back(py::isinstance<py::str>(x)
+                              ? parse_vertex_spec(mesh, x.cast<std::string>())
+                              : vertex_arg(x.cast<long long>(), "vertices", mesh.num_vertices()));
     } else {
-      const Eigen::VectorXd d = vector_arg(mv, fmt::format("moves[{}]", k).c_str(), 3);
-      p.handles.push_back({handles[k], d});
+      handles = vertices_arg(vertices, "vertices", mesh.num_vertices());
     }
   }
-  auto get = [&](const char* key) -> py::object { return o.contains(key) ? o[key] : py::object(py::none()); };
+  // Handle points: (k, 3) positions in V's coordinates; each is the surface point nearest to it.
+  std::vector<Eigen::Vector3d> points;
+  if (const py::object v = get("points"); !v.is_none()) {
+    const Field P = field_arg(v, "points", -1, 3);
+    for (Eigen::Index i = 0; i < P.rows(); ++i) points.emplace_back(P.row(i).transpose());
+  }
+  if (handles.empty() && points.empty()) throw py::value_error("give handles: vertices, points, or both");
+  if (moves.is_none() || !py::isinstance<py::sequence>(moves) || py::isinstance<py::str>(moves))
+    throw py::value_error("moves: expected one move per handle: (dx, dy, dz) or 'normal:D'");
+  const py::sequence seq = py::reinterpret_borrow<py::sequence>(moves);
+  if (seq.size() != handles.size() + points.size())
+    throw py::value_error(
+        fmt::format("moves: {} moves for {} vertices and {} points: give one move per handle "
+                    "(the vertices' first, then the points')",
+                    seq.size(), handles.size(), points.size()));
+  const std::vector<SurfacePoint> at = closest_surface_points(mesh, points);
+  for (std::size_t k = 0; k < seq.size(); ++k) {
+    const py::handle mv = seq[k];
+    const bool is_point = k >= handles.size();
+    std::string text;
+    if (py::isinstance<py::str>(mv)) {
+      text = mv.cast<std::string>();
+    } else {
+      const Eigen::VectorXd d = vector_arg(mv, fmt::format("moves[{}]", k).c_str(), 3);
+      text = fmt::format("{:.17g},{:.17g},{:.17g}", d[0], d[1], d[2]);
+    }
+    if (is_point)
+      p.handles.push_back(parse_point_handles(mesh, {points[k - handles.size()]}, {text})[0]);
+    else
+      p.handles.push_back(parse_handles(mesh, {handles[k]}, {text})[0]);
+  }
+  if (const py::object v = get("handle_radius"); !v.is_none()) p.handle_radius = v.cast<double>();
   auto num = [&](const char* key, double& x) {
     if (const py::object v = get(key); !v.is_none()) x = v.cast<double>();
   };
@@ -260,9 +295,11 @@ struct PyCorrectionResult {
   std::optional<std::string> image_space;
   std::string solver;
   std::string units;
-  std::string boundary = "clamp";
+  std::string boundary = "smooth";
   std::string caps = "labels";
   std::size_t held_vertices = 0;
+  py::list handle_points =
+      py::list();  // per handle: vertex, displacement, and a point's triangle and barycentric coordinates
 
   py::object image() const {
     if (!image_space) return py::none();
@@ -297,6 +334,8 @@ struct PyCorrectionResult {
     j["substeps"] = r.substeps;
     j["intersection_action"] = r.intersection_action;
     j["handles"] = handles;
+    j["handle_radius"] = r.handle_radius;
+    j["handle_points"] = handle_points;
     j["solver"] = solver;
     j["units"] = units;
     py::dict held;
@@ -314,6 +353,16 @@ PyCorrectionResult wrap(CorrectionResult r, const CorrectionOptions& c) {
   out.solver = to_string(out.r.solver);  // the one that ran: auto resolved
   out.caps = c.caps;
   out.held_vertices = c.params.held.size();
+  for (const CorrectionHandle& h : c.params.handles) {
+    py::dict d;
+    d["vertex"] = h.vertex;
+    d["displacement"] = py::make_tuple(h.displacement.x(), h.displacement.y(), h.displacement.z());
+    if (h.point) {
+      d["triangle"] = h.point->face;
+      d["barycentric"] = py::make_tuple(h.point->bary.x(), h.point->bary.y(), h.point->bary.z());
+    }
+    out.handle_points.append(d);
+  }
   if (out.r.applied_fraction < 1)
     PyErr_WarnEx(PyExc_UserWarning,
                  fmt::format("only {:.3f} of the displacement was applied: the whole of it would make the surface "

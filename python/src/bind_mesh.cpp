@@ -6,6 +6,8 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <cmath>
+#include <limits>
 #include <optional>
 
 #include "bindings.h"
@@ -14,6 +16,7 @@
 #include "meshpde/image/volume.h"
 #include "meshpde/io/mesh_io.h"
 #include "meshpde/mesh/generators.h"
+#include "meshpde/mesh/geodesic_distance.h"
 #include "meshpde/mesh/regions.h"
 #include "meshpde/mesh/self_intersections.h"
 #include "meshpde/mesh/surface_distance.h"
@@ -523,6 +526,66 @@ The symmetric Hausdorff distance between two triangle surfaces (with directed=Tr
 from A to B only): sampled at every vertex and triangle centroid of a surface and
 measured exactly to the other (mesh/surface_distance.h). Units of the positions.)doc",
       py::arg("VA"), py::arg("FA"), py::arg("VB"), py::arg("FB"), py::arg("directed") = false);
+
+  m.def(
+      "closest_surface_points",
+      [](const py::handle& V, const py::handle& F, const py::handle& points) {
+        const Mesh mesh = mesh_arg(V, F);
+        const Field P = field_arg(points, "points", -1, 3);
+        std::vector<Eigen::Vector3d> at;
+        for (Eigen::Index i = 0; i < P.rows(); ++i) at.emplace_back(P.row(i).transpose());
+        std::vector<SurfacePoint> found;
+        {
+          py::gil_scoped_release release;
+          found = closest_surface_points(mesh, at);
+        }
+        std::vector<int> faces;
+        Eigen::MatrixXd bary(static_cast<Eigen::Index>(found.size()), 3);
+        for (std::size_t k = 0; k < found.size(); ++k) {
+          faces.push_back(found[k].face);
+          bary.row(static_cast<Eigen::Index>(k)) = found[k].bary.transpose();
+        }
+        return py::make_tuple(to_numpy(faces), to_numpy(bary));
+      },
+      R"doc(closest_surface_points(V, F, points) -> (faces, barycentric)
+
+The surface point nearest to each of the (k, 3) points: its triangle (k,) and its
+barycentric coordinates (k, 3), one weight per corner F[face], >= 0, summing to 1.
+A field on the vertices at those points is ``(bary[:, :, None] * field[F[faces]]).sum(1)``.)doc",
+      py::arg("V"), py::arg("F"), py::arg("points"));
+
+  m.def(
+      "geodesic_distance",
+      [](const py::handle& V, const py::handle& F, const py::handle& sources, double radius) {
+        const Mesh mesh = mesh_arg(V, F);
+        GeodesicSources s;
+        const py::array a = py::array::ensure(sources);
+        if (a && a.ndim() == 2 && a.dtype().kind() == 'f') {
+          const Field P = field_arg(sources, "sources", -1, 3);
+          std::vector<Eigen::Vector3d> points;
+          for (Eigen::Index i = 0; i < P.rows(); ++i) points.emplace_back(P.row(i).transpose());
+          s.points = closest_surface_points(mesh, points);
+        } else {
+          s.vertices = vertices_arg(sources, "sources", mesh.num_vertices());
+        }
+        if (s.vertices.empty() && s.points.empty()) throw py::value_error("sources: give at least one vertex or point");
+        if (std::isnan(radius) || !(radius > 0)) throw py::value_error("radius: expected a length > 0");
+        Eigen::VectorXd d;
+        {
+          py::gil_scoped_release release;
+          d = geodesic_distance(mesh, s, radius);
+        }
+        return to_numpy(d);
+      },
+      R"doc(geodesic_distance(V, F, sources, radius=inf) -> (n,) array
+
+Distance along the surface (not along edges) from the nearest source to every vertex;
+inf where none was reached (beyond ``radius``, or on another connected part). sources:
+vertex indices (an int or integer array), or a (k, 3) float array of points, each
+placed at the surface point nearest to it. Exact on planes and on surfaces that unroll
+onto one; on curved ones the error falls like the edge length (mesh/geodesic_distance.h).
+Units of V.)doc",
+      py::arg("V"), py::arg("F"), py::arg("sources"), py::arg("radius") = std::numeric_limits<double>::infinity());
 
   m.def(
       "render",

@@ -184,7 +184,7 @@ def test_correct_moves_the_handle_and_holds_the_outside():
 def test_correct_with_the_fade_boundary_reaches_beyond_the_radius():
     V, F = meshpde.generate.tube(radius=5.0, length=60.0, rings=50, segments=32)
     v = int(np.argmin(np.linalg.norm(V - [5.0, 0.0, 30.0], axis=1)))
-    clamp = meshpde.correct(V, F, [v], [(-2.0, 0, 0)], radius=6.0)
+    clamp = meshpde.correct(V, F, [v], [(-2.0, 0, 0)], radius=6.0, boundary="clamp")
     fade = meshpde.correct(V, F, [v], [(-2.0, 0, 0)], radius=6.0, boundary="fade")
     assert clamp.boundary == "clamp" and fade.boundary == "fade"
     assert np.allclose(fade.V[v] - V[v], [-2.0, 0, 0], atol=1e-12)
@@ -284,11 +284,12 @@ def test_correct_with_image_guidance_reports_the_image(data):
 def test_correct_solvers_agree_with_the_direct_one_and_the_cli(cli, ico, tmp_path, solver):
     path, V, F = ico
     out = tmp_path / "c.ply"
+    # The global and iterative solvers take the clamp boundary (held vertex handles).
     report = cli("correct", path, "--vertex", 0, "--move", "0,0,0.1", "--radius", 0.6, "--solver", solver,
-                 "--tolerance", 1e-12, "-o", out, "--json", json_out=True)
+                 "--boundary", "clamp", "--tolerance", 1e-12, "-o", out, "--json", json_out=True)
     assert report["solver"] == solver
-    direct = meshpde.correct(V, F, [0], [(0, 0, 0.1)], radius=0.6)
-    other = meshpde.correct(V, F, [0], [(0, 0, 0.1)], radius=0.6, solver=solver)
+    direct = meshpde.correct(V, F, [0], [(0, 0, 0.1)], radius=0.6, boundary="clamp")
+    other = meshpde.correct(V, F, [0], [(0, 0, 0.1)], radius=0.6, solver=solver, boundary="clamp")
     assert np.abs(other.V - direct.V).max() <= 1e-7 * 0.1
     assert np.array_equal(other.region, direct.region)
     assert np.abs(meshpde.read_mesh(out)[0] - direct.V).max() <= 1e-7 * 0.1
@@ -304,7 +305,7 @@ def test_the_default_solver_is_auto_and_says_which_one_ran(cli, ico, tmp_path):
                  "--json", json_out=True)
     assert report["solver"] == "direct" and report["condition_estimate"] > 0
     assert meshpde.correct(V, F, [0], [(0, 0, 0.1)], radius=0.6).solver == "direct"
-    assert meshpde.correct(V, F, [0], [(0, 0, 0.1)], radius=0.6, solver="global").solver == "global"
+    assert meshpde.correct(V, F, [0], [(0, 0, 0.1)], radius=0.6, solver="global", boundary="clamp").solver == "global"
     fixed = np.flatnonzero(V[:, 2] <= -0.5)
     assert meshpde.fair(V, F, fixed).solver == "direct"
     assert meshpde.fair(V, F, fixed, solver="global").solver == "global"
@@ -356,3 +357,40 @@ def test_the_resolution_study_runs_and_the_fade_agrees_better(tmp_path):
         assert by[("fem fade", R)]["s01"] < by[("fem clamp", R)]["s01"]
         assert by[("fem fade", R)]["order"] > 1.0  # it converges
     assert (tmp_path / "r.png").stat().st_size > 10000
+
+
+def test_correct_at_surface_points_with_the_smooth_boundary():
+    # A handle at a surface point moves that point (its triangle's corners combined) by
+    # the move; the default boundary is smooth, with a handle of a quarter of the radius;
+    # nothing at or beyond the radius on the surface moves.
+    V, F = meshpde.generate.tube(radius=5.0, length=60.0, rings=50, segments=32)
+    x = np.array([[5.0, 0.4, 30.3]])
+    r = meshpde.correct(V, F, points=x, moves=[(1.0, 0.0, 0.5)], radius=8.0)
+    assert r.boundary == "smooth" and r.to_dict()["handle_radius"] == pytest.approx(2.0)
+    h = r.to_dict()["handle_points"][0]
+    tri, w = F[h["triangle"]], np.array(h["barycentric"])
+    assert np.allclose(w @ r.displacement[tri], [1.0, 0.0, 0.5], atol=1e-9)
+    s = meshpde.geodesic_distance(V, F, x)
+    moved = np.linalg.norm(r.displacement, axis=1)
+    assert moved[s >= 8.0].max() == 0.0 and moved[s < 2.0].min() > 0.3
+    # the CLI's @X,Y,Z vertex spelling, and vertices with points together
+    both = meshpde.correct(V, F, ["@5,0,10"], [(0.5, 0, 0), "normal:-1"], points=x, radius=6.0)
+    assert both.handles == 2
+    with pytest.raises(ValueError, match="one move per handle"):
+        meshpde.correct(V, F, points=x, moves=[(1, 0, 0), (1, 0, 0)], radius=8.0)
+    session = meshpde.CorrectionSession(V, F)
+    assert session.apply(points=x, moves=["normal:1"], radius=8.0, handle_radius=0.0).moved_vertices > 3
+
+
+def test_geodesic_distance_is_the_unrolled_straight_line_on_a_cylinder():
+    V, F = meshpde.generate.tube(radius=1.0, length=6.0, rings=97, segments=100)
+    src = int(np.argmin(np.linalg.norm(V - [1.0, 0.0, 3.0], axis=1)))
+    d = meshpde.geodesic_distance(V, F, src, radius=2.0)
+    theta = np.arctan2(V[:, 1], V[:, 0]) - np.arctan2(V[src, 1], V[src, 0])
+    theta = np.remainder(theta + np.pi, 2 * np.pi) - np.pi
+    exact = np.hypot(theta, V[:, 2] - V[src, 2])
+    inside = exact < 1.9
+    assert np.all(np.isfinite(d[inside])) and np.abs(d[inside] - exact[inside]).max() < 0.01
+    assert np.all(np.isinf(d[exact > 2.1]))
+    with pytest.raises(IndexError):
+        meshpde.geodesic_distance(V, F, [len(V)])

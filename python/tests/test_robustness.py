@@ -57,7 +57,7 @@ def test_converted_dtypes_and_layouts_give_the_same_answer():
     (lambda: meshpde.fair(V0, F0, [0], solver="magic"), ValueError, "solver:"),
     (lambda: meshpde.correct(V0, F0, [0], [(0, 0, 1)]), ValueError, "give radius"),
     (lambda: meshpde.correct(V0, F0, [0], [(0, 0, 1)], radius=1, rings=2), ValueError, "not both"),
-    (lambda: meshpde.correct(V0, F0, [0, 1], [(0, 0, 1)], radius=1), ValueError, "one move per vertex"),
+    (lambda: meshpde.correct(V0, F0, [0, 1], [(0, 0, 1)], radius=1), ValueError, "one move per handle"),
     (lambda: meshpde.correct(V0, F0, [0], ["normal:abc"], radius=1), meshpde.InputError, "normal:DISTANCE"),
     (lambda: meshpde.correct(V0, F0, [0], [(0, 0, np.nan)], radius=1), ValueError, "moves\\[0\\]"),
     (lambda: meshpde.correct(V0, F0, [0], [(0, 0, 1)], radius=1, method="magic"), meshpde.InputError, "magic"),

@@ -8,6 +8,7 @@
 
 #include "meshpde/apps/interpolation.h"
 #include "meshpde/core/errors.h"
+#include "meshpde/mesh/geodesic_distance.h"
 #include "meshpde/mesh/topology.h"
 #include "meshpde/operators/intrinsic_delaunay.h"
 #include "meshpde/operators/laplacian.h"
@@ -37,6 +38,12 @@ EditorSession::~EditorSession() {
   stop_poke();
 }
 
+namespace {
+// A live preview factors the region on the server's one thread: keep it to regions
+// whose set-up takes a fraction of a second (about 0.3 s at 20k vertices here).
+constexpr int kPreviewLimit = 20000;
+}  // namespace
+
 void EditorSession::check_vertex(int v) const {
   if (v < 0 || v >= mesh().num_vertices())
     throw InputError(fmt::format("vertex {} does not exist (the mesh has {} vertices)", v, mesh().num_vertices()));
@@ -54,7 +61,35 @@ Positions EditorSession::display_positions() const {
       V.row(to_mesh[static_cast<std::size_t>(region[k])]) += d.row(static_cast<Eigen::Index>(k));
     V.row(to_mesh[static_cast<std::size_t>(drag_->handles()[0])]) += drag_offset_.transpose();
   }
+  if (preview_) preview_->add_displacement(V, drag_offset_);
   return V;
+}
+
+double EditorSession::drag_begin(const SurfacePoint& point, double radius, const Eigen::VectorXd& stiffness,
+                                 const TissueParams& tissue) {
+  if (point.face < 0 || point.face >= mesh().num_faces())
+    throw InputError(
+        fmt::format("triangle {} does not exist (the mesh has {} triangles)", point.face, mesh().num_faces()));
+  if (!(radius > 0) || !std::isfinite(radius)) throw InputError("drag radius must be a length > 0");
+  CorrectionParams p;
+  p.handles = {CorrectionHandle(mesh(), point, Eigen::Vector3d::Zero())};
+  p.radius = radius;
+  p.stiffness = stiffness;
+  p.tissue = tissue;
+  p.laplacian = laplacian_;
+  p.held = held_;
+  if (const std::size_t n = geodesic_distances_from(mesh(), GeodesicSources{.points = {point}}, radius).size();
+      static_cast<int>(n) > kPreviewLimit)
+    throw InputError(
+        fmt::format("a region of {} vertices is too large for a live preview (at most {}); the "
+                    "correction still runs when you let go",
+                    n, kPreviewLimit));
+  pause();
+  const auto t0 = std::chrono::steady_clock::now();
+  drag_end();
+  preview_ = std::make_unique<CorrectionPreview>(mesh(), p);
+  drag_offset_.setZero();
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 }
 
 double EditorSession::drag_begin(int vertex, double radius, const Eigen::VectorXd& stiffness,
@@ -65,23 +100,24 @@ double EditorSession::drag_begin(int vertex, double radius, const Eigen::VectorX
   CorrectionParams p;
   p.handles = {{vertex, Eigen::Vector3d::Zero()}};
   p.radius = radius;
+  // The preview's DragSession holds the handle vertex and clamps the region: the
+  // release must use the same rule (see correct()).
+  p.boundary = RegionBoundary::Clamp;
+  p.handle_radius = 0;
   p.stiffness = stiffness;
   p.tissue = tissue;
   p.laplacian = laplacian_;
   p.held = held_;
-  // A live preview factors the region on the server's one thread: keep it to regions
-  // whose set-up takes a fraction of a second (about 0.3 s at 20k vertices here).
-  constexpr std::size_t kPreviewLimit = 20000;
   std::vector<int> handle{vertex};
   if (const std::size_t n = influence_region(mesh(), handle, RegionSpec{.radius = radius, .rings = 0}, true).size();
-      n > kPreviewLimit)
+      static_cast<int>(n) > kPreviewLimit)
     throw InputError(
         fmt::format("a region of {} vertices is too large for a live preview (at most {}); the "
                     "correction still runs when you let go",
                     n, kPreviewLimit));
   pause();
   const auto t0 = std::chrono::steady_clock::now();
-  drag_.reset();
+  drag_end();
   drag_region_ = std::make_unique<CorrectionRegion>(correction_region(mesh(), p));
   const RegionCopy& c = drag_region_->copy;
   std::vector<int> local_region;
@@ -95,18 +131,20 @@ double EditorSession::drag_begin(int vertex, double radius, const Eigen::VectorX
 }
 
 void EditorSession::drag_move(const Eigen::Vector3d& offset) {
-  if (!drag_) throw InputError("drag_move without drag_begin");
+  if (!dragging()) throw InputError("drag_move without drag_begin");
   if (!offset.allFinite()) throw InputError("drag offset is not finite");
   drag_offset_ = offset;
 }
 
 void EditorSession::drag_end() {
   drag_.reset();
+  preview_.reset();
   drag_region_.reset();
   drag_offset_.setZero();
 }
 
 int EditorSession::drag_region_vertices() const {
+  if (preview_) return preview_->region_vertices();
   return drag_ ? static_cast<int>(drag_->region().size()) : 0;
 }
 

@@ -54,6 +54,12 @@ std::vector<int> parse_vertex_list(const Mesh& mesh, const std::string& text, co
   return out;
 }
 
+Eigen::Vector3d parse_point_spec(const std::string& spec) {
+  const auto parts = split(spec, ',');
+  if (parts.size() != 3) throw InputError(fmt::format("point '{}': 'X,Y,Z' needs three numbers", spec));
+  return {parse_number(parts[0], spec), parse_number(parts[1], spec), parse_number(parts[2], spec)};
+}
+
 int parse_vertex_spec(const Mesh& mesh, const std::string& spec) {
   if (!spec.empty() && spec[0] == '@') {
     const auto parts = split(spec.substr(1), ',');

@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <Eigen/Geometry>
+#include <Eigen/LU>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -14,6 +15,7 @@
 
 #include "meshpde/apps/local_drag.h"
 #include "meshpde/core/errors.h"
+#include "meshpde/mesh/geodesic_distance.h"
 #include "meshpde/mesh/topology.h"
 #include "meshpde/operators/laplacian.h"
 #include "meshpde/pde/pde_session.h"
@@ -51,13 +53,49 @@ Eigen::Vector3d parse_displacement(const std::string& s) {
   return v;
 }
 
+// The corner of a surface point's triangle with the largest weight.
+int nearest_corner(const Mesh& mesh, const SurfacePoint& p) {
+  int k = 0;
+  p.bary.maxCoeff(&k);
+  return mesh.triangles()(p.face, k);
+}
+
+// One move as the user writes it: "DX,DY,DZ" or "normal:D" along `normal()` (a unit
+// vector, or zero where there is none: then `where` names the place in the error).
+template <class Normal>
+Eigen::Vector3d parse_move(const std::string& text, Normal&& normal, const std::string& where) {
+  if (text.rfind("normal:", 0) != 0) return parse_displacement(text);
+  double dist = 0;
+  try {
+    std::size_t used = 0;
+    dist = std::stod(text.substr(7), &used);
+    if (used != text.size() - 7 || !std::isfinite(dist)) throw std::invalid_argument(text);
+  } catch (const std::exception&) {
+    throw InputError(fmt::format("move '{}': expected normal:DISTANCE, e.g. normal:2.5", text));
+  }
+  const Eigen::Vector3d n = normal();
+  if (!(n.norm() > 0)) throw InputError(fmt::format("{} has no normal (no incident area)", where));
+  return dist * n;
+}
+
+void check_counts(std::size_t handles, std::size_t moves) {
+  if (handles != moves)
+    throw InputError(fmt::format("{} handles but {} moves: give one move per handle", handles, moves));
+}
+
 }  // namespace
+
+CorrectionHandle::CorrectionHandle(const Mesh& mesh, const SurfacePoint& p, const Eigen::Vector3d& d)
+    : displacement(d), point(p) {
+  if (p.face < 0 || p.face >= mesh.num_faces())
+    throw InputError(
+        fmt::format("handle point: triangle {} does not exist (the mesh has {} triangles)", p.face, mesh.num_faces()));
+  vertex = nearest_corner(mesh, p);
+}
 
 std::vector<CorrectionHandle> parse_handles(const Mesh& mesh, const std::vector<int>& vertices,
                                             const std::vector<std::string>& moves) {
-  if (vertices.size() != moves.size())
-    throw InputError(
-        fmt::format("{} handle vertices but {} moves: give one move per handle", vertices.size(), moves.size()));
+  check_counts(vertices.size(), moves.size());
   std::optional<Eigen::MatrixX3d> normals;  // computed once, if a move is along a normal
   std::vector<CorrectionHandle> handles;
   for (std::size_t k = 0; k < vertices.size(); ++k) {
@@ -65,35 +103,54 @@ std::vector<CorrectionHandle> parse_handles(const Mesh& mesh, const std::vector<
     if (v < 0 || v >= mesh.num_vertices())
       throw InputError(
           fmt::format("handle vertex {} is out of range (the mesh has {} vertices)", v, mesh.num_vertices()));
-    const std::string& text = moves[k];
-    if (text.rfind("normal:", 0) != 0) {
-      handles.push_back({v, parse_displacement(text)});
-      continue;
-    }
-    double dist = 0;
-    try {
-      std::size_t used = 0;
-      dist = std::stod(text.substr(7), &used);
-      if (used != text.size() - 7 || !std::isfinite(dist)) throw std::invalid_argument(text);
-    } catch (const std::exception&) {
-      throw InputError(fmt::format("move '{}': expected normal:DISTANCE, e.g. normal:2.5", text));
-    }
-    if (!normals) normals = outward_vertex_normals(mesh);
-    const Eigen::Vector3d n = normals->row(v).transpose();
-    if (!(n.norm() > 0)) throw InputError(fmt::format("vertex {} has no normal (no incident area)", v));
-    handles.push_back({v, dist * n});
+    auto normal = [&]() -> Eigen::Vector3d {
+      if (!normals) normals = outward_vertex_normals(mesh);
+      return normals->row(v).transpose();
+    };
+    handles.push_back({v, parse_move(moves[k], normal, fmt::format("vertex {}", v))});
+  }
+  return handles;
+}
+
+std::vector<CorrectionHandle> parse_point_handles(const Mesh& mesh, const std::vector<Eigen::Vector3d>& points,
+                                                  const std::vector<std::string>& moves) {
+  check_counts(points.size(), moves.size());
+  const std::vector<SurfacePoint> at = closest_surface_points(mesh, points);
+  std::optional<Eigen::MatrixX3d> normals;
+  std::vector<CorrectionHandle> handles;
+  for (std::size_t k = 0; k < points.size(); ++k) {
+    const SurfacePoint& sp = at[k];
+    auto normal = [&]() -> Eigen::Vector3d {
+      if (!normals) normals = outward_vertex_normals(mesh);
+      Eigen::Vector3d n = Eigen::Vector3d::Zero();
+      for (int c = 0; c < 3; ++c) n += sp.bary[c] * normals->row(mesh.triangles()(sp.face, c)).transpose();
+      return n.norm() > 0 ? Eigen::Vector3d(n.normalized()) : n;
+    };
+    handles.emplace_back(
+        mesh, sp,
+        parse_move(moves[k], normal,
+                   fmt::format("the point ({:g}, {:g}, {:g})", points[k].x(), points[k].y(), points[k].z())));
   }
   return handles;
 }
 
 RegionBoundary parse_region_boundary(const std::string& text) {
+  if (text == "smooth") return RegionBoundary::Smooth;
   if (text == "clamp") return RegionBoundary::Clamp;
   if (text == "fade") return RegionBoundary::Fade;
-  throw InputError(fmt::format("region boundary '{}': expected clamp or fade", text));
+  throw InputError(fmt::format("region boundary '{}': expected smooth, clamp or fade", text));
 }
 
 const char* to_string(RegionBoundary boundary) {
-  return boundary == RegionBoundary::Fade ? "fade" : "clamp";
+  switch (boundary) {
+    case RegionBoundary::Smooth:
+      return "smooth";
+    case RegionBoundary::Clamp:
+      return "clamp";
+    case RegionBoundary::Fade:
+      return "fade";
+  }
+  return "smooth";
 }
 
 namespace {
@@ -106,18 +163,68 @@ namespace {
 // resolution to the next than the clamp does.
 constexpr double kFadeStart = 0.6, kFadeStrength = 1e3, kFadeReach = 2.0;
 
+// Smooth's foundation (RegionBoundary::Smooth): kSmoothStrength (g2 / R^4 + g1 / R^2)
+// x^2 / (1 - x)^4 M_i with x = (s / R - kSmoothStart) / (1 - kSmoothStart), s the surface
+// distance from the nearest handle: zero up to kSmoothStart R, then growing without
+// bound towards R, so that the displacement falls like a power of (R - s) and reaches
+// R with zero value and slope in the continuous problem; the last vertices before R,
+// wherever they fall, see a field that is already nearly zero. x is capped at
+// kSmoothMaxX (the last 2 % of the band) to keep the matrix's scale finite.
+constexpr double kSmoothStrength = 1e3, kSmoothMaxX = 0.98;
+
 bool fades(const CorrectionParams& p) {
   return p.method == CorrectionMethod::Fem && p.boundary == RegionBoundary::Fade && p.radius > 0;
+}
+
+bool smooth(const CorrectionParams& p) {
+  return p.method == CorrectionMethod::Fem && p.boundary == RegionBoundary::Smooth && p.radius > 0;
+}
+
+// The handles' size (mm), resolved: CorrectionParams::handle_radius, else its default
+// (a fraction of the radius with the smooth boundary, 0 with the clamp and the fade,
+// whose rules predate handles with a size), and 0 for the springs method (which moves
+// vertices one by one).
+double handle_size(const CorrectionParams& p) {
+  if (p.method != CorrectionMethod::Fem) return 0;
+  if (p.handle_radius >= 0) return p.handle_radius;
+  return smooth(p) ? kHandleRadiusFraction * p.radius : 0.0;
+}
+
+// Whether a handle is held at its displacement (a vertex of size 0: the rule of
+// corrections before handles had a size) rather than pulled there by a load.
+bool held_handle(const CorrectionHandle& h, double size) {
+  return !h.point && size == 0;
+}
+
+// Whether every handle is held and the region ends by the clamp: the cases the
+// multigrid, the global and the iterative solvers take.
+bool plain_handles(const CorrectionParams& p) {
+  const double size = handle_size(p);
+  return std::all_of(p.handles.begin(), p.handles.end(),
+                     [&](const CorrectionHandle& h) { return held_handle(h, size); });
 }
 
 void validate(const Mesh& mesh, const CorrectionParams& p) {
   const int nv = mesh.num_vertices();
   if (p.handles.empty()) throw InputError("a correction needs at least one handle (vertex and displacement)");
   for (const auto& h : p.handles) {
-    if (h.vertex < 0 || h.vertex >= nv)
+    if (h.point) {
+      const SurfacePoint& sp = *h.point;
+      if (sp.face < 0 || sp.face >= mesh.num_faces())
+        throw InputError(fmt::format("handle point: triangle {} does not exist (the mesh has {} triangles)", sp.face,
+                                     mesh.num_faces()));
+      if (!sp.bary.allFinite() || sp.bary.minCoeff() < -1e-9 || std::abs(sp.bary.sum() - 1) > 1e-9)
+        throw InputError(
+            fmt::format("handle point in triangle {}: barycentric coordinates ({}, {}, {}) must be >= 0 "
+                        "and sum to 1",
+                        sp.face, sp.bary[0], sp.bary[1], sp.bary[2]));
+    } else if (h.vertex < 0 || h.vertex >= nv) {
       throw InputError(fmt::format("handle vertex {} does not exist (the mesh has {} vertices)", h.vertex, nv));
+    }
     if (!h.displacement.allFinite()) throw InputError(fmt::format("displacement of vertex {} is not finite", h.vertex));
   }
+  if (std::isnan(p.handle_radius) || std::isinf(p.handle_radius))
+    throw InputError("the handle radius must be a finite number (0: a point; < 0: the default)");
   if (!p.held.empty()) {
     std::vector<char> is_held(static_cast<std::size_t>(nv), 0);
     for (const int v : p.held) {
@@ -125,12 +232,24 @@ void validate(const Mesh& mesh, const CorrectionParams& p) {
         throw InputError(fmt::format("held vertex {} does not exist (the mesh has {} vertices)", v, nv));
       is_held[static_cast<std::size_t>(v)] = 1;
     }
-    for (const auto& h : p.handles)
+    for (const auto& h : p.handles) {
+      if (h.point) {
+        const auto& F = mesh.triangles();
+        const int f = h.point->face;
+        if (is_held[static_cast<std::size_t>(F(f, 0))] && is_held[static_cast<std::size_t>(F(f, 1))] &&
+            is_held[static_cast<std::size_t>(F(f, 2))])
+          throw InputError(
+              fmt::format("the handle point in triangle {} lies on a cap, which is held: a cap's vertices do not "
+                          "move (caps off lets it move: --caps off, caps=\"off\" in Python)",
+                          f));
+        continue;
+      }
       if (is_held[static_cast<std::size_t>(h.vertex)])
         throw InputError(
             fmt::format("handle vertex {} lies on a cap, which is held: a cap's vertices do not move "
                         "(caps off lets it move: --caps off, caps=\"off\" in Python)",
                         h.vertex));
+    }
   }
   if (p.radius <= 0 && p.rings <= 0)
     throw InputError("give a region of influence: a radius in mm or a number of rings");
@@ -158,6 +277,10 @@ void validate(const Mesh& mesh, const CorrectionParams& p) {
   const bool chosen = p.solver == SteadySolver::Global || p.solver == SteadySolver::Iterative;
   if (chosen && (p.dynamic || p.image.edges || p.method != CorrectionMethod::Fem))
     throw InputError("the global and iterative solvers take the static fem correction without image guidance only");
+  if (chosen && (p.boundary != RegionBoundary::Clamp || !plain_handles(p)))
+    throw InputError(
+        "the global and iterative solvers take the clamp boundary with vertex handles of size 0 only (the smooth "
+        "boundary and handles with a size solve directly)");
   if (p.solver == SteadySolver::Global && !(p.g2 > 0))
     throw InputError("the global solver needs g2 > 0 (a bi-Laplacian term)");
   if (p.image.edges && p.method == CorrectionMethod::Springs && p.image.cube_size < 3)
@@ -171,21 +294,156 @@ void validate(const Mesh& mesh, const CorrectionParams& p) {
   }
 }
 
-// The region of influence: mesh/regions.h's rule, clamped at the radius for Fem; with
-// the fade, the free set reaches kFadeReach times the radius. Held vertices stay out of
-// it, so that they are held at zero like the region's outside.
-std::vector<int> region_of(const Mesh& mesh, const CorrectionParams& p) {
-  std::vector<int> handles;
-  for (const auto& h : p.handles) handles.push_back(h.vertex);
-  std::vector<int> region = fades(p)
-                                ? influence_region(mesh, handles, RegionSpec{.radius = kFadeReach * p.radius}, false)
-                                : influence_region(mesh, handles, RegionSpec{.radius = p.radius, .rings = p.rings},
-                                                   p.method == CorrectionMethod::Fem);
-  if (p.held.empty()) return region;
-  std::vector<char> is_held(static_cast<std::size_t>(mesh.num_vertices()), 0);
+// A handle that a load pulls to its displacement: the load's weight at each vertex (the
+// force's profile, summing to 1) and the handle point's weight at each vertex (where its
+// displacement is read: the barycentric coordinates, or 1 at a vertex).
+struct LoadedHandle {
+  std::vector<std::pair<int, double>> load, point;
+  Eigen::Vector3d displacement = Eigen::Vector3d::Zero();
+};
+
+// What a correction solves for, in the mesh's numbering.
+struct FemProblem {
+  std::vector<int> region;             // vertices that may move, the held handles first
+  std::vector<double> distance;        // Smooth: each region vertex's surface distance from the handles
+  std::vector<int> sources;            // one vertex per handle (Fade's distances start there)
+  std::vector<CorrectionHandle> held;  // vertex handles of size 0, held at their displacement
+  std::vector<LoadedHandle> loaded;    // the others
+};
+
+// The handle's load: (1 - (d / r)^2)^2 over the surface within r of its point x, d = |y - x|,
+// integrated against each corner's hat function triangle by triangle (each triangle cut
+// into n^2 pieces, n = 2 * longest edge / r at most 32, one point each: the profile is
+// resolved whatever r is against the edges). The triangles are found by walking from the
+// point's own across corners, so the load stays on the sheet of the surface the point is
+// on. A load too small to integrate (r far below the edges) is the point load itself.
+LoadedHandle loaded_handle(const Mesh& mesh, const VertexFaces& around, const CorrectionHandle& h, double size) {
+  const auto& V = mesh.positions();
+  const auto& F = mesh.triangles();
+  LoadedHandle out;
+  out.displacement = h.displacement;
+  std::vector<int> start;
+  Eigen::Vector3d x;
+  if (h.point) {
+    for (int k = 0; k < 3; ++k) out.point.emplace_back(F(h.point->face, k), h.point->bary[k]);
+    start.push_back(h.point->face);
+    x = position(mesh, *h.point);
+  } else {
+    out.point.emplace_back(h.vertex, 1.0);
+    for (int q = around.offsets[static_cast<std::size_t>(h.vertex)];
+         q < around.offsets[static_cast<std::size_t>(h.vertex) + 1]; ++q)
+      start.push_back(around.faces[static_cast<std::size_t>(q)]);
+    x = V.row(h.vertex).transpose();
+  }
+  if (start.empty()) throw InputError(fmt::format("handle vertex {} belongs to no triangle", h.vertex));
+  std::unordered_map<int, double> load;
+  if (size > 0) {
+    std::set<int> seen(start.begin(), start.end());
+    std::vector<int> stack(start.begin(), start.end());
+    while (!stack.empty()) {
+      const int f = stack.back();
+      stack.pop_back();
+      const Eigen::Vector3d a = V.row(F(f, 0)).transpose(), b = V.row(F(f, 1)).transpose(),
+                            c = V.row(F(f, 2)).transpose();
+      if (point_triangle_distance(x, a, b, c) >= size) continue;
+      const double longest = std::max({(b - a).norm(), (c - b).norm(), (a - c).norm()});
+      const int n = std::clamp(static_cast<int>(std::ceil(2 * longest / size)), 1, 32);
+      const double piece = 0.5 * (b - a).cross(c - a).norm() / (n * n);
+      Eigen::Vector3d w = Eigen::Vector3d::Zero();  // the triangle's load on its corners
+      auto add = [&](double lb, double lc) {
+        const Eigen::Vector3d l(1 - lb - lc, lb, lc);
+        const double t = ((l[0] * a + l[1] * b + l[2] * c) - x).squaredNorm() / (size * size);
+        if (t < 1) w += piece * (1 - t) * (1 - t) * l;
+      };
+      for (int i = 0; i < n; ++i)
+        for (int j = 0; i + j < n; ++j) {
+          add((i + 1.0 / 3) / n, (j + 1.0 / 3) / n);                      // the piece pointing up
+          if (i + j + 2 <= n) add((i + 2.0 / 3) / n, (j + 2.0 / 3) / n);  // and the one pointing down
+        }
+      for (int k = 0; k < 3; ++k) {
+        if (w[k] > 0) load[F(f, k)] += w[k];
+        const int v = F(f, k);
+        for (int q = around.offsets[static_cast<std::size_t>(v)]; q < around.offsets[static_cast<std::size_t>(v) + 1];
+             ++q)
+          if (seen.insert(around.faces[static_cast<std::size_t>(q)]).second)
+            stack.push_back(around.faces[static_cast<std::size_t>(q)]);
+      }
+    }
+  }
+  double total = 0;
+  for (const auto& [v, w] : load) total += w;
+  if (!(total > 0)) {
+    out.load = out.point;
+    return out;
+  }
+  for (const auto& [v, w] : load) out.load.emplace_back(v, w / total);
+  std::sort(out.load.begin(), out.load.end());
+  return out;
+}
+
+// The region of influence and the handles' terms. Smooth: the surface within the radius
+// of the handles' points (mesh/geodesic_distance.h). Clamp and Fade: mesh/regions.h's
+// edge-path rule from the handles' vertices, clamped at the radius for Fem; with the
+// fade, the free set reaches kFadeReach times the radius. Held vertices stay out of the
+// region, so that they are held at zero like its outside; a loaded handle's own
+// triangle is always in it.
+FemProblem fem_problem(const Mesh& mesh, const CorrectionParams& p) {
+  FemProblem out;
+  const double size = handle_size(p);
+  const int nv = mesh.num_vertices();
+  std::vector<char> is_held(static_cast<std::size_t>(nv), 0);
   for (const int v : p.held) is_held[static_cast<std::size_t>(v)] = 1;
-  std::erase_if(region, [&](int v) { return is_held[static_cast<std::size_t>(v)] != 0; });
-  return region;
+  std::vector<char> in(static_cast<std::size_t>(nv), 0);
+  auto add = [&](int v, double dist) {
+    if (is_held[static_cast<std::size_t>(v)] || in[static_cast<std::size_t>(v)]++) return;
+    out.region.push_back(v);
+    if (smooth(p)) out.distance.push_back(dist);
+  };
+  for (const auto& h : p.handles) {
+    out.sources.push_back(h.vertex);
+    if (held_handle(h, size)) {
+      out.held.push_back(h);
+      add(h.vertex, 0.0);
+    }
+  }
+  if (smooth(p)) {
+    GeodesicSources sources;
+    for (const auto& h : p.handles) {
+      if (h.point)
+        sources.points.push_back(*h.point);
+      else
+        sources.vertices.push_back(h.vertex);
+    }
+    for (const auto& [v, dist] : geodesic_distances_from(mesh, sources, p.radius)) add(v, dist);
+  } else {
+    const std::vector<int> region =
+        fades(p) ? influence_region(mesh, out.sources, RegionSpec{.radius = kFadeReach * p.radius}, false)
+                 : influence_region(mesh, out.sources, RegionSpec{.radius = p.radius, .rings = p.rings},
+                                    p.method == CorrectionMethod::Fem);
+    for (const int v : region) add(v, 0.0);
+  }
+  if (p.method != CorrectionMethod::Fem) return out;
+  // A region that no held vertex or foundation anchors (it covers its whole part of the
+  // surface) moves with its handles as a rigid body: a load could not do that (the
+  // system would be singular), so its handles are held at their vertices instead.
+  bool anchored = smooth(p) && std::any_of(out.distance.begin(), out.distance.end(),
+                                           [&](double dist) { return dist > kSmoothStart * p.radius; });
+  for (std::size_t k = 0; k < out.region.size() && !anchored; ++k)
+    for (const int w : mesh.neighbors(out.region[k]))
+      if (!in[static_cast<std::size_t>(w)]) anchored = true;
+  std::optional<VertexFaces> around;
+  for (const auto& h : p.handles) {
+    if (held_handle(h, size)) continue;
+    if (!anchored) {
+      out.held.emplace_back(h.vertex, h.displacement);
+      add(h.vertex, 0.0);
+      continue;
+    }
+    if (!around) around = vertex_faces(mesh);
+    out.loaded.push_back(loaded_handle(mesh, *around, h, size));
+    for (const auto& [v, w] : out.loaded.back().point) add(v, p.radius);
+  }
+  return out;
 }
 
 // Image guidance: where along its normal (or, with a cube, at which voxel nearby)
@@ -295,9 +553,13 @@ Eigen::VectorXd operator_weights(const CorrectionParams& p, int nv) {
 // With an elasticity field, its largest value takes the scalar's place (it scales
 // (g1, g2) in the dynamic mode, and the field relative to it weighs the operator),
 // taken on the whole mesh so that the region's copy weighs alike.
-CorrectionParams normalized(const CorrectionParams& p) {
+// A point handle's vertex is its nearest corner (the springs method and the edge-path
+// regions start there).
+CorrectionParams normalized(const CorrectionParams& p, const Mesh& mesh) {
   CorrectionParams q = p;
   if (q.tissue.elasticity_field.size()) q.tissue.elasticity = q.tissue.elasticity_field.maxCoeff();
+  for (auto& h : q.handles)
+    if (h.point) h.vertex = nearest_corner(mesh, *h.point);
   return q;
 }
 
@@ -392,37 +654,25 @@ struct FemSetup {
   double length_scale = 1;  // region size in mm, for the dynamic and image scalings
 };
 
-FemSetup fem_setup(const Mesh& mesh, const CorrectionParams& p, const std::vector<int>& region) {
+FemSetup fem_setup(const Mesh& mesh, const CorrectionParams& p, const FemProblem& problem) {
   FemSetup s;
   s.mo = build_mesh_operators(mesh, p.laplacian, operator_weights(p, mesh.num_vertices()));
   std::set<int> handles;
-  for (const auto& h : p.handles) handles.insert(h.vertex);
-  for (int v : region)
+  for (const auto& h : problem.held) handles.insert(h.vertex);
+  for (int v : problem.region)
     if (!handles.count(v) && s.mo.ops.mass[v] > 0) s.free.push_back(v);
   s.length_scale = p.radius > 0 ? p.radius : std::max(1e-12, p.rings * mean_edge_length(mesh));
   return s;
 }
 
-// One Fem solve on `mesh` (the region and its margin only) for the handles scaled by
-// `fraction`; returns d.
-Field fem_solve_local(const Mesh& mesh, const CorrectionParams& p, const std::vector<int>& region, double fraction,
-                      CorrectionResult& r) {
-  FemSetup s = fem_setup(mesh, p, region);
-  r.laplacian = s.mo.kind;
-  r.laplacian_reason = s.mo.reason;
+// The boundary's foundation on the diagonal (#V values; zero for the clamp): the
+// fade's kappa(r) M_i, r the edge-path distance from the nearest handle vertex, or
+// smooth's kappa(s) M_i, s the surface distance from the handles.
+Eigen::VectorXd foundations(const Mesh& mesh, const CorrectionParams& p, const FemProblem& problem, const FemSetup& s) {
   const int nv = mesh.num_vertices();
-  Field held = Field::Zero(nv, 3);
-  for (const auto& h : p.handles) held.row(h.vertex) = fraction * h.displacement.transpose();
-  const bool guided = p.image.edges != nullptr;
-  const double L = s.length_scale;
-  // Stiffness of the region's slowest mode (wavelength about 2 L), per unit area.
-  const double stiff = std::max(p.g2 * std::pow(M_PI / L, 4) + p.g1 * std::pow(M_PI / L, 2), 1e-300);
   Eigen::VectorXd extra = Eigen::VectorXd::Zero(nv);
-  // The fade's foundation: kappa(r) M_i on the diagonal, r the edge-path distance from
-  // the nearest handle.
   if (fades(p)) {
-    std::vector<int> hv;
-    for (const auto& h : p.handles) hv.push_back(h.vertex);
+    const std::vector<int>& hv = problem.sources;
     const double R = p.radius;
     // Scaled as the operator is (the dynamic mode weighs it by the elasticity).
     const double kappa0 =
@@ -434,6 +684,83 @@ Field fem_solve_local(const Mesh& mesh, const CorrectionParams& p, const std::ve
       if (is_free[static_cast<std::size_t>(v)]) extra[v] += kappa0 * x * x * x * s.mo.ops.mass[v];
     }
   }
+  if (smooth(p)) {
+    const double R = p.radius;
+    const double kappa0 =
+        kSmoothStrength * (p.dynamic ? p.tissue.elasticity : 1.0) * (p.g2 / std::pow(R, 4) + p.g1 / (R * R));
+    for (std::size_t k = 0; k < problem.region.size(); ++k) {
+      const double x = std::clamp((problem.distance[k] / R - kSmoothStart) / (1 - kSmoothStart), 0.0, kSmoothMaxX);
+      const int v = problem.region[k];
+      extra[v] += kappa0 * x * x / std::pow(1 - x, 4) * s.mo.ops.mass[v];
+    }
+  }
+  return extra;
+}
+
+// The loaded handles' constraints on a factored system: each handle's response U_l to its
+// load (one solve each, held values zero) and S(k, l), handle k's point in response l.
+// A solve's d0 then becomes d0 + sum_l c_l U_l with S c = D - (handle points in d0): the
+// handle points land on their displacements, and the force that puts them there is
+// spread as their loads say (with a point load, this is the bordered system of a
+// point constraint).
+class HandleConstraints {
+ public:
+  HandleConstraints(const SteadyDirectSolver& solver, const std::vector<LoadedHandle>& handles, int nv)
+      : handles_(handles) {
+    const int n = static_cast<int>(handles.size());
+    if (n == 0) return;
+    Field load = Field::Zero(nv, n);
+    for (int l = 0; l < n; ++l)
+      for (const auto& [v, w] : handles[static_cast<std::size_t>(l)].load) load(v, l) = w;
+    U_ = solver.solve(Field::Zero(nv, n), &load);
+    Eigen::MatrixXd S = Eigen::MatrixXd::Zero(n, n);
+    for (int k = 0; k < n; ++k)
+      for (const auto& [v, w] : handles[static_cast<std::size_t>(k)].point) S.row(k) += w * U_.row(v);
+    lu_.compute(S);
+    if (lu_.rank() < n || !(std::abs(lu_.determinant()) > 0))
+      throw InputError("two handles are too close to be moved independently: give them further apart, or one handle");
+  }
+  /// d (#V x 3) with the handle points moved by `fraction` of their displacements.
+  void apply(Field& d, double fraction) const {
+    std::vector<Eigen::Vector3d> targets;
+    for (const auto& h : handles_) targets.push_back(fraction * h.displacement);
+    apply(d, targets);
+  }
+  /// d with handle k's point moved by targets[k].
+  void apply(Field& d, const std::vector<Eigen::Vector3d>& targets) const {
+    const int n = static_cast<int>(handles_.size());
+    if (n == 0) return;
+    Eigen::MatrixXd rhs(n, 3);
+    for (int k = 0; k < n; ++k) {
+      Eigen::RowVector3d at = Eigen::RowVector3d::Zero();
+      for (const auto& [v, w] : handles_[static_cast<std::size_t>(k)].point) at += w * d.row(v);
+      rhs.row(k) = targets[static_cast<std::size_t>(k)].transpose() - at;
+    }
+    const Eigen::MatrixXd c = lu_.solve(rhs);
+    d += U_ * c;
+  }
+
+ private:
+  const std::vector<LoadedHandle>& handles_;
+  Field U_;
+  Eigen::FullPivLU<Eigen::MatrixXd> lu_;
+};
+
+// One Fem solve on `mesh` (the region and its margin only) for the handles scaled by
+// `fraction`; returns d.
+Field fem_solve_local(const Mesh& mesh, const CorrectionParams& p, const FemProblem& problem, double fraction,
+                      CorrectionResult& r) {
+  FemSetup s = fem_setup(mesh, p, problem);
+  r.laplacian = s.mo.kind;
+  r.laplacian_reason = s.mo.reason;
+  const int nv = mesh.num_vertices();
+  Field held = Field::Zero(nv, 3);
+  for (const auto& h : problem.held) held.row(h.vertex) = fraction * h.displacement.transpose();
+  const bool guided = p.image.edges != nullptr;
+  const double L = s.length_scale;
+  // Stiffness of the region's slowest mode (wavelength about 2 L), per unit area.
+  const double stiff = std::max(p.g2 * std::pow(M_PI / L, 4) + p.g1 * std::pow(M_PI / L, 2), 1e-300);
+  Eigen::VectorXd extra = foundations(mesh, p, problem, s);
   // Image guidance: every free vertex of the region is tied to its target by a
   // spring lambda M_i; weight 1 makes the pull as strong as the region's slowest
   // bending mode, so edges win over smoothness at that scale and above.
@@ -471,7 +798,7 @@ Field fem_solve_local(const Mesh& mesh, const CorrectionParams& p, const std::ve
   // Auto: the multigrid's try on a large static, unguided region without the fade's
   // foundation (the cases the global solver takes), kept where it converges; the direct
   // solve (with its condition estimate) otherwise.
-  const bool plain_static = !p.dynamic && !guided && !(extra.maxCoeff() > 0);
+  const bool plain_static = !p.dynamic && !guided && !(extra.maxCoeff() > 0) && problem.loaded.empty();
   r.solver = p.solver == SteadySolver::Auto ? SteadySolver::Direct : p.solver;
   if (p.solver == SteadySolver::Auto && plain_static && auto_tries_multigrid(s.mo.mesh, coef, s.free))
     if (std::optional<SteadySolveResult> g = try_multigrid_solve(s.mo.mesh, s.mo.ops, coef, s.free, held)) {
@@ -488,7 +815,7 @@ Field fem_solve_local(const Mesh& mesh, const CorrectionParams& p, const std::ve
                     DomainOptions{.seed_rings = 0});
       cg.cg_options = p.cg;
       cg.activate(s.free);
-      for (const auto& h : p.handles) {
+      for (const auto& h : problem.held) {
         const Eigen::Vector3d x = held.row(h.vertex).transpose();
         cg.constrain(h.vertex, std::span<const double>(x.data(), 3));
       }
@@ -504,6 +831,7 @@ Field fem_solve_local(const Mesh& mesh, const CorrectionParams& p, const std::ve
   }
   const SteadyDirectSolver solver(s.mo.mesh, s.mo.ops, coef, s.free, SparseCholesky::Backend::Auto,
                                   extra.maxCoeff() > 0 ? extra : Eigen::VectorXd());
+  const HandleConstraints constraints(solver, problem.loaded, nv);
   const Eigen::MatrixX3d normals = guided ? vertex_normals(mesh) : Eigen::MatrixX3d();
   const auto& V = mesh.positions();
   auto image_load = [&](const Field& d, Field& f) {
@@ -525,10 +853,11 @@ Field fem_solve_local(const Mesh& mesh, const CorrectionParams& p, const std::ve
       image_load(d, f);
       d = solver.solve(held, guided ? &f : nullptr);
       worst = std::max(worst, solver.last_relative_residual());
+      constraints.apply(d, fraction);
     }
   } else {
     Field prev = Field::Zero(nv, 3), cur = Field::Zero(nv, 3);
-    for (const auto& h : p.handles) cur.row(h.vertex) = prev.row(h.vertex) = held.row(h.vertex);
+    for (const auto& h : problem.held) cur.row(h.vertex) = prev.row(h.vertex) = held.row(h.vertex);
     for (int step = 0; step < p.steps; ++step) {
       Field f = Field::Zero(nv, 3);
       for (int v : s.free)
@@ -536,6 +865,7 @@ Field fem_solve_local(const Mesh& mesh, const CorrectionParams& p, const std::ve
       image_load(cur, f);
       Field next = solver.solve(held, &f);
       worst = std::max(worst, solver.last_relative_residual());
+      constraints.apply(next, fraction);
       prev = cur;
       cur = next;
     }
@@ -556,12 +886,9 @@ Field fem_solve_local(const Mesh& mesh, const CorrectionParams& p, const std::ve
   return d;
 }
 
-Field fem_solve(const Mesh& mesh, const CorrectionParams& p, const std::vector<int>& region, double fraction,
-                CorrectionResult& r) {
-  const RegionCopy c = copy_region(mesh, region, kCorrectionMarginRings);
-  if (c.whole) return fem_solve_local(mesh, p, region, fraction, r);
+// A correction's parameters and problem in a region copy's numbering.
+CorrectionParams localized(const RegionCopy& c, const CorrectionParams& p) {
   CorrectionParams lp = p;
-  for (auto& h : lp.handles) h.vertex = c.local(h.vertex);
   auto localize = [&](const Eigen::VectorXd& field, Eigen::VectorXd& local) {
     if (field.size() == 0) return;
     local.resize(static_cast<Eigen::Index>(c.to_mesh.size()));
@@ -571,10 +898,38 @@ Field fem_solve(const Mesh& mesh, const CorrectionParams& p, const std::vector<i
   localize(p.tissue.mass_field, lp.tissue.mass_field);
   localize(p.tissue.elasticity_field, lp.tissue.elasticity_field);
   localize(p.tissue.viscosity_field, lp.tissue.viscosity_field);
-  std::vector<int> local_region;
-  local_region.reserve(region.size());
-  for (int v : region) local_region.push_back(c.local(v));
-  const Field dl = fem_solve_local(c.mesh, lp, local_region, fraction, r);
+  return lp;
+}
+
+FemProblem localized(const RegionCopy& c, const FemProblem& problem) {
+  FemProblem local;
+  local.distance = problem.distance;
+  local.region.reserve(problem.region.size());
+  for (const int v : problem.region) local.region.push_back(c.local(v));
+  for (const int v : problem.sources) local.sources.push_back(c.from_mesh.count(v) ? c.local(v) : -1);
+  std::erase(local.sources, -1);
+  for (CorrectionHandle h : problem.held) {
+    h.vertex = c.local(h.vertex);
+    local.held.push_back(h);
+  }
+  // A load reaching beyond the copy (a handle larger than the region) acts on held
+  // vertices there, where it does nothing.
+  auto in_copy = [&](const std::vector<std::pair<int, double>>& weights) {
+    std::vector<std::pair<int, double>> out;
+    for (const auto& [v, w] : weights)
+      if (const auto it = c.from_mesh.find(v); it != c.from_mesh.end()) out.emplace_back(it->second, w);
+    return out;
+  };
+  for (const LoadedHandle& h : problem.loaded)
+    local.loaded.push_back({in_copy(h.load), in_copy(h.point), h.displacement});
+  return local;
+}
+
+Field fem_solve(const Mesh& mesh, const CorrectionParams& p, const FemProblem& problem, double fraction,
+                CorrectionResult& r) {
+  const RegionCopy c = copy_region(mesh, problem.region, kCorrectionMarginRings);
+  if (c.whole) return fem_solve_local(mesh, p, problem, fraction, r);
+  const Field dl = fem_solve_local(c.mesh, localized(c, p), localized(c, problem), fraction, r);
   Field d = Field::Zero(mesh.num_vertices(), 3);
   for (std::size_t k = 0; k < c.to_mesh.size(); ++k) d.row(c.to_mesh[k]) = dl.row(static_cast<Eigen::Index>(k));
   return d;
@@ -627,9 +982,9 @@ CorrectionRegion correction_region(const Mesh& mesh, const CorrectionParams& p) 
         fmt::format("correction_region works on a mesh in millimetres, not {}: scale it first", to_string(p.units)));
   validate(mesh, p);
   CorrectionRegion out;
-  out.region = region_of(mesh, p);
+  out.region = fem_problem(mesh, normalized(p, mesh)).region;
   out.copy = copy_region(mesh, out.region, kCorrectionMarginRings);
-  const Eigen::VectorXd all = operator_weights(normalized(p), mesh.num_vertices());
+  const Eigen::VectorXd all = operator_weights(normalized(p, mesh), mesh.num_vertices());
   Eigen::VectorXd weights;
   if (all.size()) {
     weights.resize(static_cast<Eigen::Index>(out.copy.to_mesh.size()));
@@ -659,10 +1014,16 @@ CorrectionResult correct_vessel_impl(const Mesh& mesh, const CorrectionParams& p
   }
   const auto t0 = std::chrono::steady_clock::now();
   validate(mesh, p_in);
-  const CorrectionParams p = normalized(p_in);
+  const CorrectionParams p = normalized(p_in, mesh);
   CorrectionResult r;
-  r.region = region_of(mesh, p);
-  if (r.region.size() <= p.handles.size()) {
+  const FemProblem problem = fem_problem(mesh, p);
+  r.region = problem.region;
+  r.handle_radius = handle_size(p);
+  std::set<int> handle_vertices;  // the held handles, and the corners a point is read from
+  for (const auto& h : problem.held) handle_vertices.insert(h.vertex);
+  for (const auto& h : problem.loaded)
+    for (const auto& [v, w] : h.point) handle_vertices.insert(v);
+  if (r.region.size() <= handle_vertices.size()) {
     double sum = 0;  // mean length of the edges at the handles
     int count = 0;
     for (const auto& h : p.handles)
@@ -713,7 +1074,7 @@ CorrectionResult correct_vessel_impl(const Mesh& mesh, const CorrectionParams& p
     }
     r.new_self_intersections = count_new(V0 + d);  // the thesis method does not prevent them
   } else {
-    d = fem_solve(mesh, p, r.region, 1.0, r);
+    d = fem_solve(mesh, p, problem, 1.0, r);
     r.new_self_intersections = count_new(V0 + d);
     if (r.new_self_intersections > 0 && p.prevent_intersections) {
       // 1. Smaller steps, the operators rebuilt on the deformed surface each time.
@@ -721,10 +1082,8 @@ CorrectionResult correct_vessel_impl(const Mesh& mesh, const CorrectionParams& p
       for (int n = 2; n <= p.max_substeps && !solved; n *= 2) {
         Mesh cur = mesh;
         Field total = Field::Zero(mesh.num_vertices(), 3);
-        CorrectionParams step = p;
-        for (auto& h : step.handles) h.displacement /= n;
         for (int k = 0; k < n; ++k) {
-          total += fem_solve(cur, step, r.region, 1.0, r);
+          total += fem_solve(cur, p, problem, 1.0 / n, r);
           cur.set_positions(V0 + total);
         }
         if (count_new(V0 + total) == 0) {
@@ -768,6 +1127,69 @@ CorrectionResult correct_vessel_impl(const Mesh& mesh, const CorrectionParams& p
 CorrectionResult correct_vessel(const Mesh& mesh, const CorrectionParams& params,
                                 const SelfIntersectionChecker* checker) {
   return correct_vessel_impl(mesh, params, checker, {});
+}
+
+struct CorrectionPreview::Impl {
+  RegionCopy copy;
+  CorrectionParams params;  // in the copy's numbering
+  FemProblem problem;       // in the copy's numbering
+  FemSetup setup;
+  std::unique_ptr<SteadyDirectSolver> solver;
+  std::unique_ptr<HandleConstraints> constraints;
+  Field unit_held;  // a held handle: its response to a unit value (one column), else empty
+  int region_vertices = 0;
+};
+
+CorrectionPreview::CorrectionPreview(const Mesh& mesh, const CorrectionParams& params_in)
+    : impl_(std::make_unique<Impl>()) {
+  if (params_in.units != LengthUnit::Millimetre)
+    throw InputError(fmt::format("a correction preview works on a mesh in millimetres, not {}: scale it first",
+                                 to_string(params_in.units)));
+  if (params_in.handles.size() != 1) throw InputError("a correction preview follows one handle");
+  if (params_in.method != CorrectionMethod::Fem || params_in.dynamic || params_in.image.edges)
+    throw InputError("a correction preview solves the static fem correction without image guidance");
+  validate(mesh, params_in);
+  const CorrectionParams p = normalized(params_in, mesh);
+  Impl& m = *impl_;
+  const FemProblem problem = fem_problem(mesh, p);
+  m.region_vertices = static_cast<int>(problem.region.size());
+  m.copy = copy_region(mesh, problem.region, kCorrectionMarginRings);
+  // The very steps of a static, unguided correct_vessel (fem_solve_local), so that the
+  // preview equals the release to rounding.
+  m.params = m.copy.whole ? p : localized(m.copy, p);
+  m.problem = m.copy.whole ? problem : localized(m.copy, problem);
+  m.setup = fem_setup(m.copy.mesh, m.params, m.problem);
+  const Eigen::VectorXd extra = foundations(m.copy.mesh, m.params, m.problem, m.setup);
+  const PdeCoefficients coef{.g0 = 0, .g1 = m.params.g1, .g2 = m.params.g2};
+  m.solver = std::make_unique<SteadyDirectSolver>(m.setup.mo.mesh, m.setup.mo.ops, coef, m.setup.free,
+                                                  SparseCholesky::Backend::Auto,
+                                                  extra.maxCoeff() > 0 ? extra : Eigen::VectorXd());
+  const int nv = m.copy.mesh.num_vertices();
+  m.constraints = std::make_unique<HandleConstraints>(*m.solver, m.problem.loaded, nv);
+  if (!m.problem.held.empty()) {
+    Field unit = Field::Zero(nv, 1);
+    unit(m.problem.held.front().vertex, 0) = 1;
+    m.unit_held = m.solver->solve(unit);
+  }
+}
+
+CorrectionPreview::~CorrectionPreview() = default;
+
+int CorrectionPreview::region_vertices() const {
+  return impl_->region_vertices;
+}
+
+void CorrectionPreview::add_displacement(Positions& V, const Eigen::Vector3d& D) const {
+  const Impl& m = *impl_;
+  Field d;
+  if (m.unit_held.size()) {
+    d = m.unit_held * D.transpose();
+  } else {
+    d = Field::Zero(m.copy.mesh.num_vertices(), 3);
+    m.constraints->apply(d, std::vector<Eigen::Vector3d>{D});
+  }
+  for (std::size_t k = 0; k < m.copy.to_mesh.size(); ++k)
+    V.row(m.copy.to_mesh[k]) += d.row(static_cast<Eigen::Index>(k));
 }
 
 CorrectionSession::CorrectionSession(Mesh mesh)

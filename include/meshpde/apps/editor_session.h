@@ -75,9 +75,15 @@ class EditorSession {
   /// the static solve too). Returns the set-up time in ms.
   double drag_begin(int vertex, double radius, const Eigen::VectorXd& stiffness = Eigen::VectorXd(),
                     const TissueParams& tissue = {});
+  /// The same at a surface point (the point the user picked), with the correction's
+  /// default rule: the point moves, the region is measured on the surface and ends
+  /// smoothly at `radius` (RegionBoundary::Smooth, a handle of the default size); the
+  /// release is correct() with that point handle (a CorrectionPreview).
+  double drag_begin(const SurfacePoint& point, double radius, const Eigen::VectorXd& stiffness = Eigen::VectorXd(),
+                    const TissueParams& tissue = {});
   void drag_move(const Eigen::Vector3d& offset);
   void drag_end();  ///< drops the preview (correct() drops it too)
-  bool dragging() const { return drag_ != nullptr; }
+  bool dragging() const { return drag_ != nullptr || preview_ != nullptr; }
   int drag_region_vertices() const;
 
   // Correct.
@@ -152,6 +158,7 @@ class EditorSession {
   // keeps references to them), built at drag_begin.
   std::unique_ptr<CorrectionRegion> drag_region_;
   std::unique_ptr<DragSession> drag_;
+  std::unique_ptr<CorrectionPreview> preview_;  // a drag at a surface point
   Eigen::Vector3d drag_offset_ = Eigen::Vector3d::Zero();
   // Fields.
   Eigen::VectorXd field_;

@@ -39,6 +39,9 @@ std::vector<int> parse_vertex_list(const Mesh& mesh, const std::string& text, co
 /// Vertex given as an index or @X,Y,Z. \throw InputError
 int parse_vertex_spec(const Mesh& mesh, const std::string& spec);
 
+/// A point written "X,Y,Z" (three finite numbers). \throw InputError quoting the text.
+Eigen::Vector3d parse_point_spec(const std::string& spec);
+
 /// A brush written "V:RADIUS:VALUE" (V an index or @X,Y,Z; radius in mesh units), as
 /// `--brush` and the editor take it. \throw InputError quoting the text.
 Brush parse_brush(const Mesh& mesh, const std::string& text);

@@ -4,24 +4,28 @@
 // optionally pulled onto the edges of the patient's image.
 //
 // Method Fem (ours). The displacement field d (#V x 3, mm) solves
-//     (g1 K_w + g2 K_w D K_w) d = f_image   on the region of influence,
-// d = the user's displacement at each handle and d = 0 outside the region (two
-// frozen rings make the join C1 when g2 > 0). K_w is the stiffness with the
-// per-vertex tissue stiffness w averaged per triangle (a stiffer carina: w > 1
-// there). The operator is the intrinsic Delaunay one on badly shaped meshes
-// (operators/intrinsic_delaunay.h), so marching-cubes slivers neither spoil the
-// solve nor put spikes in d. Static by default; `dynamic` integrates
+//     (g1 K_w + g2 K_w D K_w) d = f_image + sum_l c_l w_l   on the region of influence,
+// d = 0 outside the region (two frozen rings make the join C1 when g2 > 0), and each
+// handle's point moving by the user's displacement: w_l is handle l's load (its point,
+// or a smooth bump of the handle's size around it) and the c_l are what it takes to
+// put every handle point on its displacement (see CorrectionHandle); a vertex handle of
+// size 0 is simply held. K_w is the stiffness with the per-vertex tissue stiffness w
+// averaged per triangle (a stiffer carina: w > 1 there). The operator is the intrinsic
+// Delaunay one on badly shaped meshes (operators/intrinsic_delaunay.h), so
+// marching-cubes slivers neither spoil the solve nor put spikes in d. Static by
+// default; `dynamic` integrates
 //     alpha M d'' + b1 M d' + (g1 K_w + g2 K_w D K_w) d = f
 // from rest for `steps` backward-Euler steps, with the thesis's tissue parameters
 // mapped as alpha = mass, b1 = 2 viscosity sqrt(alpha k) (viscosity 1 is critical
 // damping of the region's slowest mode, k its stiffness), g = elasticity * (g1, g2);
 // a step is a quarter of 1/omega, omega = sqrt(k / alpha), so `steps` counts time
 // in the region's own units (the default 50 settles it to about exp(-7.5)).
-// With a region given in mm the result does not depend on the mesh resolution: the
-// frozen rings clamp the field about one edge length h beyond the last free vertex,
-// so the free set is taken within radius - h (h the region's mean edge length). The
-// solve runs on a copy of the region and six rings around it: its cost follows the
-// region, not the mesh.
+// The region given in mm is the surface within that distance of the handles, ended by
+// a foundation that takes the displacement and its slope to zero at the radius
+// (RegionBoundary::Smooth): handles at points, distances on the surface and the
+// boundary all belong to the surface, so independent triangulations of one wall give
+// the same correction (docs/vessel-correction.md). The solve runs on a copy of the
+// region and six rings around it: its cost follows the region, not the mesh.
 //
 // Method Springs (the thesis's, as a baseline, as we read it). Rings of neighbours
 // are visited breadth first from the handle up to the level of influence; each
@@ -77,6 +81,7 @@
 #include "meshpde/mesh/mesh.h"
 #include "meshpde/mesh/regions.h"
 #include "meshpde/mesh/self_intersections.h"
+#include "meshpde/mesh/surface_distance.h"
 #include "meshpde/mesh/units.h"
 #include "meshpde/operators/fem_operators.h"
 #include "meshpde/operators/intrinsic_delaunay.h"
@@ -90,25 +95,46 @@ enum class CorrectionMethod { Fem, Springs };
 /// "fem" or "springs". \throw InputError otherwise.
 CorrectionMethod parse_correction_method(const std::string& text);
 
-/// How a Fem correction's region ends (`--boundary`).
-///  - Clamp (default): the free set ends at radius - h and the rings beyond are held at
-///    zero (mesh/regions.h's influence_region): nothing beyond the radius moves.
-///  - Fade: the free set reaches twice the radius and an elastic foundation, zero up to
-///    0.6 R and growing as the cube of the distance beyond, takes the displacement
-///    down smoothly: a property of the surface, not of where the mesh's vertices fall,
-///    so results on two resolutions of a surface agree about three times better at 5
-///    to 20 edges (docs/vessel-correction.md, "Resolution independence"). Vertices
-///    between R and 2 R move a little (a few % of the drag at 1.2 R). Static or
-///    dynamic, with or without image guidance; the direct solver only.
-enum class RegionBoundary { Clamp, Fade };
-/// "clamp" or "fade". \throw InputError otherwise.
+/// How a Fem correction's region of radius R ends (`--boundary`).
+///  - Smooth (default): the region is the surface within distance R of the handles,
+///    measured on the surface (mesh/geodesic_distance.h), and an elastic foundation that
+///    starts at kSmoothStart R and grows without bound towards R takes the displacement
+///    and its slope to zero at R: where the boundary lies is a property of the surface,
+///    not of where the mesh's vertices fall, so independent triangulations of one wall
+///    agree (docs/vessel-correction.md, "Resolution independence"). Nothing at R or
+///    beyond moves.
+///  - Clamp: the free set ends at R - h by edge paths from the handles' vertices, and
+///    the rings beyond are held at zero (mesh/regions.h's influence_region): nothing
+///    beyond R moves, but the boundary moves with h.
+///  - Fade: the free set reaches 2 R by edge paths and a foundation, zero up to 0.6 R
+///    and growing as the cube of the distance beyond, takes the displacement down
+///    smoothly; vertices between R and 2 R move a little (a few % of the drag at 1.2 R).
+/// All three work static or dynamic, with or without image guidance. Smooth and Fade
+/// solve with the direct solver only.
+enum class RegionBoundary { Clamp, Fade, Smooth };
+/// Where Smooth's foundation starts, as a fraction of the radius.
+inline constexpr double kSmoothStart = 0.5;
+/// "smooth", "clamp" or "fade". \throw InputError otherwise.
 RegionBoundary parse_region_boundary(const std::string& text);
 const char* to_string(RegionBoundary boundary);
 
-/// A handle: a vertex moved by a prescribed displacement.
+/// A handle: a vertex or a point of the surface, moved by a prescribed displacement.
+/// A Fem correction moves the handle's point (the vertex, or the barycentric combination
+/// of its triangle's corners) by exactly `displacement`; with a handle radius r > 0
+/// (CorrectionParams::handle_radius) the force that does it is spread over the surface
+/// within r of the point with the smooth profile (1 - (d / r)^2)^2, d the straight-line
+/// distance to the point, so the drag makes a smooth bump instead of a cusp.
 struct CorrectionHandle {
-  int vertex = 0;                                          ///< index into the mesh's vertices
+  CorrectionHandle() = default;
+  CorrectionHandle(int v, const Eigen::Vector3d& d) : vertex(v), displacement(d) {}
+  /// At a surface point; `vertex` becomes the point's nearest corner.
+  CorrectionHandle(const Mesh& mesh, const SurfacePoint& p, const Eigen::Vector3d& d);
+
+  int vertex = 0;                                          ///< index into the mesh's vertices (when no point)
   Eigen::Vector3d displacement = Eigen::Vector3d::Zero();  ///< mm (CorrectionParams::units: the mesh's unit)
+  /// A point inside a triangle instead of the vertex (mesh/surface_distance.h); the
+  /// springs method, which moves vertices, takes the point's nearest corner.
+  std::optional<SurfacePoint> point;
 };
 
 /// Handles from moves written as the user writes them, one per vertex:
@@ -120,6 +146,13 @@ struct CorrectionHandle {
 ///        (the message quotes it) or a normal move at a vertex without area.
 std::vector<CorrectionHandle> parse_handles(const Mesh& mesh, const std::vector<int>& vertices,
                                             const std::vector<std::string>& moves);
+
+/// Handles at surface points: the point of the surface nearest to each of `points` (in
+/// the mesh's coordinates), with its move as parse_handles reads it; "normal:D" is along
+/// the outward normal at the point (the corners' outward normals interpolated).
+/// \throw InputError as parse_handles, or for a point that is not finite.
+std::vector<CorrectionHandle> parse_point_handles(const Mesh& mesh, const std::vector<Eigen::Vector3d>& points,
+                                                  const std::vector<std::string>& moves);
 
 /// The thesis's tissue parameters, each in [0, 1] and unit-free (defaults: the thesis's),
 /// for the whole region or per vertex: a field (#V entries, each in [0, 1]) replaces its
@@ -174,13 +207,17 @@ struct CorrectionParams {
   /// say); the result's V and displacement are in the mesh's unit again, its
   /// max_displacement in mm. mesh/units.h's units_warning() spots a wrong guess.
   LengthUnit units = LengthUnit::Millimetre;
-  /// Region of influence: edge-path distance (mm) from any handle; 0: use
-  /// rings. The free set is taken within radius - h (h the mean edge length), which
-  /// makes the result independent of the resolution (see above). Default 0.
+  /// Region of influence: distance (mm) from the nearest handle, on the surface (Smooth)
+  /// or along edges (Clamp, Fade); 0: use rings. Default 0.
   double radius = 0;
   int rings = 0;  ///< region of influence in rings of neighbours (the thesis's level of influence); default 0
-  /// How a Fem region given by radius ends: Clamp (default) or Fade (see RegionBoundary).
-  RegionBoundary boundary = RegionBoundary::Clamp;
+  /// How a Fem region given by radius ends: Smooth (default), Clamp or Fade (see RegionBoundary).
+  RegionBoundary boundary = RegionBoundary::Smooth;
+  /// Size of each handle of a Fem correction (mm; see CorrectionHandle): < 0 (default)
+  /// takes kHandleRadiusFraction of the radius with the smooth boundary, 0 with the clamp,
+  /// the fade and rings; 0 is a single point, and a vertex handle of size 0 is held at its
+  /// displacement exactly as before handles had a size.
+  double handle_radius = -1;
   CorrectionMethod method = CorrectionMethod::Fem;  ///< Fem (ours, default) or Springs (the thesis's baseline)
   double g1 = 0;  ///< membrane (Laplacian) stiffness of Fem, unit-free weight; default 0
   double g2 = 1;  ///< plate (bi-Laplacian) stiffness of Fem, unit-free weight; default 1
@@ -202,16 +239,20 @@ struct CorrectionParams {
   bool prevent_intersections = true;
   int max_substeps = 8;  ///< most steps a correction is split into before it is limited; default 8
   ImageGuidance image;   ///< off unless image.edges is set
-  /// How the Fem system is solved: Auto (default: for a static, unguided region without
-  /// the fade, the multigrid where SteadySolver's rule tries it and it converges, Direct
+  /// How the Fem system is solved: Auto (default: for a static, unguided region with
+  /// the clamp and vertex handles of size 0, the multigrid where SteadySolver's rule tries it and it converges, Direct
   /// otherwise), Direct (a sparse Cholesky factor of the region's matrix, with a
   /// condition estimate), Global (CG preconditioned by the surface multigrid or the
   /// Laplacian factor, pde/global_bilaplacian.h: for regions of hundreds of thousands of
   /// vertices; g2 > 0) or Iterative (Jacobi-CG, no factor: for comparison). Global and
-  /// Iterative solve the static, unguided problem only.
+  /// Iterative solve the static, unguided problem with the clamp and vertex handles of
+  /// size 0 only.
   SteadySolver solver = SteadySolver::Auto;
   CgOptions cg{.tolerance = 1e-10, .max_iterations = 50000};  ///< for SteadySolver::Iterative
 };
+
+/// The default handle size as a fraction of the region's radius.
+inline constexpr double kHandleRadiusFraction = 0.25;
 
 /// Paints `brush` into `params`' field of `property` (stiffness, or one of the tissue
 /// fields). An empty field starts as its scalar everywhere (stiffness: 1), so painting
@@ -229,30 +270,33 @@ void paint_tissue(const Mesh& mesh, CorrectionParams& params, TissueProperty pro
 inline constexpr int kCorrectionMarginRings = 6;
 
 /// What a Fem correction of `params` solves on: its region of influence (mesh
-/// numbering; mesh/regions.h's influence_region, clamped at the radius), the region's
-/// copy and the operators built on the copy (params.laplacian, params.stiffness). The
-/// editor's drag preview solves on exactly these, so that the preview when the mouse
-/// stops equals the correction applied on release. The mesh must be in millimetres.
+/// numbering; the surface within the radius with the smooth boundary, mesh/regions.h's
+/// influence_region clamped at the radius with the clamp), the region's copy and the
+/// operators built on the copy (params.laplacian, params.stiffness). The editor's
+/// vertex drag preview (a DragSession, clamp rule) solves on exactly these, so that the
+/// preview when the mouse stops equals the correction applied on release. The mesh
+/// must be in millimetres.
 /// \throw InputError as correct_vessel for bad handles, region or stiffness, and for
 ///        params.units other than mm.
 struct CorrectionRegion {
-  std::vector<int> region;  ///< handles first
+  std::vector<int> region;  ///< held vertex handles first
   RegionCopy copy;
   MeshOperators operators;  ///< on copy.mesh (operators.mesh: the copy, or its intrinsic operator mesh)
 };
 CorrectionRegion correction_region(const Mesh& mesh, const CorrectionParams& params);
 
 struct CorrectionResult {
-  Positions V;                                 ///< corrected positions (the mesh's unit)
-  Field displacement;                          ///< #V x 3, the mesh's unit (mm unless params.units says otherwise)
-  std::vector<int> region;                     ///< vertices of the region of influence (handles included)
-  int moved_vertices = 0;                      ///< |d| > 1e-6 of the largest handle displacement
-  double max_displacement = 0;                 ///< mm
-  int new_self_intersections = 0;              ///< triangle pairs intersecting now that did not before
-  double applied_fraction = 1;                 ///< share of the requested displacement applied (< 1: limited)
-  int substeps = 1;                            ///< steps the displacement was split into
-  std::string intersection_action = "none";    ///< none | split into N steps | limited to F
-  double relative_residual = 0;                ///< worst relative residual of the accepted solves
+  Positions V;                               ///< corrected positions (the mesh's unit)
+  Field displacement;                        ///< #V x 3, the mesh's unit (mm unless params.units says otherwise)
+  std::vector<int> region;                   ///< vertices of the region of influence (handles included)
+  double handle_radius = 0;                  ///< mm: the handles' size used (CorrectionParams::handle_radius resolved)
+  int moved_vertices = 0;                    ///< |d| > 1e-6 of the largest handle displacement
+  double max_displacement = 0;               ///< mm
+  int new_self_intersections = 0;            ///< triangle pairs intersecting now that did not before
+  double applied_fraction = 1;               ///< share of the requested displacement applied (< 1: limited)
+  int substeps = 1;                          ///< steps the displacement was split into
+  std::string intersection_action = "none";  ///< none | split into N steps | limited to F
+  double relative_residual = 0;              ///< worst relative residual of the accepted solves
   SteadySolver solver = SteadySolver::Direct;  ///< the Fem solves' solver (Auto resolved; Direct for springs)
   double condition_estimate = 0;  ///< largest cond_1 of the scaled system (SteadyDirectSolver::conditioning)
   double error_bound = 0;         ///< largest estimated relative error of a solve
@@ -272,6 +316,29 @@ struct CorrectionResult {
 /// \throw InputError for bad handles, region or stiffness; SolverError on a breakdown.
 CorrectionResult correct_vessel(const Mesh& mesh, const CorrectionParams& params,
                                 const SelfIntersectionChecker* checker = nullptr);
+
+/// The live preview of a static correction without image guidance, for one handle
+/// being dragged (the editor): the region's factor and the handle's response are built
+/// once, and each drag D is then a product (microseconds), equal to correct_vessel with
+/// that handle displacement to rounding (the same region, copy, operators, foundation
+/// and handle constraint), as long as the release creates no self-intersection. The
+/// mesh must be in millimetres.
+/// \throw InputError for params with other than one handle, the springs method, the
+///        dynamic mode or an image, or as correct_vessel.
+class CorrectionPreview {
+ public:
+  CorrectionPreview(const Mesh& mesh, const CorrectionParams& params);
+  ~CorrectionPreview();
+  CorrectionPreview(const CorrectionPreview&) = delete;
+  CorrectionPreview& operator=(const CorrectionPreview&) = delete;
+  int region_vertices() const;
+  /// Adds the displacement of the handle dragged by D (mm) to V (the mesh's #V x 3).
+  void add_displacement(Positions& V, const Eigen::Vector3d& D) const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
 
 /// A correction session on one mesh: corrections apply on top of each other, with
 /// undo and redo (the history holds the positions after each step).

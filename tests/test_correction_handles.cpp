@@ -1,0 +1,290 @@
+// Corrections that belong to the surface, not to its triangulation (apps/vessel_correction.h):
+// handles at surface points, handles with a size, regions measured on the surface and
+// the smooth boundary; checked against the vertex handle they generalize, against
+// subdivision, under refinement, and across independent triangulations of one plane.
+#include <fmt/format.h>
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include "meshpde/apps/vessel_correction.h"
+#include "meshpde/core/errors.h"
+#include "meshpde/mesh/generators.h"
+#include "meshpde/mesh/geodesic_distance.h"
+#include "meshpde/mesh/surface_distance.h"
+#include "meshpde/mesh/topology.h"
+#include "meshpde/operators/fem_operators.h"
+#include "test_support.h"
+
+using namespace meshpde;
+using test::error_of;
+using test::make;
+
+namespace {
+
+// The square [-L, L]^2 (z = 0) as a grid of edge about h, rotated by `angle` and jittered
+// by up to 0.2 h: planes of different h, angle and seed are independent triangulations.
+Mesh plane_patch(double h, double angle, unsigned seed, double L) {
+  const int n = static_cast<int>(std::ceil(2 * L / h));
+  GeneratedMesh g = plane_grid(n, n, 2 * L, 2 * L);
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> jitter(-0.2 * h, 0.2 * h);
+  const double c = std::cos(angle), s = std::sin(angle);
+  for (Eigen::Index i = 0; i < g.V.rows(); ++i) {
+    const bool inside = g.V(i, 0) > 0 && g.V(i, 0) < 2 * L && g.V(i, 1) > 0 && g.V(i, 1) < 2 * L;
+    const double x = g.V(i, 0) - L + (inside ? jitter(rng) : 0), y = g.V(i, 1) - L + (inside ? jitter(rng) : 0);
+    g.V(i, 0) = c * x - s * y;
+    g.V(i, 1) = s * x + c * y;
+  }
+  return make(g);
+}
+
+SurfacePoint point_at(const Mesh& m, const Eigen::Vector3d& x) {
+  return closest_surface_points(m, std::span<const Eigen::Vector3d>(&x, 1))[0];
+}
+
+// The displacement of `r` (on mesh m) at the surface point nearest x, interpolated.
+Eigen::Vector3d displacement_at(const Mesh& m, const CorrectionResult& r, const Eigen::Vector3d& x) {
+  const SurfacePoint p = point_at(m, x);
+  Eigen::Vector3d d = Eigen::Vector3d::Zero();
+  for (int k = 0; k < 3; ++k) d += p.bary[k] * r.displacement.row(m.triangles()(p.face, k)).transpose();
+  return d;
+}
+
+// A surface point on vertex v: one of its triangles, weight 1 at v.
+SurfacePoint on_vertex(const Mesh& m, int v) {
+  for (int f = 0; f < m.num_faces(); ++f)
+    for (int k = 0; k < 3; ++k)
+      if (m.triangles()(f, k) == v) {
+        SurfacePoint p{f, Eigen::Vector3d::Zero()};
+        p.bary[k] = 1;
+        return p;
+      }
+  return {};
+}
+
+}  // namespace
+
+// A point handle of size 0 at a vertex is the vertex handle: the point constraint's
+// reaction is the vertex's, so the bordered system gives the held vertex's answer.
+TEST(CorrectionHandles, APointOfSizeZeroOnAVertexIsTheVertexHandle) {
+  const Mesh m = make(icosphere(4, 10.0));
+  const int v = 17;
+  for (const RegionBoundary b : {RegionBoundary::Clamp, RegionBoundary::Smooth}) {
+    SCOPED_TRACE(to_string(b));
+    CorrectionParams vertex;
+    vertex.handles = {{v, Eigen::Vector3d(0.3, -0.2, 1.1)}};
+    vertex.radius = 6;
+    vertex.boundary = b;
+    vertex.handle_radius = 0;
+    CorrectionParams point = vertex;
+    point.handles = {CorrectionHandle(m, on_vertex(m, v), Eigen::Vector3d(0.3, -0.2, 1.1))};
+    const CorrectionResult a = correct_vessel(m, vertex), c = correct_vessel(m, point);
+    EXPECT_EQ(a.region.size(), c.region.size());
+    EXPECT_LE((a.V - c.V).cwiseAbs().maxCoeff(), 1e-9 * 1.2);
+    EXPECT_LE((c.V.row(v) - m.positions().row(v) - Eigen::RowVector3d(0.3, -0.2, 1.1)).norm(), 1e-12);
+  }
+}
+
+// The handle point, wherever it is in its triangle, moves by exactly the drag (the
+// barycentric combination of the corners' displacements), with or without a size, and
+// nothing at or beyond the radius (on the surface) moves.
+TEST(CorrectionHandles, ThePointMovesByTheDragAndNothingBeyondTheRadiusMoves) {
+  const Mesh m = plane_patch(0.5, 0.3, 5, 8);
+  const Eigen::Vector3d x(0.137, -0.291, 0), D(0.2, 0.1, 1.0);
+  const SurfacePoint sp = point_at(m, x);
+  for (const double size : {0.0, 1.0, -1.0}) {
+    SCOPED_TRACE(size);
+    CorrectionParams p;
+    p.handles = {CorrectionHandle(m, sp, D)};
+    p.radius = 5;
+    p.handle_radius = size;
+    const CorrectionResult r = correct_vessel(m, p);
+    EXPECT_LE((displacement_at(m, r, x) - D).norm(), 1e-9);
+    EXPECT_DOUBLE_EQ(r.handle_radius, size < 0 ? kHandleRadiusFraction * 5 : size);
+    const Eigen::VectorXd s = geodesic_distance(m, GeodesicSources{.points = {sp}});
+    double near_edge = 0;
+    int inner = 0, inner_moved = 0;
+    for (int v = 0; v < m.num_vertices(); ++v) {
+      const double len = r.displacement.row(v).norm();
+      if (s[v] >= 5) {
+        EXPECT_EQ(len, 0.0) << "vertex " << v << " at " << s[v];
+      }
+      if (s[v] >= 0.95 * 5 && s[v] < 5) near_edge = std::max(near_edge, len);
+      if (s[v] < 0.3 * 5) {
+        ++inner;
+        inner_moved += len > 0.2 * D.norm();
+      }
+    }
+    // The displacement has already fallen to almost nothing just inside R.
+    EXPECT_LT(near_edge, 2e-3 * D.norm());
+    EXPECT_EQ(inner_moved, inner);
+  }
+}
+
+// A handle with a size makes a bump whose curvature at the handle does not grow as the
+// mesh is refined; a point handle's does (its field is r^2 log r, whose Laplacian is
+// log r). Curvature of the bump: the discrete Laplacian of the normal displacement at the
+// handle vertex, M^-1 K d_z.
+TEST(CorrectionHandles, AHandleWithASizeHasBoundedCurvatureUnderRefinement) {
+  std::vector<double> sized, point;
+  for (const double h : {0.5, 0.25, 0.125}) {
+    const Mesh m = plane_patch(h, 0.0, 3, 6);
+    const int v = [&] {
+      int best = 0;
+      m.positions().rowwise().squaredNorm().minCoeff(&best);
+      return best;
+    }();
+    const FemOperators ops = build_operators(m);
+    for (const double size : {1.0, 0.0}) {
+      CorrectionParams p;
+      p.handles = {{v, Eigen::Vector3d(0, 0, 1)}};
+      p.radius = 4;
+      p.handle_radius = size;
+      const CorrectionResult r = correct_vessel(m, p);
+      const Field dz = r.displacement.col(2);
+      const Field lap = apply_stiffness(m, ops, dz);
+      (size > 0 ? sized : point).push_back(std::abs(lap(v, 0)) / ops.mass[v]);
+    }
+  }
+  RecordProperty("curvature_sized", fmt::format("{:.3g} {:.3g} {:.3g}", sized[0], sized[1], sized[2]));
+  RecordProperty("curvature_point", fmt::format("{:.3g} {:.3g} {:.3g}", point[0], point[1], point[2]));
+  EXPECT_LT(sized[2], 1.15 * sized[0]);
+  EXPECT_GT(point[1], point[0] + 0.1);
+  EXPECT_GT(point[2], point[1] + 0.1);
+}
+
+// A point at an edge's midpoint, and the same point as a vertex of the subdivided mesh:
+// the two corrections agree at the coarse vertices to the discretization error, which
+// falls as the pair is refined.
+TEST(CorrectionHandles, AnEdgeMidpointAgreesWithTheVertexOfTheSubdivision) {
+  std::vector<double> diff;
+  for (const int level : {3, 4}) {
+    const GeneratedMesh g = icosphere(level, 10.0);
+    const Mesh coarse = make(g), fine = make(subdivide_midpoint(g.V, g.F));
+    const int a = coarse.triangles()(0, 0), b = coarse.triangles()(0, 1);
+    const Eigen::Vector3d mid = 0.5 * (coarse.positions().row(a) + coarse.positions().row(b)).transpose();
+    const Eigen::Vector3d D = 0.8 * mid.normalized();
+    CorrectionParams p;
+    p.radius = 7;
+    p.handles = {CorrectionHandle(coarse, SurfacePoint{0, Eigen::Vector3d(0.5, 0.5, 0)}, D)};
+    const CorrectionResult c = correct_vessel(coarse, p);
+    int m = 0;  // the subdivision's vertex at the midpoint
+    (fine.positions().rowwise() - mid.transpose()).rowwise().squaredNorm().minCoeff(&m);
+    ASSERT_LT((fine.positions().row(m).transpose() - mid).norm(), 1e-12);
+    p.handles = {CorrectionHandle(fine, on_vertex(fine, m), D)};
+    const CorrectionResult f = correct_vessel(fine, p);
+    const double d = (f.displacement.topRows(coarse.num_vertices()) - c.displacement).rowwise().norm().maxCoeff();
+    diff.push_back(d / D.norm());
+  }
+  RecordProperty("midpoint_vs_subdivision", fmt::format("{:.4f} {:.4f}", diff[0], diff[1]));
+  EXPECT_LT(diff[1], 0.6 * diff[0]);
+  EXPECT_LT(diff[1], 0.05);
+}
+
+// Independent triangulations of one plane (rotated, jittered grids at h, h/2, h/4), one
+// drag at a point: the coarse result at each coarse vertex against the finer result at
+// the same point. The smooth boundary with a point handle converges; the clamp with the
+// nearest vertex does not (its boundary and handle move with the mesh).
+TEST(CorrectionHandles, IndependentTriangulationsAgreeWithTheSmoothBoundary) {
+  const Eigen::Vector3d x(0.1234, 0.0567, 0), D(0, 0, 1);
+  const double R = 10;  // 10 coarse edges
+  for (const bool smooth : {true, false}) {
+    std::vector<Mesh> meshes;
+    std::vector<CorrectionResult> results;
+    for (int level = 0; level < 3; ++level) {
+      const Mesh m = plane_patch(1.0 / (1 << level), 0.3 + 0.7 * level, 11 + level, 1.4 * R);
+      const SurfacePoint sp = point_at(m, x);
+      CorrectionParams p;
+      p.radius = R;
+      p.prevent_intersections = false;
+      if (smooth) {
+        p.handles = {CorrectionHandle(m, sp, D)};
+      } else {
+        int k = 0;
+        sp.bary.maxCoeff(&k);
+        p.handles = {{m.triangles()(sp.face, k), D}};
+        p.boundary = RegionBoundary::Clamp;
+      }
+      results.push_back(correct_vessel(m, p));
+      meshes.push_back(m);
+    }
+    std::vector<double> worst;
+    for (int level = 0; level < 2; ++level) {
+      std::vector<int> near;
+      std::vector<Eigen::Vector3d> at;
+      for (int v = 0; v < meshes[level].num_vertices(); ++v) {
+        const Eigen::Vector3d y = meshes[level].positions().row(v).transpose();
+        if ((y - x).norm() > 1.2 * R) continue;
+        near.push_back(v);
+        at.push_back(y);
+      }
+      const Mesh& finer = meshes[level + 1];
+      const std::vector<SurfacePoint> on_finer = closest_surface_points(finer, at);
+      double w = 0;
+      for (std::size_t k = 0; k < near.size(); ++k) {
+        Eigen::Vector3d d = Eigen::Vector3d::Zero();
+        for (int c = 0; c < 3; ++c)
+          d += on_finer[k].bary[c] *
+               results[level + 1].displacement.row(finer.triangles()(on_finer[k].face, c)).transpose();
+        w = std::max(w, (results[level].displacement.row(near[k]).transpose() - d).norm());
+      }
+      worst.push_back(w / D.norm());
+    }
+    RecordProperty(smooth ? "smooth" : "clamp", fmt::format("{:.4f} {:.4f}", worst[0], worst[1]));
+    std::printf("%s: largest difference %.3f %% then %.3f %% of the drag\n", smooth ? "smooth" : "clamp",
+                100 * worst[0], 100 * worst[1]);
+    if (smooth) {
+      EXPECT_LT(worst[1], 0.8 * worst[0]);
+      EXPECT_LT(worst[1], 0.01);
+    } else {
+      EXPECT_GT(worst[1], 0.05);  // the old rule does not converge: the reason for the new one
+    }
+  }
+}
+
+TEST(CorrectionHandles, PointHandlesFromTextAndBadOnesAreRefused) {
+  const Mesh m = make(icosphere(3, 10.0));
+  const std::vector<Eigen::Vector3d> at{Eigen::Vector3d(0, 0, 12), Eigen::Vector3d(12, 0, 0)};
+  const auto hs = parse_point_handles(m, at, {"normal:2", "0,0,1"});
+  ASSERT_EQ(hs.size(), 2u);
+  ASSERT_TRUE(hs[0].point.has_value());
+  // normal:2 at the top of a sphere is 2 along +z (the outward normal there).
+  EXPECT_LT((hs[0].displacement - Eigen::Vector3d(0, 0, 2)).norm(), 0.05);
+  EXPECT_LT((position(m, *hs[0].point) - Eigen::Vector3d(0, 0, 10)).norm(), 0.3);
+  EXPECT_NE(error_of([&] { parse_point_handles(m, at, {"normal:2"}); }).find("2 handles but 1 moves"),
+            std::string::npos);
+  CorrectionParams p;
+  p.radius = 5;
+  p.handles = {CorrectionHandle(m, SurfacePoint{0, Eigen::Vector3d(0.7, 0.7, -0.4)}, Eigen::Vector3d(0, 0, 1))};
+  EXPECT_NE(error_of([&] { correct_vessel(m, p); }).find("barycentric"), std::string::npos);
+  EXPECT_NE(error_of([&] {
+              CorrectionHandle(m, SurfacePoint{m.num_faces()}, Eigen::Vector3d::Zero());
+            }).find("does not exist"),
+            std::string::npos);
+  // The global solver takes the clamp with vertex handles of size 0 only.
+  CorrectionParams g;
+  g.radius = 5;
+  g.handles = {{0, Eigen::Vector3d(0, 0, 1)}};
+  g.solver = SteadySolver::Global;
+  EXPECT_NE(error_of([&] { correct_vessel(m, g); }).find("clamp boundary"), std::string::npos);
+  g.boundary = RegionBoundary::Clamp;
+  EXPECT_EQ(error_of([&] { correct_vessel(m, g); }), "(no error)");
+  EXPECT_EQ(parse_region_boundary("smooth"), RegionBoundary::Smooth);
+  EXPECT_EQ(std::string(to_string(CorrectionParams{}.boundary)), "smooth");
+}
+
+// A session applies point handles on top of each other, with undo.
+TEST(CorrectionHandles, ASessionTakesPointHandles) {
+  const Mesh m = make(icosphere(3, 10.0));
+  CorrectionSession s(m);
+  CorrectionParams p;
+  p.radius = 6;
+  p.handles = parse_point_handles(m, {Eigen::Vector3d(3, 2, 11)}, {"normal:1"});
+  const CorrectionResult r = s.apply(p);
+  EXPECT_GT(r.moved_vertices, 3);
+  EXPECT_LE((s.mesh().positions() - r.V).cwiseAbs().maxCoeff(), 0.0);
+  s.undo();
+  EXPECT_LE((s.mesh().positions() - m.positions()).cwiseAbs().maxCoeff(), 0.0);
+}
