@@ -410,7 +410,7 @@ renderer.domElement.addEventListener('pointerdown', (ev) => {
   // The correct tool previews live: the server factors the region once, then each
   // move is a product with its basis; releasing sends the real correction.
   if (t === 'correct' && $('method').value === 'fem')
-    send({ type: 'drag_begin', vertex: hit.vertex, radius: +$('radius').value });
+    send({ type: 'drag_begin', vertex: hit.vertex, point: hit.point.toArray(), radius: +$('radius').value });
 });
 renderer.domElement.addEventListener('pointermove', (ev) => {
   if (!drag) return;
@@ -442,7 +442,8 @@ function endDrag(ev) {
   else if (tool() === 'paint' && offset.length() > 0)
     send({ type: 'paint_vector', vertex: drag.vertex, vector: offset.toArray(), g1: +$('g1').value, g2: +$('g2').value });
   else if (tool() === 'correct' && offset.length() > 0)
-    send({ type: 'correct', vertex: drag.vertex, move: offset.toArray(), ...correctOptions() });  // replaces the preview
+    // The picked surface point moves (not its nearest vertex); replaces the preview.
+    send({ type: 'correct', vertex: drag.vertex, point: drag.start.toArray(), move: offset.toArray(), ...correctOptions() });
   else if (tool() === 'correct') send({ type: 'drag_end' });
   state.poking = false;
   drag = null;

@@ -647,6 +647,7 @@ try {
     for (let i = 0; i < P.length; ++i) m = Math.max(m, Math.abs(P[i] - r[i]));
     return m > 0.3;
   }, rest, { timeout: 30000 }).catch(() => {});
+  await page.waitForTimeout(500);  // the last move's frame
   const preview = await positions(page);
   check('a correct drag previews the surface before release', maxDiff(preview, rest) > 0.3,
         `max move ${maxDiff(preview, rest)}`);
@@ -654,6 +655,10 @@ try {
   await page.waitForFunction((n) => meshpde.oks > n && meshpde.lastOk === 'correct', oks, { timeout: 60000 });
   await page.waitForTimeout(300);
   const corrected = await positions(page);
+  // The drag moves the picked surface point with the correction's default rule, and the
+  // preview when the mouse stops is what the release applies (Float32 positions).
+  check('the preview when the mouse stops equals the released correction', maxDiff(preview, corrected) < 1e-3,
+        `preview vs release ${maxDiff(preview, corrected)}`);
   check('correct moves vertices', maxDiff(corrected, rest) > 0.5, `max move ${maxDiff(corrected, rest)}`);
   check('no self-intersections after a correction', (await page.evaluate(() => meshpde.intersections)) === 0);
   // The stats panel shows what the correction did, as the reply says and as the
