@@ -21,6 +21,24 @@ right: its flat triangles cannot follow the bend in between).
     /usr/bin/python3 bench/python/resolution_study.py [--data ../shared/data]
         [--out docs/images/resolution.png] [--json out.json] [--quick]
 
+Independent triangulations (--remeshed): each surface remeshed isotropically at three
+target edge lengths h, h/2, h/4 (bench/remesh_cgal.cpp, CGAL's isotropic remeshing;
+each level remeshed from the input, so no two share a vertex). The handles are surface
+points, the same points in space on every level. For each rule and R (in coarse edges):
+  max, rms = the coarse result's displacement at each coarse vertex near the handles
+             (within 1.2 R) against the finer result's at the same surface point (its
+             closest point, interpolated), / drag, for the pairs (h, h/2) and (h/2, h/4)
+  order    = log2 of their ratio
+  haus     = Hausdorff distance between the corrected (h/2, h/4) surfaces / drag, beside
+  floor    = the same between the two uncorrected remeshed surfaces (what remeshing
+             itself changes: the comparison cannot go below it)
+Rules: "point smooth" (a handle point, the smooth boundary: the default), "vertex clamp"
+(the nearest vertex, edge-path region clamped at R - h: the rule before) and "springs"
+(the thesis's, the nearest vertex, R in rings).
+
+    /usr/bin/python3 bench/python/resolution_study.py --remeshed
+        [--remesher build/release/bench/meshpde_remesh] [--json out.json] [--out plot.png]
+
 Needs the meshpde Python module (PYTHONPATH=build/release/python) and matplotlib.
 """
 import argparse
@@ -159,13 +177,168 @@ def run_case(name, L, handles, image, space, R, method, boundary="clamp"):
             "v01": v01, "v12": v12, "interp01": interp01, "vertices": [len(V) for V, _ in L]}
 
 
+def remesh(remesher, V, F, edge, seed, workdir):
+    """One isotropic remeshing of (V, F) to `edge` (bench/remesh_cgal.cpp)."""
+    import subprocess
+    src, dst = workdir / f"in{seed}.obj", workdir / f"out{seed}.obj"
+    meshpde.write_mesh(str(src), V, F)
+    subprocess.run([remesher, str(src), str(dst), "--edge", repr(edge), "--seed", str(seed)], check=True,
+                   stdout=subprocess.DEVNULL)
+    V1, F1, _ = meshpde.read_mesh(str(dst))
+    return np.asarray(V1, float), np.asarray(F1, np.int64)
+
+
+def remeshed_cases(data, remesher, quick):
+    """(name, [(V, F)] at h, h/2, h/4, handles: [(point, move)], image or None, space)"""
+    import tempfile
+    work = Path(tempfile.mkdtemp())
+    inputs = []
+    V, F = meshpde.generate.tube(radius=5.0, length=100.0, rings=88, segments=32)
+    V, F = np.asarray(V, float), np.asarray(F, np.int64)
+    zmid = float(V[:, 2].mean())
+    inputs.append(("tube r=5", V, F, [(np.array([5.0, 0.0, zmid]), np.array([-3.0, 0.0, 0.0]))], None, "lps"))
+    if not quick:
+        V, F = meshpde.generate.bifurcation(cell=0.8)
+        V, F = np.asarray(V, float), np.asarray(F, np.int64)
+        N = meshpde.vertex_normals(V, F, outward=True)
+        c, top = V.mean(0), V[:, 2].max()
+        v = nearest(V, [c[0] + 4.0, c[1], top - 0.35 * (top - V[:, 2].min())])
+        w = nearest(V, V[v] + np.array([0.0, 0.0, -12.0]))
+        inputs.append(("bifurcation", V, F, [(V[v], -3.0 * N[v])], None, "lps"))
+        inputs.append(("bifurcation, two handles", V, F, [(V[v], -3.0 * N[v]), (V[w], 2.0 * N[w])], None, "lps"))
+        for name in ("aorta-closed-6k.vtp", "aorta-open-6k.stl"):
+            path = Path(data) / name
+            if not path.exists():
+                print(f"note: {path} not found: its rows are left out", file=sys.stderr)
+                continue
+            V, F, _ = meshpde.read_mesh(str(path))
+            V, F = np.asarray(V, float), np.asarray(F, np.int64)
+            N = meshpde.vertex_normals(V, F, outward=True)
+            lo, hi = V.min(0), V.max(0)
+            axis = int(np.argmax(hi - lo))
+            p = (lo + hi) / 2
+            p[axis] = lo[axis] + 0.7 * (hi[axis] - lo[axis])
+            v = nearest(V, p)
+            label = name.split(".")[0]
+            inputs.append((label, V, F, [(V[v], -3.0 * N[v])], None, "ras"))
+            mra = Path(data) / "aorta-mra.mha"
+            if name.startswith("aorta-closed") and mra.exists():
+                inputs.append((f"{label}, MRA guidance", V, F, [(V[v], -3.0 * N[v])], str(mra), "ras"))
+    out, cache = [], {}
+    for name, V, F, handles, image, space in inputs:
+        key = name.split(",")[0]
+        if key not in cache:
+            h = mean_edge(V, F)
+            cache[key] = [remesh(remesher, V, F, h / 2 ** k, k + 1, work) for k in range(3)]
+        out.append((name, cache[key], handles, image, space))
+    return out
+
+
+def at_points(V, F, d, P):
+    """The field d (per vertex of (V, F)) at the surface points nearest to P."""
+    faces, bary = meshpde.closest_surface_points(V, F, P)
+    return (bary[:, :, None] * d[F[faces]]).sum(1)
+
+
+def run_remeshed(name, L, handles, image, space, R, rule):
+    h = mean_edge(*L[0])
+    drag = max(np.linalg.norm(m) for _, m in handles)
+    points = np.array([p for p, _ in handles])
+    ds = []
+    for V, F in L:
+        kw = dict(allow_intersections=True)
+        if image:
+            kw.update(image=image, space=space)
+        if rule == "point smooth":
+            r = meshpde.correct(V, F, points=points, moves=[list(m) for _, m in handles], radius=R * h, **kw)
+        else:
+            verts = [nearest(V, p) for p, _ in handles]
+            if rule == "springs":
+                kw.update(method="springs", rings=max(1, round(R * h / mean_edge(V, F))))
+            else:
+                kw.update(radius=R * h, boundary="clamp")
+            r = meshpde.correct(V, F, verts, [list(m) for _, m in handles], **kw)
+        ds.append(np.asarray(r.displacement))
+    mx, rms = [], []
+    for k in range(2):
+        V, F = L[k]
+        near = np.min(np.linalg.norm(V[:, None, :] - points[None, :, :], axis=2), axis=1) < 1.2 * R * h
+        e = np.linalg.norm(ds[k][near] - at_points(*L[k + 1], ds[k + 1], V[near]), axis=1) / drag
+        mx.append(float(e.max()))
+        rms.append(float(np.sqrt((e ** 2).mean())))
+    moved = [(V + d, F) for (V, F), d in zip(L, ds)]
+    haus = meshpde.hausdorff_distance(*moved[1], *moved[2]) / drag
+    floor = meshpde.hausdorff_distance(*L[1], *L[2]) / drag
+    order = lambda a: math.log2(a[0] / a[1]) if a[1] > 0 and a[0] > 0 else None
+    return {"case": name, "method": rule, "R_over_h": R, "R_mm": R * h, "h_mm": h, "drag_mm": drag,
+            "max01": mx[0], "max12": mx[1], "max_order": order(mx), "rms01": rms[0], "rms12": rms[1],
+            "rms_order": order(rms), "hausdorff12": haus, "floor12": floor, "vertices": [len(V) for V, _ in L]}
+
+
+def main_remeshed(a):
+    rows = []
+    t0 = time.time()
+    for name, L, handles, image, space in remeshed_cases(a.data, a.remesher, a.quick):
+        for rule in ("point smooth", "vertex clamp", "springs"):
+            if image and rule == "springs":
+                continue
+            for R in (5, 10, 20):
+                r = run_remeshed(name, L, handles, image, space, R, rule)
+                rows.append(r)
+                pct = lambda x: f"{100 * x:6.2f} %"
+                o = lambda x: f"{x:5.2f}" if x is not None else "  -  "
+                print(f"{name:28s} {rule:13s} R = {R:2d} h ({r['R_mm']:5.1f} mm): max {pct(r['max01'])} -> "
+                      f"{pct(r['max12'])} (order {o(r['max_order'])})  rms {pct(r['rms01'])} -> {pct(r['rms12'])} "
+                      f"(order {o(r['rms_order'])})  hausdorff {pct(r['hausdorff12'])}, floor {pct(r['floor12'])}",
+                      flush=True)
+    print(f"({time.time() - t0:.0f} s; vertices per level: " +
+          ", ".join(f"{r['case']} {r['vertices']}" for r in rows if r['R_over_h'] == 5 and r['method'] == 'springs') +
+          ")")
+    if a.json:
+        Path(a.json).write_text(json.dumps(rows, indent=1))
+    if a.out:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+        fig, axes = plt.subplots(1, 3, figsize=(15, 4.4), sharey=True)
+        names = list(dict.fromkeys(r["case"] for r in rows))
+        colour = {n: f"C{k}" for k, n in enumerate(names)}
+        marker = {5: "o", 10: "s", 20: "^"}
+        for ax, rule in zip(axes, ("point smooth", "vertex clamp", "springs")):
+            for r in rows:
+                if r["method"] == rule:
+                    h = r["h_mm"]
+                    ax.loglog([h / 2, h / 4], [100 * r["max01"], 100 * r["max12"]], "-", color=colour[r["case"]],
+                              marker=marker[r["R_over_h"]])
+            ax.axhline(1.0, color="k", lw=0.8, ls="--")
+            ax.axhline(0.5, color="k", lw=0.8, ls=":")
+            ax.set_title(f"{rule}: coarse vs finer at the same point")
+            ax.set_xlabel("finer mean edge of the pair (mm)")
+            ax.grid(True, which="both", alpha=0.3)
+        axes[0].set_ylabel("largest difference / drag (%)")
+        from matplotlib.lines import Line2D
+        handles = [Line2D([], [], color=colour[n], label=n) for n in names]
+        handles += [Line2D([], [], color="grey", marker=m, ls="", label=f"R = {R} h") for R, m in marker.items()]
+        axes[2].legend(handles=handles, fontsize=7, loc="upper left", bbox_to_anchor=(1.02, 1))
+        fig.tight_layout()
+        fig.savefig(a.out, dpi=110)
+        print(f"plot {a.out}")
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--data", default=str(Path(__file__).resolve().parents[3] / "shared" / "data"))
     ap.add_argument("--out", default="", help="PNG of the error against h")
     ap.add_argument("--json", default="", help="the table as JSON")
     ap.add_argument("--quick", action="store_true", help="the tube only")
+    ap.add_argument("--remeshed", action="store_true",
+                    help="independent triangulations (isotropic remeshing at h, h/2, h/4) instead of subdivisions")
+    ap.add_argument("--remesher", default=str(Path(__file__).resolve().parents[2] / "build" / "release" / "bench" /
+                                              "meshpde_remesh"), help="the meshpde_remesh binary (needs CGAL)")
     a = ap.parse_args()
+    if a.remeshed:
+        main_remeshed(a)
+        return
     rows = []
     t0 = time.time()
     for name, L, handles, image, space in cases(a.data, a.quick):
