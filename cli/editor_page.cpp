@@ -418,7 +418,12 @@ void EditorPage::handle(const std::string& payload, bool binary) {
                     {"intersection_action", r.intersection_action},
                     {"applied_fraction", r.applied_fraction},
                     {"region_warning", r.region_warning},
-                    {"time_ms", r.time_ms}});
+                    {"time_ms", r.time_ms},
+                    {"boundary", to_string(p.boundary)},
+                    {"handle_radius", r.handle_radius}});
+      if (const auto& h = p.handles.front(); h.point)
+        reply["handle_point"] = {{"triangle", h.point->face},
+                                 {"barycentric", {h.point->bary.x(), h.point->bary.y(), h.point->bary.z()}}};
     } else if (type == "undo" || type == "redo") {
       type == "undo" ? s.undo() : s.redo();
       intersections_ = s.self_intersections();

@@ -271,6 +271,21 @@ TEST(CorrectionHandles, PointHandlesFromTextAndBadOnesAreRefused) {
   EXPECT_NE(error_of([&] { correct_vessel(m, g); }).find("clamp boundary"), std::string::npos);
   g.boundary = RegionBoundary::Clamp;
   EXPECT_EQ(error_of([&] { correct_vessel(m, g); }), "(no error)");
+  // A radius far below the edges: only the handle's triangle moves, the point exactly;
+  // an absurdly small one is refused, never a NaN.
+  CorrectionParams tiny;
+  tiny.radius = 1e-3;
+  tiny.handles = {CorrectionHandle(m, SurfacePoint{5, Eigen::Vector3d(0.2, 0.3, 0.5)}, Eigen::Vector3d(0, 0, 1))};
+  const CorrectionResult t = correct_vessel(m, tiny);
+  EXPECT_TRUE(t.V.allFinite());
+  EXPECT_LE(t.region.size(), 3u);
+  Eigen::Vector3d moved = Eigen::Vector3d::Zero();
+  for (int k = 0; k < 3; ++k)
+    moved += tiny.handles[0].point->bary[k] * t.displacement.row(m.triangles()(5, k)).transpose();
+  EXPECT_LE((moved - Eigen::Vector3d(0, 0, 1)).norm(), 1e-9);
+  EXPECT_NE(t.region_warning.find("only the handles move"), std::string::npos) << t.region_warning;
+  tiny.radius = 1e-90;
+  EXPECT_NE(error_of([&] { correct_vessel(m, tiny); }).find("too small"), std::string::npos);
   EXPECT_EQ(parse_region_boundary("smooth"), RegionBoundary::Smooth);
   EXPECT_EQ(std::string(to_string(CorrectionParams{}.boundary)), "smooth");
 }

@@ -423,6 +423,20 @@ FemProblem fem_problem(const Mesh& mesh, const CorrectionParams& p) {
     for (const int v : region) add(v, 0.0);
   }
   if (p.method != CorrectionMethod::Fem) return out;
+  // A loaded handle's point is read from its triangle's corners (or its vertex): they
+  // belong to the region whatever the radius.
+  for (const auto& h : p.handles) {
+    if (held_handle(h, size)) continue;
+    if (!h.point) {
+      add(h.vertex, 0.0);
+      continue;
+    }
+    const Eigen::Vector3d x = position(mesh, *h.point);
+    for (int k = 0; k < 3; ++k) {
+      const int v = mesh.triangles()(h.point->face, k);
+      add(v, (mesh.positions().row(v).transpose() - x).norm());
+    }
+  }
   // A region that no held vertex or foundation anchors (it covers its whole part of the
   // surface) moves with its handles as a rigid body: a load could not do that (the
   // system would be singular), so its handles are held at their vertices instead.
@@ -441,7 +455,6 @@ FemProblem fem_problem(const Mesh& mesh, const CorrectionParams& p) {
     }
     if (!around) around = vertex_faces(mesh);
     out.loaded.push_back(loaded_handle(mesh, *around, h, size));
-    for (const auto& [v, w] : out.loaded.back().point) add(v, p.radius);
   }
   return out;
 }
@@ -688,9 +701,17 @@ Eigen::VectorXd foundations(const Mesh& mesh, const CorrectionParams& p, const F
     const double R = p.radius;
     const double kappa0 =
         kSmoothStrength * (p.dynamic ? p.tissue.elasticity : 1.0) * (p.g2 / std::pow(R, 4) + p.g1 / (R * R));
+    if (!std::isfinite(kappa0 * 1e8))
+      throw InputError(fmt::format("a region radius of {:g} mm is too small for the smooth boundary", R));
+    // The triangles a handle point is read from carry no foundation: with a radius below
+    // an edge they are the whole region, and they must move.
+    std::vector<char> own(static_cast<std::size_t>(nv), 0);
+    for (const auto& h : problem.loaded)
+      for (const auto& [v, w] : h.point) own[static_cast<std::size_t>(v)] = 1;
     for (std::size_t k = 0; k < problem.region.size(); ++k) {
-      const double x = std::clamp((problem.distance[k] / R - kSmoothStart) / (1 - kSmoothStart), 0.0, kSmoothMaxX);
       const int v = problem.region[k];
+      if (own[static_cast<std::size_t>(v)]) continue;
+      const double x = std::clamp((problem.distance[k] / R - kSmoothStart) / (1 - kSmoothStart), 0.0, kSmoothMaxX);
       extra[v] += kappa0 * x * x / std::pow(1 - x, 4) * s.mo.ops.mass[v];
     }
   }

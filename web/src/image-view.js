@@ -418,8 +418,9 @@ export function createImageView({ scene, state, send, $, correctOptions, invalid
     if (!drag2d) return;
     const s = view.slices[drag2d.k], [x, y] = canvasXY(ev), to = fromCanvas(s, x, y);
     const move = [0, 1, 2].map((c) => to[c] - drag2d.at[c]);
-    if (Math.hypot(...move) > 0) send({ type: 'correct', vertex: drag2d.vertex, move, ...correctOptions() });
-    view.lastDrag = { vertex: drag2d.vertex, move };
+    // The surface point under the cut line moves (the server takes the one nearest `at`).
+    if (Math.hypot(...move) > 0) send({ type: 'correct', vertex: drag2d.vertex, point: drag2d.at, move, ...correctOptions() });
+    view.lastDrag = { vertex: drag2d.vertex, point: drag2d.at, move };
     drag2d = null;
     drawOverlay();
   };

@@ -513,10 +513,18 @@ async function imageChecks() {
     const reply = await page.evaluate(() => meshpde.lastCorrect);
     check('dragging the cut line sends a correction', !!drag && (await page.evaluate(() => meshpde.lastOk)) === 'correct');
     if (drag && reply) {
-      const i = drag.vertex, moved = [0, 1, 2].map((c) => after[3 * i + c] - before[3 * i + c]);
+      // The surface point under the cut line moves by the drag: its triangle's corners,
+      // weighted by its barycentric coordinates (the reply names both).
+      const T = await page.evaluate(() => Array.from(meshpde.triangles));
+      const hp = reply.handle_point || { triangle: 0, barycentric: [NaN, NaN, NaN] };
+      const moved = [0, 1, 2].map((c) => [0, 1, 2].reduce((sum, k) => {
+        const i = T[3 * hp.triangle + k];
+        return sum + hp.barycentric[k] * (after[3 * i + c] - before[3 * i + c]);
+      }, 0));
       const off = Math.hypot(...moved.map((m, c) => m - drag.move[c]));
-      check('the dragged vertex moves by the drag, in the axial plane',
-            Math.abs(drag.move[2]) < 1e-9 && Math.hypot(...drag.move) > 0.5 && off < 1e-3 * Math.hypot(...drag.move) + 1e-4,
+      check('the dragged surface point moves by the drag, in the axial plane',
+            Math.abs(drag.move[2]) < 1e-9 && Math.hypot(...drag.move) > 0.5 && off < 1e-3 * Math.hypot(...drag.move) + 1e-4 &&
+            reply.boundary === 'smooth',
             `drag ${JSON.stringify(drag.move)}, moved ${JSON.stringify(moved)}, ${reply.intersection_action}`);
     }
     await page.screenshot({ path: join(shots, 'editor-image-drag.png') });
