@@ -101,7 +101,7 @@ double EditorSession::drag_begin(int vertex, double radius, const Eigen::VectorX
   p.handles = {{vertex, Eigen::Vector3d::Zero()}};
   p.radius = radius;
   // The preview's DragSession holds the handle vertex and clamps the region: the
-  // release must use the same rule (see correct()).
+  // release must use the same rule (the page's vertex-only `correct` request does).
   p.boundary = RegionBoundary::Clamp;
   p.handle_radius = 0;
   p.stiffness = stiffness;

@@ -98,11 +98,11 @@ CorrectionMethod parse_correction_method(const std::string& text);
 /// How a Fem correction's region of radius R ends (`--boundary`).
 ///  - Smooth (default): the region is the surface within distance R of the handles,
 ///    measured on the surface (mesh/geodesic_distance.h), and an elastic foundation that
-///    starts at kSmoothStart R and grows without bound towards R takes the displacement
-///    and its slope to zero at R: where the boundary lies is a property of the surface,
-///    not of where the mesh's vertices fall, so independent triangulations of one wall
-///    agree (docs/vessel-correction.md, "Resolution independence"). Nothing at R or
-///    beyond moves.
+///    starts at kSmoothStart R and grows steeply towards R takes the displacement and
+///    its slope to zero at R: where the boundary lies is a property of the surface, not
+///    of where the mesh's vertices fall, so independent triangulations of one wall agree
+///    (docs/vessel-correction.md, "Handles at surface points, regions on the surface,
+///    the smooth boundary"). Nothing at R or beyond moves.
 ///  - Clamp: the free set ends at R - h by edge paths from the handles' vertices, and
 ///    the rings beyond are held at zero (mesh/regions.h's influence_region): nothing
 ///    beyond R moves, but the boundary moves with h.
