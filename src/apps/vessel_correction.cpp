@@ -347,8 +347,8 @@ LoadedHandle loaded_handle(const Mesh& mesh, const VertexFaces& around, const Co
                             c = V.row(F(f, 2)).transpose();
       if (point_triangle_distance(x, a, b, c) >= size) continue;
       const double longest = std::max({(b - a).norm(), (c - b).norm(), (a - c).norm()});
-      const int n = static_cast<int>(std::clamp(std::ceil(2 * longest / size), 1.0,
-                                                32.0));  // clamped as a double: a tiny size would overflow an int
+      // Clamped as a double: a tiny size would overflow the conversion to int.
+      const int n = static_cast<int>(std::clamp(std::ceil(2 * longest / size), 1.0, 32.0));
       const double piece = 0.5 * (b - a).cross(c - a).norm() / (n * n);
       Eigen::Vector3d w = Eigen::Vector3d::Zero();  // the triangle's load on its corners
       auto add = [&](double lb, double lc) {
