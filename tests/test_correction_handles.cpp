@@ -284,6 +284,13 @@ TEST(CorrectionHandles, PointHandlesFromTextAndBadOnesAreRefused) {
     moved += tiny.handles[0].point->bary[k] * t.displacement.row(m.triangles()(5, k)).transpose();
   EXPECT_LE((moved - Eigen::Vector3d(0, 0, 1)).norm(), 1e-9);
   EXPECT_NE(t.region_warning.find("only the handles move"), std::string::npos) << t.region_warning;
+  // A handle far smaller than the edges is the point load (and no overflow on the way).
+  CorrectionParams small = tiny;
+  small.radius = 5;
+  small.handle_radius = 1e-300;
+  CorrectionParams point = small;
+  point.handle_radius = 0;
+  EXPECT_LE((correct_vessel(m, small).V - correct_vessel(m, point).V).cwiseAbs().maxCoeff(), 1e-12);
   tiny.radius = 1e-90;
   EXPECT_NE(error_of([&] { correct_vessel(m, tiny); }).find("too small"), std::string::npos);
   EXPECT_EQ(parse_region_boundary("smooth"), RegionBoundary::Smooth);
