@@ -227,6 +227,11 @@ int write_seeds(const fs::path& root) {
       {"heat.txt",
        {R"({"type": "source", "vertex": 0})", R"({"type": "play", "kind": "heat"})",
         R"({"type": "play", "kind": "wave"})", R"({"type": "clear_sources"})", R"({"type": "ping"})"}},
+      {"point.txt",
+       {R"({"type": "drag_begin", "vertex": 1, "point": [0.1, 0.2, 0.3], "radius": 5})",
+        R"({"type": "drag_move", "offset": [0.5, 0, 0]})",
+        R"({"type": "correct", "vertex": 1, "point": [0.1, 0.2, 0.3], "move": [0.5, 0, 0], "radius": 5})",
+        R"({"type": "correct", "vertex": 2, "point": [9, -3, 1e9], "move": [0, 0, 1], "radius": 1e-30})"}},
       {"springs.txt",
        {R"({"type": "correct", "vertex": 2, "move": [1, 1, 0], "radius": 3, "method": "springs", "image": false})"}},
   };
