@@ -17,7 +17,10 @@
 // (mesh/regions.h's geodesic_distances) are off by 8-20 % whatever the resolution.
 //
 // Units: those of the positions (mm for vessels). Cost: the vertices reached (within
-// `radius`) times their degree, plus one pass over the vertices and triangles.
+// `radius`) times their degree, plus one pass over the whole mesh's vertices and
+// triangles (each vertex's triangles, and the distance arrays): about 260 ms on a
+// 2.6M-vertex mesh whatever the radius, where an edge-path ball of 10k vertices takes
+// 4 ms. On large meshes that pass dominates a small region's correction.
 #pragma once
 
 #include <Eigen/Core>
