@@ -8,7 +8,6 @@
 
 #include "meshpde/apps/interpolation.h"
 #include "meshpde/core/errors.h"
-#include "meshpde/mesh/geodesic_distance.h"
 #include "meshpde/mesh/topology.h"
 #include "meshpde/operators/intrinsic_delaunay.h"
 #include "meshpde/operators/laplacian.h"
@@ -67,9 +66,6 @@ Positions EditorSession::display_positions() const {
 
 double EditorSession::drag_begin(const SurfacePoint& point, double radius, const Eigen::VectorXd& stiffness,
                                  const TissueParams& tissue) {
-  if (point.face < 0 || point.face >= mesh().num_faces())
-    throw InputError(
-        fmt::format("triangle {} does not exist (the mesh has {} triangles)", point.face, mesh().num_faces()));
   if (!(radius > 0) || !std::isfinite(radius)) throw InputError("drag radius must be a length > 0");
   CorrectionParams p;
   p.handles = {CorrectionHandle(mesh(), point, Eigen::Vector3d::Zero())};
@@ -78,16 +74,12 @@ double EditorSession::drag_begin(const SurfacePoint& point, double radius, const
   p.tissue = tissue;
   p.laplacian = laplacian_;
   p.held = held_;
-  if (const std::size_t n = geodesic_distances_from(mesh(), GeodesicSources{.points = {point}}, radius).size();
-      static_cast<int>(n) > kPreviewLimit)
-    throw InputError(
-        fmt::format("a region of {} vertices is too large for a live preview (at most {}); the "
-                    "correction still runs when you let go",
-                    n, kPreviewLimit));
   pause();
   const auto t0 = std::chrono::steady_clock::now();
+  // Built before the running drag is dropped: a refused request leaves it as it was.
+  auto preview = std::make_unique<CorrectionPreview>(mesh(), p, kPreviewLimit);
   drag_end();
-  preview_ = std::make_unique<CorrectionPreview>(mesh(), p);
+  preview_ = std::move(preview);
   drag_offset_.setZero();
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 }
@@ -112,8 +104,8 @@ double EditorSession::drag_begin(int vertex, double radius, const Eigen::VectorX
   if (const std::size_t n = influence_region(mesh(), handle, RegionSpec{.radius = radius, .rings = 0}, true).size();
       static_cast<int>(n) > kPreviewLimit)
     throw InputError(
-        fmt::format("a region of {} vertices is too large for a live preview (at most {}); the "
-                    "correction still runs when you let go",
+        fmt::format("a region of {} vertices is too large for a live preview (at most {}); the correction still "
+                    "runs on release",
                     n, kPreviewLimit));
   pause();
   const auto t0 = std::chrono::steady_clock::now();

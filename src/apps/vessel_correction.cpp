@@ -87,9 +87,8 @@ void check_counts(std::size_t handles, std::size_t moves) {
 
 CorrectionHandle::CorrectionHandle(const Mesh& mesh, const SurfacePoint& p, const Eigen::Vector3d& d)
     : displacement(d), point(p) {
-  if (p.face < 0 || p.face >= mesh.num_faces())
-    throw InputError(
-        fmt::format("handle point: triangle {} does not exist (the mesh has {} triangles)", p.face, mesh.num_faces()));
+  // The triangle here (vertex needs it); the coordinates with the correction (validate).
+  check_surface_point(mesh, SurfacePoint{p.face}, "handle point");
   vertex = nearest_corner(mesh, p);
 }
 
@@ -209,15 +208,7 @@ void validate(const Mesh& mesh, const CorrectionParams& p) {
   if (p.handles.empty()) throw InputError("a correction needs at least one handle (vertex and displacement)");
   for (const auto& h : p.handles) {
     if (h.point) {
-      const SurfacePoint& sp = *h.point;
-      if (sp.face < 0 || sp.face >= mesh.num_faces())
-        throw InputError(fmt::format("handle point: triangle {} does not exist (the mesh has {} triangles)", sp.face,
-                                     mesh.num_faces()));
-      if (!sp.bary.allFinite() || sp.bary.minCoeff() < -1e-9 || std::abs(sp.bary.sum() - 1) > 1e-9)
-        throw InputError(
-            fmt::format("handle point in triangle {}: barycentric coordinates ({}, {}, {}) must be >= 0 "
-                        "and sum to 1",
-                        sp.face, sp.bary[0], sp.bary[1], sp.bary[2]));
+      check_surface_point(mesh, *h.point, "handle point");
     } else if (h.vertex < 0 || h.vertex >= nv) {
       throw InputError(fmt::format("handle vertex {} does not exist (the mesh has {} vertices)", h.vertex, nv));
     }
@@ -1162,7 +1153,7 @@ struct CorrectionPreview::Impl {
   int region_vertices = 0;
 };
 
-CorrectionPreview::CorrectionPreview(const Mesh& mesh, const CorrectionParams& params_in)
+CorrectionPreview::CorrectionPreview(const Mesh& mesh, const CorrectionParams& params_in, int max_region_vertices)
     : impl_(std::make_unique<Impl>()) {
   if (params_in.units != LengthUnit::Millimetre)
     throw InputError(fmt::format("a correction preview works on a mesh in millimetres, not {}: scale it first",
@@ -1175,6 +1166,11 @@ CorrectionPreview::CorrectionPreview(const Mesh& mesh, const CorrectionParams& p
   Impl& m = *impl_;
   const FemProblem problem = fem_problem(mesh, p);
   m.region_vertices = static_cast<int>(problem.region.size());
+  if (max_region_vertices > 0 && m.region_vertices > max_region_vertices)
+    throw InputError(
+        fmt::format("a region of {} vertices is too large for a live preview (at most {}); the correction still "
+                    "runs on release",
+                    m.region_vertices, max_region_vertices));
   m.copy = copy_region(mesh, problem.region, kCorrectionMarginRings);
   // The very steps of a static, unguided correct_vessel (fem_solve_local), so that the
   // preview equals the release to rounding.

@@ -63,12 +63,7 @@ std::vector<std::pair<int, double>> geodesic_distances_from(const Mesh& mesh, co
   }
   for (std::size_t i = 0; i < sources.points.size(); ++i) {
     const SurfacePoint& p = sources.points[i];
-    if (p.face < 0 || p.face >= mesh.num_faces())
-      throw InputError(fmt::format("source point {}: triangle {} does not exist (the mesh has {} triangles)", i, p.face,
-                                   mesh.num_faces()));
-    if (!p.bary.allFinite() || p.bary.minCoeff() < -1e-9 || std::abs(p.bary.sum() - 1) > 1e-9)
-      throw InputError(fmt::format("source point {}: barycentric coordinates ({}, {}, {}) must be >= 0 and sum to 1", i,
-                                   p.bary[0], p.bary[1], p.bary[2]));
+    check_surface_point(mesh, p, fmt::format("source point {}", i));
     const Eigen::Vector3d x = position(mesh, p);
     for (int k = 0; k < 3; ++k) offer(F(p.face, k), (V.row(F(p.face, k)).transpose() - x).norm());
   }

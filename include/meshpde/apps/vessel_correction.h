@@ -324,10 +324,11 @@ CorrectionResult correct_vessel(const Mesh& mesh, const CorrectionParams& params
 /// and handle constraint), as long as the release creates no self-intersection. The
 /// mesh must be in millimetres.
 /// \throw InputError for params with other than one handle, the springs method, the
-///        dynamic mode or an image, or as correct_vessel.
+///        dynamic mode or an image, a region of more than `max_region_vertices` (> 0;
+///        checked before anything is factored), or as correct_vessel.
 class CorrectionPreview {
  public:
-  CorrectionPreview(const Mesh& mesh, const CorrectionParams& params);
+  CorrectionPreview(const Mesh& mesh, const CorrectionParams& params, int max_region_vertices = 0);
   ~CorrectionPreview();
   CorrectionPreview(const CorrectionPreview&) = delete;
   CorrectionPreview& operator=(const CorrectionPreview&) = delete;

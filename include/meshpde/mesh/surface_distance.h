@@ -12,6 +12,7 @@
 
 #include <Eigen/Core>
 #include <span>
+#include <string>
 #include <vector>
 
 #include "meshpde/mesh/mesh.h"
@@ -25,6 +26,10 @@ struct SurfacePoint {
   int face = -1;
   Eigen::Vector3d bary = Eigen::Vector3d(1, 0, 0);
 };
+
+/// \throw InputError, the message starting with `what`, unless the point's triangle exists
+///        and its barycentric coordinates are finite, >= 0 and sum to 1 (to 1e-9).
+void check_surface_point(const Mesh& mesh, const SurfacePoint& point, const std::string& what);
 
 /// The point's position: the barycentric combination of its triangle's corners.
 Eigen::Vector3d position(const Mesh& mesh, const SurfacePoint& point);
