@@ -437,7 +437,6 @@ FemProblem fem_problem(const Mesh& mesh, const CorrectionParams& p) {
   for (std::size_t k = 0; k < out.region.size() && !anchored; ++k)
     for (const int w : mesh.neighbors(out.region[k]))
       if (!in[static_cast<std::size_t>(w)]) anchored = true;
-  std::optional<VertexFaces> around;
   for (const auto& h : p.handles) {
     if (held_handle(h, size)) continue;
     if (!anchored) {
@@ -445,8 +444,7 @@ FemProblem fem_problem(const Mesh& mesh, const CorrectionParams& p) {
       add(h.vertex, 0.0);
       continue;
     }
-    if (!around) around = vertex_faces(mesh);
-    out.loaded.push_back(loaded_handle(mesh, *around, h, size));
+    out.loaded.push_back(loaded_handle(mesh, mesh.vertex_faces(), h, size));
   }
   return out;
 }

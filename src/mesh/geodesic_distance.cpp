@@ -5,8 +5,8 @@
 #include <cmath>
 #include <queue>
 
+#include "../core/index_map.h"
 #include "meshpde/core/errors.h"
-#include "meshpde/mesh/topology.h"
 
 namespace meshpde {
 
@@ -47,30 +47,56 @@ std::vector<std::pair<int, double>> geodesic_distances_from(const Mesh& mesh, co
   const int nv = mesh.num_vertices();
   const auto& V = mesh.positions();
   const auto& F = mesh.triangles();
-  std::vector<double> dist(static_cast<std::size_t>(nv), std::numeric_limits<double>::infinity());
-  std::vector<char> done(static_cast<std::size_t>(nv), 0);
+  // Tentative distances and states of the vertices met so far, by local index (sized to
+  // the region, not the mesh): a region of a few thousand vertices in a mesh of millions
+  // costs what the region does.
+  IndexMap index(64);
+  std::vector<double> dist;
+  std::vector<char> state;  // 0 tentative, 1 final, 2 final and a source's (kept as it is)
+  auto slot = [&](int v) {
+    const auto [k, inserted] = index.insert(v);
+    if (inserted) {
+      dist.push_back(std::numeric_limits<double>::infinity());
+      state.push_back(0);
+    }
+    return static_cast<std::size_t>(k);
+  };
+  auto distance_of = [&](int v) {
+    const int k = index.find(v);
+    return k < 0 ? std::numeric_limits<double>::infinity() : dist[static_cast<std::size_t>(k)];
+  };
+  auto is_done = [&](int v) {
+    const int k = index.find(v);
+    return k >= 0 && state[static_cast<std::size_t>(k)] != 0;
+  };
   std::priority_queue<std::pair<double, int>, std::vector<std::pair<double, int>>, std::greater<>> queue;
   auto offer = [&](int v, double d) {
-    if (!done[static_cast<std::size_t>(v)] && d < dist[static_cast<std::size_t>(v)] && d < radius) {
-      dist[static_cast<std::size_t>(v)] = d;
+    if (!(d < radius)) return;
+    const std::size_t k = slot(v);
+    if (state[k] == 0 && d < dist[k]) {
+      dist[k] = d;
       queue.emplace(d, v);
     }
   };
+  std::vector<int> fixed;  // the sources' vertices and the corners of the sources' triangles
   for (const int v : sources.vertices) {
     if (v < 0 || v >= nv)
       throw InputError(fmt::format("source vertex {} does not exist (the mesh has {} vertices)", v, nv));
     offer(v, 0.0);
+    fixed.push_back(v);
   }
   for (std::size_t i = 0; i < sources.points.size(); ++i) {
     const SurfacePoint& p = sources.points[i];
     check_surface_point(mesh, p, fmt::format("source point {}", i));
     const Eigen::Vector3d x = position(mesh, p);
-    for (int k = 0; k < 3; ++k) offer(F(p.face, k), (V.row(F(p.face, k)).transpose() - x).norm());
+    for (int k = 0; k < 3; ++k) {
+      offer(F(p.face, k), (V.row(F(p.face, k)).transpose() - x).norm());
+      fixed.push_back(F(p.face, k));
+    }
   }
-  const VertexFaces around = vertex_faces(mesh);
-  // c's best candidate through the triangles around it, from the values of its
-  // neighbours that pass `known`.
-  auto candidate = [&](int c, auto&& known) {
+  const VertexFaces& around = mesh.vertex_faces();
+  // c's best candidate through the triangles around it, from its final neighbours.
+  auto candidate = [&](int c) {
     const Eigen::Vector3d pc = V.row(c).transpose();
     double best = std::numeric_limits<double>::infinity();
     for (int q = around.offsets[static_cast<std::size_t>(c)]; q < around.offsets[static_cast<std::size_t>(c) + 1];
@@ -78,8 +104,8 @@ std::vector<std::pair<int, double>> geodesic_distances_from(const Mesh& mesh, co
       const int f = around.faces[static_cast<std::size_t>(q)];
       const int k = F(f, 0) == c ? 0 : F(f, 1) == c ? 1 : 2;
       const int a = F(f, (k + 1) % 3), b = F(f, (k + 2) % 3);
-      const bool ka = a != c && known(a), kb = b != c && known(b);
-      const double da = dist[static_cast<std::size_t>(a)], db = dist[static_cast<std::size_t>(b)];
+      const bool ka = a != c && is_done(a), kb = b != c && is_done(b);
+      const double da = ka ? distance_of(a) : 0, db = kb ? distance_of(b) : 0;
       if (ka) best = std::min(best, da + (V.row(a).transpose() - pc).norm());
       if (kb) best = std::min(best, db + (V.row(b).transpose() - pc).norm());
       if (ka && kb && a != b)
@@ -87,37 +113,36 @@ std::vector<std::pair<int, double>> geodesic_distances_from(const Mesh& mesh, co
     }
     return best;
   };
-  auto is_done = [&](int v) { return done[static_cast<std::size_t>(v)] != 0; };
   std::vector<std::pair<int, double>> out;
   while (!queue.empty()) {
     const auto [d, v] = queue.top();
     queue.pop();
-    if (done[static_cast<std::size_t>(v)] || d > dist[static_cast<std::size_t>(v)]) continue;  // stale
-    done[static_cast<std::size_t>(v)] = 1;
+    const std::size_t kv = static_cast<std::size_t>(index.find(v));
+    if (state[kv] != 0 || d > dist[kv]) continue;  // stale
+    state[kv] = 1;
     out.emplace_back(v, d);
     // The triangles at v update their other corners, now that v is known.
     for (int q = around.offsets[static_cast<std::size_t>(v)]; q < around.offsets[static_cast<std::size_t>(v) + 1];
          ++q) {
       const int f = around.faces[static_cast<std::size_t>(q)];
       for (int k = 0; k < 3; ++k)
-        if (const int c = F(f, k); c != v && !done[static_cast<std::size_t>(c)]) offer(c, candidate(c, is_done));
+        if (const int c = F(f, k); c != v && !is_done(c)) offer(c, candidate(c));
     }
   }
   // Dijkstra's order makes a vertex final before an obtuse triangle's far corner, which
   // the straight line to it crosses, is known: sweeps over the vertices reached, in that
   // order, give each the better candidates of its triangles until nothing changes (a
   // few sweeps; sources keep their values).
-  std::vector<char> fixed(static_cast<std::size_t>(nv), 0);
-  for (const int v : sources.vertices) fixed[static_cast<std::size_t>(v)] = 1;
-  for (const auto& p : sources.points)
-    for (int k = 0; k < 3; ++k) fixed[static_cast<std::size_t>(F(p.face, k))] = 1;
+  for (const int v : fixed)
+    if (const int k = index.find(v); k >= 0) state[static_cast<std::size_t>(k)] = 2;
   for (int sweep = 0; sweep < kGeodesicSweeps; ++sweep) {
     bool changed = false;
     for (auto& [v, d] : out) {
-      if (fixed[static_cast<std::size_t>(v)]) continue;
-      const double better = candidate(v, is_done);
+      const std::size_t kv = static_cast<std::size_t>(index.find(v));
+      if (state[kv] == 2) continue;
+      const double better = candidate(v);
       if (better < d * (1 - 1e-14)) {
-        d = dist[static_cast<std::size_t>(v)] = better;
+        d = dist[kv] = better;
         changed = true;
       }
     }

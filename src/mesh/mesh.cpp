@@ -97,4 +97,19 @@ std::size_t Mesh::connectivity_bytes() const {
          (adj_offset_.size() + adj_vertex_.size() + adj_edge_.size() + static_cast<std::size_t>(E_.size()));
 }
 
+const VertexFaces& Mesh::vertex_faces() const {
+  std::call_once(faces_->once, [&] {
+    VertexFaces& out = faces_->lists;
+    out.offsets.assign(static_cast<std::size_t>(num_vertices()) + 1, 0);
+    for (int f = 0; f < num_faces(); ++f)
+      for (int k = 0; k < 3; ++k) ++out.offsets[static_cast<std::size_t>(F_(f, k)) + 1];
+    for (std::size_t v = 0; v + 1 < out.offsets.size(); ++v) out.offsets[v + 1] += out.offsets[v];
+    out.faces.resize(static_cast<std::size_t>(out.offsets.back()));
+    std::vector<int> next(out.offsets.begin(), out.offsets.end() - 1);
+    for (int f = 0; f < num_faces(); ++f)
+      for (int k = 0; k < 3; ++k) out.faces[static_cast<std::size_t>(next[static_cast<std::size_t>(F_(f, k))]++)] = f;
+  });
+  return faces_->lists;
+}
+
 }  // namespace meshpde

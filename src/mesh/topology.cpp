@@ -95,20 +95,6 @@ Eigen::MatrixX3d outward_vertex_normals(const Mesh& mesh) {
   return N;
 }
 
-VertexFaces vertex_faces(const Mesh& mesh) {
-  const auto& F = mesh.triangles();
-  VertexFaces out;
-  out.offsets.assign(static_cast<std::size_t>(mesh.num_vertices()) + 1, 0);
-  for (int f = 0; f < mesh.num_faces(); ++f)
-    for (int k = 0; k < 3; ++k) ++out.offsets[static_cast<std::size_t>(F(f, k)) + 1];
-  for (std::size_t v = 0; v + 1 < out.offsets.size(); ++v) out.offsets[v + 1] += out.offsets[v];
-  out.faces.resize(static_cast<std::size_t>(out.offsets.back()));
-  std::vector<int> next(out.offsets.begin(), out.offsets.end() - 1);
-  for (int f = 0; f < mesh.num_faces(); ++f)
-    for (int k = 0; k < 3; ++k) out.faces[static_cast<std::size_t>(next[static_cast<std::size_t>(F(f, k))]++)] = f;
-  return out;
-}
-
 std::vector<int> vertex_components(const Mesh& mesh, int* count) {
   const int nv = mesh.num_vertices();
   UnionFind uf(nv);

@@ -14,6 +14,8 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>  // cross(): declared by Core, defined here; needed by every geometry user
 #include <cstdint>
+#include <memory>
+#include <mutex>
 #include <span>
 #include <vector>
 
@@ -22,6 +24,13 @@ namespace meshpde {
 using Positions = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>;
 using Triangles = Eigen::Matrix<int, Eigen::Dynamic, 3, Eigen::RowMajor>;
 using Edges = Eigen::Matrix<int, Eigen::Dynamic, 2, Eigen::RowMajor>;
+
+/// The triangles around each vertex, in compressed rows: those of vertex v are
+/// faces[offsets[v] .. offsets[v + 1]), in increasing index.
+struct VertexFaces {
+  std::vector<int> offsets;  ///< #V + 1
+  std::vector<int> faces;
+};
 
 class Mesh {
  public:
@@ -63,13 +72,22 @@ class Mesh {
   /// Bytes held by the adjacency arrays (offsets, neighbours, edge ids) and edges.
   std::size_t connectivity_bytes() const;
 
+  /// The triangles around each vertex: built by the first call (one pass over the
+  /// triangles; thread-safe) and kept, shared by copies of this mesh.
+  const VertexFaces& vertex_faces() const;
+
  private:
+  struct LazyFaces {
+    std::once_flag once;
+    VertexFaces lists;
+  };
   Positions V_;
   Triangles F_;
   Edges E_;
   std::vector<int> adj_offset_;
   std::vector<int> adj_vertex_;
   std::vector<int> adj_edge_;
+  std::shared_ptr<LazyFaces> faces_ = std::make_shared<LazyFaces>();
 };
 
 }  // namespace meshpde

@@ -75,14 +75,6 @@ Eigen::MatrixX3d vertex_normals(const Mesh& mesh);
 /// This is the one rule for "outward" used by `normal:D` moves, the editor and Python.
 Eigen::MatrixX3d outward_vertex_normals(const Mesh& mesh);
 
-/// The triangles around each vertex, in compressed rows: those of vertex v are
-/// faces[offsets[v] .. offsets[v + 1]), in increasing index. One pass over the triangles.
-struct VertexFaces {
-  std::vector<int> offsets;  ///< #V + 1
-  std::vector<int> faces;
-};
-VertexFaces vertex_faces(const Mesh& mesh);
-
 /// Connected-component label per vertex (unreferenced vertices get their own label).
 std::vector<int> vertex_components(const Mesh& mesh, int* count = nullptr);
 
