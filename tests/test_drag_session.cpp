@@ -20,6 +20,7 @@
 #include "meshpde/core/errors.h"
 #include "meshpde/core/parallel.h"
 #include "meshpde/mesh/generators.h"
+#include "meshpde/mesh/geodesic_distance.h"
 #include "meshpde/mesh/regions.h"
 #include "meshpde/mesh/surface_distance.h"
 #include "meshpde/mesh/topology.h"
@@ -69,6 +70,16 @@ TEST(DragSession, UpdatesAreTheDirectSolveAndLinearInTheHandle) {
   DragSession s(mesh, ops, {handle}, DragSessionParams{.radius = 0.6});
   EXPECT_EQ(s.factorizations(), 1);
   EXPECT_GT(s.region().size(), 150u);
+  // The region: the vertices within the radius on the surface (the handle held), the
+  // correction's rule, not the smaller edge-path ball.
+  std::vector<int> surface;
+  for (const auto& [v, dist] : geodesic_distances_from(mesh, GeodesicSources{.vertices = {handle}}, 0.6))
+    if (v != handle) surface.push_back(v);
+  std::vector<int> region = s.region();
+  std::sort(region.begin(), region.end());
+  std::sort(surface.begin(), surface.end());
+  EXPECT_EQ(region, surface);
+  EXPECT_GT(region.size() + 1, geodesic_ball(mesh, handle, 0.6).size());
   for (const Eigen::RowVector3d& move : {Eigen::RowVector3d(0, 0, 0.1), Eigen::RowVector3d(0.05, -0.02, 0.3)}) {
     const Eigen::MatrixXd d = move;
     const DragResult r =
@@ -277,7 +288,6 @@ TEST(DragSession, EditorPreviewFollowsTheHandleAndCorrectReplacesIt) {
   CorrectionParams release;
   release.handles = {{handle, offset}};
   release.radius = 0.6;
-  release.boundary = RegionBoundary::Clamp;  // the preview's rule
   const CorrectionResult expected = correct_vessel(mesh, release);
   EXPECT_LE((P - expected.V).cwiseAbs().maxCoeff(), 1e-9 * offset.norm());
   EXPECT_THROW(s.drag_move(Eigen::Vector3d(NAN, 0, 0)), InputError);
@@ -287,7 +297,6 @@ TEST(DragSession, EditorPreviewFollowsTheHandleAndCorrectReplacesIt) {
   CorrectionParams p;
   p.handles = {{handle, offset}};
   p.radius = 0.6;
-  p.boundary = RegionBoundary::Clamp;
   const CorrectionResult r = s.correct(p);
   EXPECT_FALSE(s.dragging());
   EXPECT_LE((s.display_positions() - r.V).cwiseAbs().maxCoeff(), 0.0);
@@ -384,7 +393,6 @@ TEST(DragSession, EditorPreviewEqualsTheReleasedCorrectionWithStiffnessOnADented
   CorrectionParams p;
   p.handles = {{handle, offset}};
   p.radius = radius;
-  p.boundary = RegionBoundary::Clamp;  // the preview's rule
   p.stiffness = stiffness;
   const CorrectionResult r = s.correct(p);
   EXPECT_EQ(r.new_self_intersections, 0);
@@ -407,7 +415,6 @@ TEST(DragSession, TheEditorsLaplacianChoiceReachesEveryTool) {
     CorrectionParams p;
     p.handles = {{0, Eigen::Vector3d(0, 0, 0.1)}};
     p.radius = 0.5;
-    p.boundary = RegionBoundary::Clamp;  // the preview's rule
     const CorrectionResult r = s.correct(p);
     EXPECT_EQ(r.laplacian, kind == LaplacianKind::Auto ? LaplacianKind::Cotan : LaplacianKind::IntrinsicDelaunay);
     // The preview solves with the same operator as the release: they agree.

@@ -12,6 +12,7 @@
 #include "meshpde/apps/selection.h"
 #include "meshpde/core/errors.h"
 #include "meshpde/mesh/generators.h"
+#include "meshpde/mesh/geodesic_distance.h"
 #include "meshpde/mesh/regions.h"
 #include "meshpde/mesh/topology.h"
 #include "solver_problems.h"
@@ -79,7 +80,20 @@ TEST(Regions, GeodesicDistancesFromSeveralSourcesAreTheNearestBalls) {
 
 TEST(Regions, RegionAroundTakesARadiusOrRingsNeverBoth) {
   const Mesh m = make(icosphere(3));
-  EXPECT_EQ(region_around(m, 5, RegionSpec{.radius = 0.3, .rings = 0}), geodesic_ball(m, 5, 0.3));
+  // By radius: the vertices nearer on the surface, nearest first; a surface distance is
+  // never longer than an edge path, so the edge-path ball is inside, and here smaller
+  // (47 vertices against 57).
+  const std::vector<int> by_radius = region_around(m, 100, RegionSpec{.radius = 0.6, .rings = 0});
+  std::vector<int> surface;
+  for (const auto& [v, d] : geodesic_distances_from(m, GeodesicSources{.vertices = {100}}, 0.6)) surface.push_back(v);
+  EXPECT_EQ(by_radius, surface);
+  const std::vector<int> edge_ball = geodesic_ball(m, 100, 0.6);
+  const std::set<int> in(by_radius.begin(), by_radius.end());
+  for (const int v : edge_ball) EXPECT_TRUE(in.count(v)) << v;
+  EXPECT_GT(by_radius.size(), edge_ball.size());
+  // The correction's older rules keep the edge-path ball.
+  EXPECT_EQ(influence_region(m, std::vector<int>{100}, RegionSpec{.radius = 0.6, .rings = 0}, false), edge_ball);
+  EXPECT_THROW(influence_region(m, std::vector<int>{100}, RegionSpec{.radius = 0.6, .rings = 2}, false), InputError);
   EXPECT_EQ(region_around(m, 5, RegionSpec{.radius = 0, .rings = 2}), ring_ball(m, 5, 2));
   EXPECT_THROW(region_around(m, 5, RegionSpec{.radius = 0.3, .rings = 2}), InputError);
   EXPECT_THROW(region_around(m, 5, RegionSpec{}), InputError);

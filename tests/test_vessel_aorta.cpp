@@ -185,7 +185,6 @@ TEST(AortaCorrection, TheEditorsPreviewEqualsTheReleasedCorrection) {
   CorrectionParams p;
   p.handles = {{kTrunk, offset}};
   p.radius = 9.0;
-  p.boundary = RegionBoundary::Clamp;  // the preview's rule
   const CorrectionResult r = s.correct(p);
   EXPECT_EQ(r.laplacian, LaplacianKind::IntrinsicDelaunay);
   EXPECT_EQ(r.intersection_action, "none");

@@ -309,7 +309,9 @@ or "intrinsic".)doc")
 
 Interactive drags of handle vertices over one region with one factorization:
 positions(d) for handle displacements d (k, 3) costs a product, not a solve;
-add_handle, grow and shrink reuse the factor where they can.)doc")
+add_handle, grow and shrink reuse the factor where they can. The region: the
+vertices within `radius` of the first handle on the surface (geodesic_distance),
+or `rings` rings of neighbours; held at zero outside.)doc")
       .def(py::init([](const py::handle& V, const py::handle& F, const py::handle& handles, double radius, int rings,
                        double g1, double g2, bool margin, bool inner_margin) {
              auto p = std::make_unique<PyDragSession>();

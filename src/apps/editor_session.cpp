@@ -51,24 +51,28 @@ void EditorSession::check_vertex(int v) const {
 Positions EditorSession::display_positions() const {
   Positions V = mesh().positions();
   if (haptic_) V += haptic_->displacement();
-  if (drag_) {
-    const Eigen::MatrixXd d = drag_->displacements(drag_offset_.transpose());
-    // The session runs on the region's copy: its rows map back through to_mesh.
-    const auto& to_mesh = drag_region_->copy.to_mesh;
-    const auto& region = drag_->region();
-    for (std::size_t k = 0; k < region.size(); ++k)
-      V.row(to_mesh[static_cast<std::size_t>(region[k])]) += d.row(static_cast<Eigen::Index>(k));
-    V.row(to_mesh[static_cast<std::size_t>(drag_->handles()[0])]) += drag_offset_.transpose();
-  }
   if (preview_) preview_->add_displacement(V, drag_offset_);
   return V;
 }
 
 double EditorSession::drag_begin(const SurfacePoint& point, double radius, const Eigen::VectorXd& stiffness,
                                  const TissueParams& tissue) {
+  return begin_preview(CorrectionHandle(mesh(), point, Eigen::Vector3d::Zero()), radius, stiffness, tissue);
+}
+
+double EditorSession::drag_begin(int vertex, double radius, const Eigen::VectorXd& stiffness,
+                                 const TissueParams& tissue) {
+  check_vertex(vertex);
+  return begin_preview(CorrectionHandle{vertex, Eigen::Vector3d::Zero()}, radius, stiffness, tissue);
+}
+
+double EditorSession::begin_preview(CorrectionHandle handle, double radius, const Eigen::VectorXd& stiffness,
+                                    const TissueParams& tissue) {
   if (!(radius > 0) || !std::isfinite(radius)) throw InputError("drag radius must be a length > 0");
+  // The release's correction: fem, static, the default boundary and handle size, the
+  // session's Laplacian, tissue and held caps, this radius.
   CorrectionParams p;
-  p.handles = {CorrectionHandle(mesh(), point, Eigen::Vector3d::Zero())};
+  p.handles = {std::move(handle)};
   p.radius = radius;
   p.stiffness = stiffness;
   p.tissue = tissue;
@@ -84,44 +88,6 @@ double EditorSession::drag_begin(const SurfacePoint& point, double radius, const
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 }
 
-double EditorSession::drag_begin(int vertex, double radius, const Eigen::VectorXd& stiffness,
-                                 const TissueParams& tissue) {
-  check_vertex(vertex);
-  if (!(radius > 0) || !std::isfinite(radius)) throw InputError("drag radius must be a length > 0");
-  // The release's correction (fem, static, the session's Laplacian and tissue, this radius).
-  CorrectionParams p;
-  p.handles = {{vertex, Eigen::Vector3d::Zero()}};
-  p.radius = radius;
-  // The preview's DragSession holds the handle vertex and clamps the region: the
-  // release must use the same rule (the page's vertex-only `correct` request does).
-  p.boundary = RegionBoundary::Clamp;
-  p.handle_radius = 0;
-  p.stiffness = stiffness;
-  p.tissue = tissue;
-  p.laplacian = laplacian_;
-  p.held = held_;
-  std::vector<int> handle{vertex};
-  if (const std::size_t n = influence_region(mesh(), handle, RegionSpec{.radius = radius, .rings = 0}, true).size();
-      static_cast<int>(n) > kPreviewLimit)
-    throw InputError(
-        fmt::format("a region of {} vertices is too large for a live preview (at most {}); the correction still "
-                    "runs on release",
-                    n, kPreviewLimit));
-  pause();
-  const auto t0 = std::chrono::steady_clock::now();
-  drag_end();
-  drag_region_ = std::make_unique<CorrectionRegion>(correction_region(mesh(), p));
-  const RegionCopy& c = drag_region_->copy;
-  std::vector<int> local_region;
-  local_region.reserve(drag_region_->region.size());
-  for (const int v : drag_region_->region) local_region.push_back(c.local(v));
-  drag_ = std::make_unique<DragSession>(drag_region_->operators.mesh, drag_region_->operators.ops,
-                                        std::vector<int>{c.local(vertex)}, local_region,
-                                        DragSessionParams{.g1 = p.g1, .g2 = p.g2});
-  drag_offset_.setZero();
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-}
-
 void EditorSession::drag_move(const Eigen::Vector3d& offset) {
   if (!dragging()) throw InputError("drag_move without drag_begin");
   if (!offset.allFinite()) throw InputError("drag offset is not finite");
@@ -129,15 +95,12 @@ void EditorSession::drag_move(const Eigen::Vector3d& offset) {
 }
 
 void EditorSession::drag_end() {
-  drag_.reset();
   preview_.reset();
-  drag_region_.reset();
   drag_offset_.setZero();
 }
 
 int EditorSession::drag_region_vertices() const {
-  if (preview_) return preview_->region_vertices();
-  return drag_ ? static_cast<int>(drag_->region().size()) : 0;
+  return preview_ ? preview_->region_vertices() : 0;
 }
 
 void EditorSession::stop_poke() {

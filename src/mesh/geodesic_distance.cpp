@@ -2,8 +2,10 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
 #include <queue>
+#include <tuple>
 
 #include "../core/index_map.h"
 #include "meshpde/core/errors.h"
@@ -18,27 +20,31 @@ namespace {
 // give).
 double through_triangle(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c, double da,
                         double db) {
-  const Eigen::Vector3d ab = b - a;
-  const double L = ab.norm();
-  if (!(L > 0)) return std::numeric_limits<double>::infinity();
-  const Eigen::Vector3d ex = ab / L;
-  const Eigen::Vector3d ac = c - a;
-  const double cx = ac.dot(ex);
-  const double cy = (ac - cx * ex).norm();  // c on the +y side
-  if (!(cy > 0)) return std::numeric_limits<double>::infinity();
-  const double sx = (da * da - db * db + L * L) / (2 * L);
+  constexpr double kNone = std::numeric_limits<double>::infinity();
+  const Eigen::Vector3d ab = b - a, ac = c - a;
+  const double L2 = ab.squaredNorm();
+  if (!(L2 > 0)) return kNone;
+  const double L = std::sqrt(L2);
+  // The triangle in the plane: a at 0, b at (L, 0), c at (cx, cy) with cy > 0.
+  const double cx = ac.dot(ab) / L;
+  const double cy2 = ac.squaredNorm() - cx * cx;
+  if (!(cy2 > 0)) return kNone;
+  const double cy = std::sqrt(cy2);
+  // The source at (sx, sy), sy < 0, at distances da and db from a and b.
+  const double sx = (da * da - db * db + L2) / (2 * L);
   const double sy2 = da * da - sx * sx;
-  if (sy2 < 0) return std::numeric_limits<double>::infinity();  // da + db < L: no such source
+  if (sy2 < 0) return kNone;  // da + db < L: no such source
   const double sy = -std::sqrt(sy2);
   // Where S c meets the line of ab (y = 0).
-  const double t = -sy / (cy - sy);
-  const double x = sx + t * (cx - sx);
-  if (x < 0 || x > L) return std::numeric_limits<double>::infinity();
-  return std::hypot(cx - sx, cy - sy);
+  const double x = sx + (-sy / (cy - sy)) * (cx - sx);
+  if (x < 0 || x > L) return kNone;
+  const double dx = cx - sx, dy = cy - sy;
+  return std::sqrt(dx * dx + dy * dy);
 }
 
-// Most sweeps after the first pass (each one a pass over the vertices reached).
-constexpr int kGeodesicSweeps = 16;
+// Most rounds of corrections after the first pass (each one over the vertices whose
+// neighbours changed in the round before).
+constexpr int kGeodesicRounds = 64;
 
 }  // namespace
 
@@ -113,6 +119,17 @@ std::vector<std::pair<int, double>> geodesic_distances_from(const Mesh& mesh, co
     }
     return best;
   };
+  // Final vertices that a later corner may bring nearer, each listed once (by slot).
+  std::vector<int> marked;
+  std::vector<char> in_marked;
+  auto recheck = [&](int v) {
+    const std::size_t k = static_cast<std::size_t>(index.find(v));
+    if (in_marked.size() < dist.size()) in_marked.resize(dist.size(), 0);
+    if (!in_marked[k]) {
+      in_marked[k] = 1;
+      marked.push_back(v);
+    }
+  };
   std::vector<std::pair<int, double>> out;
   while (!queue.empty()) {
     const auto [d, v] = queue.top();
@@ -121,33 +138,61 @@ std::vector<std::pair<int, double>> geodesic_distances_from(const Mesh& mesh, co
     if (state[kv] != 0 || d > dist[kv]) continue;  // stale
     state[kv] = 1;
     out.emplace_back(v, d);
-    // The triangles at v update their other corners, now that v is known.
+    // The triangles at v give their other corners the candidates that v's distance
+    // makes possible (those from the corners known before were offered when they
+    // became known).
+    const Eigen::Vector3d pv = V.row(v).transpose();
     for (int q = around.offsets[static_cast<std::size_t>(v)]; q < around.offsets[static_cast<std::size_t>(v) + 1];
          ++q) {
       const int f = around.faces[static_cast<std::size_t>(q)];
-      for (int k = 0; k < 3; ++k)
-        if (const int c = F(f, k); c != v && !is_done(c)) offer(c, candidate(c));
-    }
-  }
-  // Dijkstra's order makes a vertex final before an obtuse triangle's far corner, which
-  // the straight line to it crosses, is known: sweeps over the vertices reached, in that
-  // order, give each the better candidates of its triangles until nothing changes (a
-  // few sweeps; sources keep their values).
-  for (const int v : fixed)
-    if (const int k = index.find(v); k >= 0) state[static_cast<std::size_t>(k)] = 2;
-  for (int sweep = 0; sweep < kGeodesicSweeps; ++sweep) {
-    bool changed = false;
-    for (auto& [v, d] : out) {
-      const std::size_t kv = static_cast<std::size_t>(index.find(v));
-      if (state[kv] == 2) continue;
-      const double better = candidate(v);
-      if (better < d * (1 - 1e-14)) {
-        d = dist[kv] = better;
-        changed = true;
+      const int k = F(f, 0) == v ? 0 : F(f, 1) == v ? 1 : 2;
+      const int a = F(f, (k + 1) % 3), b = F(f, (k + 2) % 3);
+      if (a == v || b == v || a == b) continue;  // a degenerate triangle (a corner repeated)
+      const int ka = index.find(a), kb = index.find(b);
+      const bool known_a = ka >= 0 && state[static_cast<std::size_t>(ka)] != 0,
+                 known_b = kb >= 0 && state[static_cast<std::size_t>(kb)] != 0;
+      for (const auto& [c, kc, known_c, o, ko, known_o] :
+           {std::tuple{a, ka, known_a, b, kb, known_b}, std::tuple{b, kb, known_b, a, ka, known_a}}) {
+        // Along the edge from v, and through the triangle when its third corner is known.
+        const Eigen::Vector3d pc = V.row(c).transpose();
+        double best = d + (pc - pv).norm();
+        if (known_o)
+          best = std::min(best, through_triangle(pv, V.row(o).transpose(), pc, d, dist[static_cast<std::size_t>(ko)]));
+        if (!known_c)
+          offer(c, best);
+        else if (best < dist[static_cast<std::size_t>(kc)] * (1 - 1e-14))
+          // Final already: Dijkstra's order made it so before v was known (the far
+          // corner of an obtuse triangle, which the straight line to it crosses).
+          // Corrected after the pass.
+          recheck(c);
       }
     }
-    if (!changed) break;
   }
+  // The corrections: each vertex marked takes the best candidate of its triangles, and
+  // a vertex that changed marks the other corners of its triangles for the next round,
+  // until nothing changes (a few rounds over a few vertices; sources keep their values).
+  for (const int v : fixed)
+    if (const int k = index.find(v); k >= 0) state[static_cast<std::size_t>(k)] = 2;
+  for (int round = 0; round < kGeodesicRounds && !marked.empty(); ++round) {
+    std::vector<int> work;
+    work.swap(marked);
+    // Nearest first, as the pass went: a correction reaches the vertices behind it in
+    // the same round.
+    std::sort(work.begin(), work.end(), [&](int x, int y) { return distance_of(x) < distance_of(y); });
+    for (const int v : work) {
+      const std::size_t kv = static_cast<std::size_t>(index.find(v));
+      in_marked[kv] = 0;
+      if (state[kv] == 2) continue;
+      const double better = candidate(v);
+      if (!(better < dist[kv] * (1 - 1e-14))) continue;
+      dist[kv] = better;
+      for (int q = around.offsets[static_cast<std::size_t>(v)]; q < around.offsets[static_cast<std::size_t>(v) + 1];
+           ++q)
+        for (int k = 0; k < 3; ++k)
+          if (const int w = F(around.faces[static_cast<std::size_t>(q)], k); w != v && index.find(w) >= 0) recheck(w);
+    }
+  }
+  for (auto& [v, d] : out) d = dist[static_cast<std::size_t>(index.find(v))];
   std::stable_sort(out.begin(), out.end(), [](const auto& x, const auto& y) { return x.second < y.second; });
   return out;
 }

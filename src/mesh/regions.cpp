@@ -12,6 +12,7 @@
 
 #include "../core/index_map.h"
 #include "meshpde/core/errors.h"
+#include "meshpde/mesh/geodesic_distance.h"
 #include "meshpde/mesh/topology.h"
 
 namespace meshpde {
@@ -133,7 +134,11 @@ std::vector<int> region_around(const Mesh& mesh, int source, const RegionSpec& s
   if (by_radius == by_rings)
     throw InputError(fmt::format("give a region as a radius > 0 or as rings > 0, not both (radius {}, rings {})",
                                  spec.radius, spec.rings));
-  return by_radius ? geodesic_ball(mesh, source, spec.radius) : ring_ball(mesh, source, spec.rings);
+  if (!by_radius) return ring_ball(mesh, source, spec.rings);
+  std::vector<int> out;
+  for (const auto& [v, d] : geodesic_distances_from(mesh, GeodesicSources{.vertices = {source}}, spec.radius))
+    out.push_back(v);
+  return out;
 }
 
 std::vector<std::pair<int, double>> geodesic_distances(const Mesh& mesh, std::span<const int> sources, double radius) {
@@ -189,7 +194,11 @@ std::vector<int> influence_region(const Mesh& mesh, std::span<const int> handles
     if (!seen[static_cast<std::size_t>(h)]++) out.push_back(h);
   }
   for (const int h : handles) {
-    std::vector<int> ball = region_around(mesh, h, spec);
+    // Edge paths, not region_around's surface distance: the rule before the smooth
+    // boundary, kept as it was for comparison.
+    const bool by_radius = spec.radius > 0 && std::isfinite(spec.radius);
+    if (by_radius == (spec.rings > 0)) region_around(mesh, h, spec);  // throws the message
+    std::vector<int> ball = by_radius ? geodesic_ball(mesh, h, spec.radius) : ring_ball(mesh, h, spec.rings);
     if (spec.radius > 0 && clamp_at_radius) {
       const double edge = mean_edge_length_among(mesh, ball);
       if (edge > 0 && spec.radius > 2 * edge) ball = geodesic_ball(mesh, h, spec.radius - edge);

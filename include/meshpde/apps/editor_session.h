@@ -20,7 +20,6 @@
 
 #include "meshpde/apps/haptics.h"
 #include "meshpde/apps/interpolation.h"
-#include "meshpde/apps/local_drag.h"
 #include "meshpde/apps/vessel_correction.h"
 #include "meshpde/io/mesh_io.h"
 #include "meshpde/mesh/caps.h"
@@ -64,26 +63,27 @@ class EditorSession {
   double poke_p99_us() const;  ///< over the last second of steps
 
   // Drag preview: while the user drags a handle with the correct tool, the surface
-  // follows live (a DragSession: the region's factor and basis are built at
-  // drag_begin, every drag_move is a product with the basis, microseconds). The
-  // preview solves the static bi-Laplacian correction on the very region, copy and
-  // operators that correct() uses (correction_region()), so when the mouse stops it
-  // equals the correction applied on release to rounding, unless that one is
-  // image-guided, dynamic or has to avoid a self-intersection.
-  /// radius: the region of influence in mesh units; stiffness and tissue: the per-vertex
-  /// stiffness (empty: 1) and tissue the release will use (its elasticity field weighs
-  /// the static solve too). Returns the set-up time in ms.
+  // follows live (a CorrectionPreview: the region's factor and its response to the
+  // handle are built at drag_begin, every drag_move is a scaled copy of that response,
+  // microseconds). The preview is the correction's default rule (the handle moves, the
+  // region is measured on the surface and ends smoothly at `radius`, a handle of the
+  // default size) on the very region, copy and operators that correct() uses, so when
+  // the mouse stops it equals the correction applied on release with the same handle
+  // to rounding, unless that one is image-guided, dynamic or has to avoid a
+  // self-intersection.
+  /// At a vertex. radius: the region of influence in mesh units; stiffness and tissue:
+  /// the per-vertex stiffness (empty: 1) and tissue the release will use (its
+  /// elasticity field weighs the static solve too). Returns the set-up time in ms.
+  /// \throw InputError for a bad vertex or radius, or a region of more than 20,000
+  ///        vertices (too large to factor while the user waits; releasing still corrects).
   double drag_begin(int vertex, double radius, const Eigen::VectorXd& stiffness = Eigen::VectorXd(),
                     const TissueParams& tissue = {});
-  /// The same at a surface point (the point the user picked), with the correction's
-  /// default rule: the point moves, the region is measured on the surface and ends
-  /// smoothly at `radius` (RegionBoundary::Smooth, a handle of the default size); the
-  /// release is correct() with that point handle (a CorrectionPreview).
+  /// The same at a surface point (the point the user picked): that point moves.
   double drag_begin(const SurfacePoint& point, double radius, const Eigen::VectorXd& stiffness = Eigen::VectorXd(),
                     const TissueParams& tissue = {});
   void drag_move(const Eigen::Vector3d& offset);
   void drag_end();  ///< drops the preview (correct() drops it too)
-  bool dragging() const { return drag_ != nullptr || preview_ != nullptr; }
+  bool dragging() const { return preview_ != nullptr; }
   int drag_region_vertices() const;
 
   // Correct.
@@ -139,6 +139,8 @@ class EditorSession {
  private:
   void stop_poke();
   void check_vertex(int v) const;
+  double begin_preview(CorrectionHandle handle, double radius, const Eigen::VectorXd& stiffness,
+                       const TissueParams& tissue);
 
   MeshData data_;
   CorrectionSession correction_;
@@ -154,11 +156,8 @@ class EditorSession {
   std::shared_ptr<const MeshOperators> poke_geometry_;
   std::unique_ptr<HapticSession> haptic_;
   double poke_influence_ = -1;
-  // Drag preview state: the correction's region, copy and operators (the DragSession
-  // keeps references to them), built at drag_begin.
-  std::unique_ptr<CorrectionRegion> drag_region_;
-  std::unique_ptr<DragSession> drag_;
-  std::unique_ptr<CorrectionPreview> preview_;  // a drag at a surface point
+  // Drag preview state.
+  std::unique_ptr<CorrectionPreview> preview_;
   Eigen::Vector3d drag_offset_ = Eigen::Vector3d::Zero();
   // Fields.
   Eigen::VectorXd field_;

@@ -23,7 +23,7 @@ namespace meshpde {
 struct DragParams {
   int vertex = 0;                                          ///< handle vertex
   Eigen::Vector3d displacement = Eigen::Vector3d::Zero();  ///< in mesh units (mm for vessels)
-  double radius = 0;  ///< region of influence: edge-path distance from the handle (mesh units); 0: use rings
+  double radius = 0;  ///< region of influence: surface distance from the handle (mesh units); 0: use rings
   int rings = 0;      ///< region of influence in rings of neighbours (used when radius == 0)
   double g1 = 0;      ///< membrane stiffness
   double g2 = 1;      ///< plate (bi-Laplacian) stiffness
@@ -45,9 +45,11 @@ struct DragResult {
   SteadySolver solver = SteadySolver::Iterative;  ///< the solver that ran (Auto resolved)
 };
 
-// The region is mesh/regions.h's region_around (the geodesic ball of the radius, else
-// the ring ball), the same rule as a correction's influence_region without its clamp;
-// when both radius and rings are given the radius is used.
+// The region is mesh/regions.h's region_around: the vertices nearer than the radius on
+// the surface (mesh/geodesic_distance.h, the rule of a correction's region), else the
+// ring ball; when both radius and rings are given the radius is used. The field is
+// held at zero outside it (a correction's RegionBoundary::Clamp without its pull-in of
+// one edge; the smooth boundary is the correction's, apps/vessel_correction.h).
 
 /// \throw InputError for a bad vertex or region; SolverError on a breakdown.
 DragResult drag_vertex(const Mesh& mesh, const FemOperators& ops, const DragParams& params);
@@ -82,7 +84,7 @@ DragResult drag_vertex(const Mesh& mesh, const FemOperators& ops, const DragPara
 /// sweep, with iterative refinement to a relative residual of 1e-12 or a
 /// backward-stable answer (solvers/refinement.h).
 struct DragSessionParams {
-  double radius = 0;  ///< region: edge-path distance from the first handle (mesh units); 0: use rings
+  double radius = 0;  ///< region: surface distance from the first handle (mesh units); 0: use rings
   int rings = 0;      ///< region in rings of neighbours of the first handle (when radius == 0)
   double g1 = 0;      ///< membrane stiffness
   double g2 = 1;      ///< plate (bi-Laplacian) stiffness

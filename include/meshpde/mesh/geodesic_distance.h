@@ -1,14 +1,16 @@
 // Distance along the surface: from source vertices and surface points to the vertices
 // around them, measured across triangles, not along edges. The one rule of regions
-// of influence given in millimetres (corrections, their handles' size).
+// of influence given in millimetres (corrections, their handles' size, drags).
 //
 // Method: Dijkstra's order with the triangle update of fast marching, done exactly for
 // a point source (Novotni and Klein, "Computing geodesic distances on triangular
 // meshes", WSCG 2002). When vertices a and b of a triangle (a, b, c) are known, the
 // source is unfolded into the triangle's plane, across the edge ab from c, at distances
 // d(a) and d(b); if the straight line from it to c crosses the edge ab, |S c| is c's
-// candidate, otherwise the path through a or b is. A few sweeps afterwards give the far
-// corners of obtuse triangles the candidates Dijkstra's order gave them too early.
+// candidate, otherwise the path through a or b is. Dijkstra's order can make the far
+// corner of an obtuse triangle final before the line to it is known; such corners are
+// marked when it becomes known and corrected afterwards, round by round with their
+// neighbours, until nothing changes.
 // Accuracy: exact to rounding on a plane (regular or jittered triangles) and on
 // surfaces that unroll onto one (a cylinder); on a curved surface the unfolding treats
 // each wavefront as a planar circle, an error that grows with K d^2 (K the Gaussian
@@ -18,9 +20,9 @@
 //
 // Units: those of the positions (mm for vessels). Cost: the vertices reached (within
 // `radius`) times their degree, plus, on a mesh's first call, one pass over its
-// triangles for each vertex's (Mesh::vertex_faces, kept with the mesh): on a
-// 2.6M-vertex mesh 232 ms the first time, then 0.8 ms for a 576-vertex region and 16 ms
-// for 12.8k vertices (an edge-path ball of 10k vertices: 2-4 ms).
+// triangles for each vertex's (Mesh::vertex_faces, kept with the mesh; 232 ms on a
+// 2.6M-vertex mesh). A 9.6k-vertex region of a 655k-vertex mesh takes about 5 ms,
+// an edge-path ball of the same radius (8k vertices) 0.6 ms.
 #pragma once
 
 #include <Eigen/Core>

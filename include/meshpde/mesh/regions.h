@@ -1,5 +1,5 @@
-// Regions of a mesh by graph distance: the geodesic (edge-path) ball and the ring
-// ball, a region given either way (RegionSpec), and brushes that paint a per-vertex
+// Regions of a mesh: the edge-path ball and the ring ball, a region of influence given
+// by surface distance or by rings (RegionSpec), and brushes that paint a per-vertex
 // field over a ball. The one home of these rules for drags, corrections, the editor's
 // brushes and the selection specs.
 #pragma once
@@ -28,17 +28,20 @@ std::vector<int> ring_ball(const Mesh& mesh, int source, int rings);
 
 /// A region around a vertex, by distance or by rings: exactly one of the two is > 0.
 struct RegionSpec {
-  double radius = 0;  ///< edge-path distance (mesh units, mm for vessels); 0: use rings
+  double radius = 0;  ///< surface distance (mesh units, mm for vessels; mesh/geodesic_distance.h); 0: use rings
   int rings = 0;      ///< rings of neighbours (the thesis's "level of influence"); 0: use radius
 };
 
-/// geodesic_ball or ring_ball as `spec` says. \throw InputError for a bad vertex, or
-/// unless exactly one of radius and rings is > 0 (the message names both).
+/// As `spec` says: the vertices nearer than the radius on the surface
+/// (geodesic_distances_from, nearest first), or ring_ball. The region of DragSession
+/// and drag_vertex. \throw InputError for a bad vertex, or unless exactly one of
+/// radius and rings is > 0 (the message names both).
 std::vector<int> region_around(const Mesh& mesh, int source, const RegionSpec& spec);
 
-/// The region of influence of one or more handles: the one rule of corrections
-/// (apps/vessel_correction.h) and of the editor's drag preview. The union of every
-/// handle's ball (region_around), the handles first, then in the order reached.
+/// The region of influence of one or more handles under the correction's older rules
+/// (RegionBoundary::Clamp and Fade, apps/vessel_correction.h), kept as they were for
+/// comparison: the union of every handle's edge-path ball (geodesic_ball) or ring
+/// ball, the handles first, then in the order reached.
 /// With `clamp_at_radius` (the bi-Laplacian's rule) a ball given by radius R is taken
 /// within R - h instead, h the mean edge length inside it (when R > 2h): the two rings
 /// held at zero outside the free set then clamp the field about one edge beyond its
