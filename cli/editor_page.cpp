@@ -337,12 +337,37 @@ int EditorPage::upload(const std::string& bytes, const std::string& name) {
   return session_->mesh().num_vertices();
 }
 
-std::pair<std::string, std::string> EditorPage::save() const {
+std::pair<std::string, std::string> EditorPage::save(const SaveOptions& options) const {
   if (!session_) throw InputError("no mesh loaded");
   const fs::path n(source_.name);
+  std::string ext = n.extension().string();
+  if (!options.format.empty()) {
+    static const std::vector<std::string> kFormats = {"vtp", "vtk", "stl", "ply", "obj", "off"};
+    if (std::find(kFormats.begin(), kFormats.end(), options.format) == kFormats.end())
+      throw InputError(
+          fmt::format("cannot save as '{}': the editor saves .vtp .vtk .stl .ply .obj .off", options.format));
+    ext = "." + options.format;
+  }
+  const std::string name = n.stem().string() + "-edited" + ext;
   MeshData d = session_->snapshot();
-  d.V /= millimetres_per(source_.units);  // back in the unit it came in
-  return {mesh_bytes(d, source_.name), n.stem().string() + "-edited" + n.extension().string()};
+  const double per_unit = millimetres_per(source_.units);
+  d.V /= per_unit;  // back in the unit it came in
+  if (options.displacement) {
+    const Positions D = (session_->mesh().positions() - session_->original_positions()) / per_unit;
+    for (int c = 0; c < 3; ++c) {
+      const std::string key = std::string("displacement_") + "xyz"[c];
+      d.vertex_scalars[key] = D.col(c);
+      d.scalar_types[key] = "Float64";
+    }
+  }
+  // Normals read with the file are stale once vertices moved: recomputed on the
+  // surface saved (mesh_io.h, refresh_normal_fields).
+  if ((session_->mesh().positions() - session_->original_positions()).cwiseAbs().maxCoeff() > 0)
+    refresh_normal_fields(d);
+  // The frame the page worked in (--space, else the file's tag, else LPS).
+  d.space = to_string(space_);
+  std::transform(d.space.begin(), d.space.end(), d.space.begin(), [](unsigned char c) { return std::toupper(c); });
+  return {mesh_bytes(d, name), name};
 }
 
 void EditorPage::handle(const std::string& payload, bool binary) {
@@ -372,8 +397,8 @@ void EditorPage::handle(const std::string& payload, bool binary) {
       reply["brushed"] = to_string(property);
     } else if (type == "drag_begin") {
       const double radius = number(j, "radius", 8);
-      // A picked surface point (the page sends it) gets the correction's default rule; a
-      // vertex alone, the clamp with the vertex held.
+      // At the picked surface point (the page sends it), else at the vertex; the
+      // correction's default rule either way.
       reply["setup_ms"] = j.contains("point")
                               ? s.drag_begin(surface_point_of(s.mesh(), j), radius, tissue_.stiffness, tissue_.tissue)
                               : s.drag_begin(vertex_of(j), radius, tissue_.stiffness, tissue_.tissue);
@@ -389,16 +414,12 @@ void EditorPage::handle(const std::string& payload, bool binary) {
     } else if (type == "correct") {
       CorrectionParams p;
       p.radius = number(j, "radius", 8);
-      // The rule of the drag preview (EditorSession::drag_begin), so that the release
-      // equals what the page showed: at a picked surface point, the default rule; at a
-      // vertex alone, the clamp with the vertex held.
-      if (j.contains("point")) {
+      // The rule of the drag preview (EditorSession::drag_begin, the correction's
+      // default), so that the release equals what the page showed.
+      if (j.contains("point"))
         p.handles = {CorrectionHandle(s.mesh(), surface_point_of(s.mesh(), j), vec3(j, "move"))};
-      } else {
+      else
         p.handles = {{vertex_of(j), vec3(j, "move")}};
-        p.boundary = RegionBoundary::Clamp;
-        p.handle_radius = 0;
-      }
       if (!(p.radius > 0)) throw InputError("radius must be > 0");
       p.method = parse_correction_method(j.value("method", std::string("fem")));
       if (p.method == CorrectionMethod::Springs) {

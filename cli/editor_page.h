@@ -86,6 +86,12 @@ struct PageSink {
   std::function<void(std::string)> binary;
 };
 
+/// What an editor save writes besides the mesh (EditorPage::save).
+struct SaveOptions {
+  std::string format{};       ///< vtp, vtk, stl, ply, obj or off; empty: the format it came in
+  bool displacement = false;  ///< add the point field "displacement" (3 components, the mesh's unit)
+};
+
 class EditorPage {
  public:
   /// A page with no mesh yet; `image` (may be null) is shown and guides corrections,
@@ -117,9 +123,12 @@ class EditorPage {
   /// 2 GB at this size), and a compressed upload of --max-upload-mb can declare 1,032
   /// times its bytes.
   static constexpr std::size_t kMaxUploadedVoxels = std::size_t{512} * 512 * 1024;
-  /// The current mesh in its own format, and the name to download it as.
-  /// \throw InputError with no mesh loaded.
-  std::pair<std::string, std::string> save() const;
+  /// The current mesh and the name to download it as (NAME-edited.EXT), in the unit it
+  /// came in, with its arrays and their types (Float32 points stay Float32), normal
+  /// arrays recomputed when vertices moved (they would be stale), and the page's frame
+  /// as the SPACE tag (.vtp field data, .vtk title).
+  /// \throw InputError with no mesh loaded or an unknown format.
+  std::pair<std::string, std::string> save(const SaveOptions& options = {}) const;
 
  private:
   void send_json(const nlohmann::json& j);

@@ -391,7 +391,10 @@ class EditorServer {
         // Parsing, loading and saving run on the page's worker, in order with its
         // requests; the answer is sent from there.
         EditorPage* c = p->editor.get();
-        auto task = [c, upload, respond, body = req.body,
+        SaveOptions save_options;
+        if (query.count("format")) save_options.format = query.at("format");
+        save_options.displacement = query.count("displacement") && query.at("displacement") == "1";
+        auto task = [c, upload, respond, body = req.body, save_options,
                      name = query.count("name") ? query.at("name") : std::string("upload.ply")] {
           try {
             if (upload && is_volume_upload(name)) {
@@ -401,7 +404,7 @@ class EditorServer {
               const int vertices = c->upload(body, name);
               respond(json_response(200, {{"ok", true}, {"vertices", vertices}}));
             } else {
-              auto [bytes, filename] = c->save();
+              auto [bytes, filename] = c->save(save_options);
               net::HttpResponse r{200, std::move(bytes), "application/octet-stream", {}};
               r.headers.emplace_back("Content-Disposition", fmt::format("attachment; filename=\"{}\"", filename));
               respond(std::move(r));

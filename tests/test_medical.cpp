@@ -195,7 +195,10 @@ TEST(Vtp, RoundTripKeepsPointsTrianglesAndArraysWithTheirTypes) {
   d.vertex_scalars["flow_y"] = Eigen::Vector4d(5, 6, 7, 8);
   d.vertex_scalars["flow_z"] = Eigen::Vector4d(9, 10, 11, 12);
   d.point_arrays["tensor2"] = DataArray{Eigen::MatrixXd::Constant(4, 2, 0.25), "Float64"};
-  d.V(2, 1) = 1.0 / 3.0;  // not representable in float: the writer must keep doubles
+  // Not representable in float: points of type Float64 are written as doubles (Float32
+  // points stay Float32: Vtp.PointsKeepTheirType).
+  d.V(2, 1) = 1.0 / 3.0;
+  d.points_type = "Float64";
   for (const char* ext : {".vtp", ".vtk"}) {
     SCOPED_TRACE(ext);
     const fs::path p = scratch(std::string("roundtrip") + ext);
@@ -241,6 +244,28 @@ TEST(Vtp, TheFrameIsWrittenAsSlicerWritesIt) {
   plain.V = Positions{{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
   plain.F = Triangles{{0, 1, 2}};
   EXPECT_EQ(read_vtk_mesh_from_memory(write_vtk_mesh_to_memory(plain, "vtp"), "vtp", "plain.vtp").space, "");
+}
+
+TEST(Vtp, PointsKeepTheirType) {
+  // Float32 points (vmtk's, Slicer's) are written back as Float32, Float64 as Float64,
+  // in both VTK formats; reading reports the type.
+  if (test::have_data("aorta-closed-6k.vtp")) {
+    EXPECT_EQ(read_vtk_mesh(test::data_dir() / "aorta-closed-6k.vtp").points_type, "Float32");
+  }
+  for (const std::string type : {"Float32", "Float64"}) {
+    MeshData d;
+    d.V = Positions{{0, 0, 0}, {1.1, 0, 0}, {0, 1.3, 0.1}};
+    d.F = Triangles{{0, 1, 2}};
+    d.points_type = type;
+    for (const std::string kind : {"vtp", "vtk"}) {
+      const MeshData back = read_vtk_mesh_from_memory(write_vtk_mesh_to_memory(d, kind), kind, "typed." + kind);
+      EXPECT_EQ(back.points_type, type) << kind;
+      EXPECT_LE((back.V - d.V).cwiseAbs().maxCoeff(), type == "Float32" ? 1e-7 : 0.0) << kind;
+      if (type == "Float32") {
+        EXPECT_GT((back.V - d.V).cwiseAbs().maxCoeff(), 0.0) << kind;  // rounded to float
+      }
+    }
+  }
 }
 
 TEST(Vtp, ASpaceArrayOfOtherThanBytesIsNoFrame) {

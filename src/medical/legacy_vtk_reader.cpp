@@ -83,6 +83,7 @@ class LegacyReader {
         const std::size_t n = count("the point count");
         const LegacyType& t = type(token("the point type"));
         pd_.points = values(3 * n, t, "the points");
+        pd_.points_type = std::string(t.xml);
       } else if (key == "vertices") {
         pd_.verts = cells("VERTICES");
       } else if (key == "lines") {

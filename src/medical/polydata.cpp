@@ -41,6 +41,7 @@ std::vector<std::int64_t> integer_ids(const std::vector<double>& v, const std::s
 MeshData mesh_from_polydata(PolyData&& pd, const std::string& name) {
   MeshData d;
   d.space = pd.space;
+  d.points_type = pd.points_type;
   for (const auto& [key, value] : pd.field_strings) d.field_strings[key] = value;
   for (const NamedArray& a : pd.field_arrays) {
     Eigen::MatrixXd m(static_cast<Eigen::Index>(a.tuples()), a.components);

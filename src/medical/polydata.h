@@ -36,7 +36,8 @@ struct NamedArray {
 
 /// A PolyData as the files hold it, before it becomes a triangle mesh.
 struct PolyData {
-  std::vector<double> points;  ///< 3 per point
+  std::vector<double> points;           ///< 3 per point
+  std::string points_type = "Float64";  ///< the VTK XML type name the points were stored as
   CellList verts, lines, polys, strips;
   std::vector<NamedArray> point_arrays, cell_arrays;
   std::string space;                                               ///< "LPS" or "RAS" from a SPACE= tag, else empty

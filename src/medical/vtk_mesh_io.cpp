@@ -72,7 +72,11 @@ vtkSmartPointer<vtkDataArray> make_array(const std::string& name, const Eigen::M
 vtkSmartPointer<vtkPolyData> to_polydata(const MeshData& d) {
   auto pd = vtkSmartPointer<vtkPolyData>::New();
   auto pts = vtkSmartPointer<vtkPoints>::New();
-  pts->SetDataTypeToDouble();
+  // The points' type as read (Float32 stays Float32); any other type is written as Float64.
+  if (d.points_type == "Float32")
+    pts->SetDataTypeToFloat();
+  else
+    pts->SetDataTypeToDouble();
   pts->SetNumberOfPoints(d.V.rows());
   for (Eigen::Index i = 0; i < d.V.rows(); ++i) pts->SetPoint(i, d.V(i, 0), d.V(i, 1), d.V(i, 2));
   pd->SetPoints(pts);

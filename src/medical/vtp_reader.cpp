@@ -525,6 +525,7 @@ Piece read_piece(const XmlNode& node, std::size_t index, std::size_t limit, cons
     Element type{};
     if (const auto why = array_values(*da, f, where + " points", type, pd.points); !why.empty())
       throw InputError(fmt::format("{} points: {}", where, why));
+    pd.points_type = da->attribute_or("type", "Float64");
     if (pd.points.size() != 3 * np)
       throw InputError(fmt::format("{}: {} point coordinates for {} points", where, pd.points.size(), np));
   }

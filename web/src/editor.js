@@ -513,8 +513,13 @@ viewport.addEventListener('drop', (ev) => {
   if (ev.dataTransfer.files[0]) upload(ev.dataTransfer.files[0]);
 });
 $('save').onclick = async () => {
-  const r = await fetch(`/api/save?client=${state.client}`);
-  if (!r.ok) { status(`save failed: ${r.status}`, true); return; }
+  const format = $('save-format').value, displacement = $('save-displacement').checked ? 1 : 0;
+  const r = await fetch(`/api/save?client=${state.client}&format=${format}&displacement=${displacement}`);
+  if (!r.ok) {
+    const why = (await r.json().catch(() => ({}))).error;
+    status(`save failed: ${why || r.status}`, true);
+    return;
+  }
   const name = /filename="([^"]+)"/.exec(r.headers.get('Content-Disposition') || '')?.[1] || 'mesh';
   const a = document.createElement('a');
   a.href = URL.createObjectURL(await r.blob());

@@ -528,6 +528,29 @@ async function imageChecks() {
             `drag ${JSON.stringify(drag.move)}, moved ${JSON.stringify(moved)}, ${reply.intersection_action}`);
     }
     await page.screenshot({ path: join(shots, 'editor-image-drag.png') });
+    // Saved as .vtp with the displacement field, and read back with VTK: Float32 points
+    // as the input's, the page's frame as the SPACE tag, the moved surface's normals
+    // (not the input's, which the correction made stale), the displacement field.
+    await page.selectOption('#save-format', 'vtp');
+    await page.check('#save-displacement');
+    const [download] = await Promise.all([page.waitForEvent('download'), page.click('#save')]);
+    const savedVtp = join(shots, 'aorta-edited-saved.vtp');
+    await download.saveAs(savedVtp);
+    const read = spawnSync('/usr/bin/python3', [join(here, 'vtp_report.py'), savedVtp, mesh], { encoding: 'utf8' });
+    let report = null;
+    try { report = JSON.parse(read.stdout); } catch { /* reported below */ }
+    check('the saved .vtp reads back with VTK', !!report, read.stderr);
+    if (report) {
+      const n = report.normals.Normals_ || {};
+      check('saved: Float32 points as the input, the SPACE tag of --space ras, the labels kept',
+            report.points_type === 'float' && report.space === 'RAS' && download.suggestedFilename() === 'aorta-closed-6k-edited.vtp',
+            JSON.stringify({ type: report.points_type, space: report.space, name: download.suggestedFilename() }));
+      check('saved: Normals_ are the moved surface\'s (the input\'s were stale where it moved)',
+            n.p999_deg < 0.5, JSON.stringify(n));
+      check('saved: the displacement field is each vertex\'s move (Float32 points: to 1e-4 mm)',
+            report.point_arrays.displacement?.components === 3 && report.displacement_error < 1e-4 &&
+            report.displacement_max > 0.5, JSON.stringify({ err: report.displacement_error, max: report.displacement_max }));
+    }
     // A slice along an axis that is not a patient axis is refused in words.
     const errs = await page.evaluate(() => meshpde.errors);
     await page.evaluate(() => meshpde.send({ type: 'slice', axis: 'oblique', position: 0 }));

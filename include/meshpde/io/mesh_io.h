@@ -44,6 +44,10 @@ struct MeshData {
   std::map<std::string, DataArray> cell_arrays;           ///< cell data, one row per triangle (VTK only)
   std::map<std::string, std::string> scalar_types;        ///< VTK type of a vertex_scalars entry, when read from VTK
   std::string space;  ///< "LPS" or "RAS" when the file says so (3D Slicer's SPACE= header), else empty
+  /// The type the points were stored as (VTK files: "Float32" or "Float64"; other
+  /// formats "Float64"); the VTK writers write Float32 points as Float32, any other as
+  /// Float64.
+  std::string points_type = "Float64";
   /// Data about the whole mesh (VTK field data; .vtp keeps them, the other formats drop
   /// them): one-string arrays by name (a segment's Segment_Name), numeric arrays by name
   /// (tuples x components: a segment's Segment_Color is 1 x 3).
