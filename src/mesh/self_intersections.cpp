@@ -3,6 +3,7 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <initializer_list>
 #include <numeric>
 #include <set>
 
@@ -149,9 +150,32 @@ bool ray_in_cone(const Vec2& x, const Vec2& y1, const Vec2& y2) {
   return s1 == s && s2 == s;
 }
 
+// Whether the points p[0..n) lie clearly on one side of the plane through `o` with
+// normal `n` (each farther than 1e-8 of its distance from o, far above the tolerances
+// above): then a triangle of them meets that plane nowhere, or only at `o` when o is
+// its corner. The quick rejection of Moller's test, which most pairs of a smooth
+// surface's neighbouring triangles take.
+bool strictly_one_side(const Vec& nrm, const Vec& o, std::initializer_list<const Vec*> pts) {
+  const double len = nrm.norm();
+  if (!(len > 0)) return false;
+  int sign = 0;
+  for (const Vec* q : pts) {
+    const Vec w = *q - o;
+    const double d = nrm.dot(w);
+    if (!(std::abs(d) > 1e-8 * len * w.norm())) return false;
+    const int s = d > 0 ? 1 : -1;
+    if (sign != 0 && s != sign) return false;
+    sign = s;
+  }
+  return true;
+}
+
 }  // namespace
 
 bool triangles_intersect(const Vec& a0, const Vec& a1, const Vec& a2, const Vec& b0, const Vec& b1, const Vec& b2) {
+  if (strictly_one_side((a1 - a0).cross(a2 - a0), a0, {&b0, &b1, &b2}) ||
+      strictly_one_side((b1 - b0).cross(b2 - b0), b0, {&a0, &a1, &a2}))
+    return false;
   if (segment_hits_triangle(a0, a1, b0, b1, b2) || segment_hits_triangle(a1, a2, b0, b1, b2) ||
       segment_hits_triangle(a2, a0, b0, b1, b2) || segment_hits_triangle(b0, b1, a0, a1, a2) ||
       segment_hits_triangle(b1, b2, a0, a1, a2) || segment_hits_triangle(b2, b0, a0, a1, a2))
@@ -162,6 +186,10 @@ bool triangles_intersect(const Vec& a0, const Vec& a1, const Vec& a2, const Vec&
 }
 
 bool corner_triangles_overlap(const Vec& v, const Vec& a1, const Vec& a2, const Vec& b1, const Vec& b2) {
+  // One triangle's far corners clearly on one side of the other's plane: they meet at v only.
+  if (strictly_one_side((a1 - v).cross(a2 - v), v, {&b1, &b2}) ||
+      strictly_one_side((b1 - v).cross(b2 - v), v, {&a1, &a2}))
+    return false;
   // Not coplanar: the triangles meet in a segment from v that leaves v only if an
   // opposite edge crosses the other triangle.
   if (segment_hits_triangle(a1, a2, v, b1, b2) || segment_hits_triangle(b1, b2, v, a1, a2)) return true;
@@ -293,6 +321,14 @@ std::vector<std::pair<int, int>> SelfIntersectionChecker::intersecting_pairs(con
   std::sort(pairs.begin(), pairs.end());
   pairs.erase(std::unique(pairs.begin(), pairs.end()), pairs.end());
   return pairs;
+}
+
+std::vector<std::pair<int, int>> SelfIntersectionChecker::overlapping_among(
+    const Positions& V, std::span<const std::pair<int, int>> pairs) const {
+  std::vector<std::pair<int, int>> out;
+  for (const auto& [s, t] : pairs)
+    if (impl_->overlap(V, s, t)) out.emplace_back(s, t);
+  return out;
 }
 
 std::vector<std::pair<int, int>> SelfIntersectionChecker::all_pairs() const {

@@ -50,10 +50,13 @@
 //
 // Self-intersections. Triangles touching moved vertices are checked against the
 // mesh with a BVH built once (mesh/self_intersections.h). When a Fem correction
-// would create an intersection it is redone in `max_substeps` smaller steps with
-// the operators rebuilt on the deformed surface; if that still intersects, the
-// step is limited (bisection on the fraction of the displacement applied) to the
-// largest fraction that creates none. What was done is reported.
+// would create an intersection it continues in steps: from each surface reached
+// (first the mesh itself) the largest step of the rest of the displacement (all of
+// it, its half, its quarter ... down to 1 / `max_substeps` of the whole; from the mesh
+// itself at most half) that creates none, with the operators rebuilt on the surface
+// reached. When no step fits, the step is limited (bisection on the fraction applied)
+// to the largest fraction that creates none, or the one-shot field is, whichever
+// applies more. What was done is reported.
 //
 // Image guidance (soft correction). With an edge map E = |grad(G_sigma * I)|
 // (image/volume.h, value per mm), each free vertex i of the region looks along its
@@ -237,7 +240,7 @@ struct CorrectionParams {
   /// Split or limit a Fem correction that would make the surface intersect itself
   /// (default true); false applies it as solved (`--allow-intersections`).
   bool prevent_intersections = true;
-  int max_substeps = 8;  ///< most steps a correction is split into before it is limited; default 8
+  int max_substeps = 8;  ///< the guard's smallest step is 1 / max_substeps of the displacement; default 8
   ImageGuidance image;   ///< off unless image.edges is set
   /// How the Fem system is solved: Auto (default: for a static, unguided region with
   /// the clamp and vertex handles of size 0, the multigrid where SteadySolver's rule tries it and it converges, Direct

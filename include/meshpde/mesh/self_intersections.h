@@ -67,6 +67,10 @@ class SelfIntersectionChecker {
   /// differ from the positions the checker was built with).
   std::vector<std::pair<int, int>> intersecting_pairs(const Positions& V, std::span<const int> moved) const;
 
+  /// Those of `pairs` (triangle indices) that overlap at V, by the same rule: a check of a
+  /// few pairs known to matter, much cheaper than intersecting_pairs().
+  std::vector<std::pair<int, int>> overlapping_among(const Positions& V,
+                                                     std::span<const std::pair<int, int>> pairs) const;
   /// Every overlapping pair of the mesh at the positions it was built with.
   std::vector<std::pair<int, int>> all_pairs() const;
 
