@@ -5,10 +5,12 @@
 #include <Eigen/SparseCholesky>
 #include <Eigen/SparseCore>
 #include <algorithm>
+#include <chrono>
 #include <limits>
 #include <map>
 #include <queue>
 #include <random>
+#include <thread>
 #include <unordered_set>
 
 #include "../src/core/index_map.h"
@@ -301,8 +303,15 @@ TEST(DragSession, EditorPreviewFollowsTheHandleAndCorrectReplacesIt) {
   EXPECT_FALSE(s.dragging());
   EXPECT_LE((s.display_positions() - r.V).cwiseAbs().maxCoeff(), 0.0);
   EXPECT_LE((r.V - P).cwiseAbs().maxCoeff(), 1e-9 * offset.norm());
+  // The wall shows how far each vertex moved until the next action; a save leaves it out.
+  EXPECT_EQ(s.field_name(), "moved (mm)");
+  ASSERT_EQ(s.field().size(), mesh.num_vertices());
+  EXPECT_NEAR(s.field()[handle], offset.norm(), 1e-12);
+  EXPECT_NEAR(s.field().maxCoeff(), r.max_displacement, 1e-12);
+  EXPECT_FALSE(s.snapshot().vertex_scalars.count("moved (mm)"));
   // A drag let go without moving leaves the surface as it was.
   s.drag_begin(handle, 0.6);
+  EXPECT_EQ(s.field_name(), "");  // the next action ends the colouring
   s.drag_end();
   EXPECT_LE((s.display_positions() - r.V).cwiseAbs().maxCoeff(), 0.0);
   EXPECT_THROW(s.drag_move(offset), InputError);
@@ -345,6 +354,35 @@ TEST(DragSession, EditorSessionsShareOneOperatorBundlePerStateOfTheSurface) {
   EXPECT_LT(s.snapshot().vertex_scalars.at("heat").sum(), warmed);
   s.paint(3, 0.5, 0, 1);
   EXPECT_EQ(s.operator_builds(), 2);
+}
+
+// A new tool ends the previous tool's work at once: a paint, a correction or a drag
+// right after a poke's release shows the surface at rest, without waiting for the
+// probe's relaxation (which runs on its own thread and takes a second or more).
+TEST(DragSession, ANewToolEndsThePokeAtOnce) {
+  EditorSession s(as_mesh_data(icosphere(4)));
+  const Positions rest = s.mesh().positions();
+  auto poke = [&] {
+    s.poke_begin(10, 0);
+    for (int k = 1; k <= 10; ++k) {
+      s.poke_move(Eigen::Vector3d(0, 0, -0.03 * k));
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    // The servo moves the surface: wait until it shows, then let go.
+    for (int k = 0; k < 200 && (s.display_positions() - rest).cwiseAbs().maxCoeff() < 0.05; ++k)
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    EXPECT_GT((s.display_positions() - rest).cwiseAbs().maxCoeff(), 0.05);
+    s.poke_end();
+  };
+  poke();
+  s.paint(100, 3.0, 0, 1);
+  EXPECT_EQ((s.display_positions() - rest).cwiseAbs().maxCoeff(), 0.0);
+  EXPECT_EQ(s.poke_active_vertices(), 0);
+  EXPECT_EQ(s.field_name(), "paint");
+  poke();
+  s.drag_begin(200, 0.5);
+  EXPECT_EQ((s.display_positions() - rest).cwiseAbs().maxCoeff(), 0.0);
+  s.drag_end();
 }
 
 TEST(DragSession, EditorPaintKeepsOneFactorAndEqualsAFreshInterpolation) {

@@ -41,6 +41,9 @@ namespace {
 // A live preview factors the region on the server's one thread: keep it to regions
 // whose set-up takes a fraction of a second (about 0.3 s at 20k vertices here).
 constexpr int kPreviewLimit = 20000;
+// The field a correction leaves on the wall until the next action: how far each
+// vertex moved (mm). Shown, never saved (a save can add the displacement itself).
+constexpr const char* kMovedField = "moved (mm)";
 }  // namespace
 
 void EditorSession::check_vertex(int v) const {
@@ -83,6 +86,8 @@ double EditorSession::begin_preview(CorrectionHandle handle, double radius, cons
   // Built before the running drag is dropped: a refused request leaves it as it was.
   auto preview = std::make_unique<CorrectionPreview>(mesh(), p, kPreviewLimit);
   drag_end();
+  stop_poke();  // a new tool ends the probe's relaxation at once
+  clear_moved_field();
   preview_ = std::move(preview);
   drag_offset_.setZero();
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
@@ -112,6 +117,7 @@ void EditorSession::stop_poke() {
 void EditorSession::poke_begin(int vertex, double influence) {
   check_vertex(vertex);
   if (!(influence >= 0) || !std::isfinite(influence)) throw InputError("poke influence must be a length >= 0");
+  clear_moved_field();
   pause();
   // The probe runs on the operators of the surface as it is now (intrinsic ones on
   // badly shaped meshes, so the servo's CG stays well conditioned).
@@ -169,6 +175,9 @@ CorrectionResult EditorSession::correct(CorrectionParams params) {
   }
   const auto t0 = std::chrono::steady_clock::now();
   CorrectionResult r = correction_.apply(params);
+  // The wall coloured by how far it moved, until the next action.
+  field_ = r.displacement.rowwise().norm();
+  field_name_ = kMovedField;
   last_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   geometry_.refresh();
   info_ = fmt::format("correct: {} vertices moved, {} new self-intersections, {}", r.moved_vertices,
@@ -176,7 +185,14 @@ CorrectionResult EditorSession::correct(CorrectionParams params) {
   return r;
 }
 
+void EditorSession::clear_moved_field() {
+  if (field_name_ != kMovedField) return;
+  field_.resize(0);
+  field_name_.clear();
+}
+
 void EditorSession::undo() {
+  clear_moved_field();
   drag_end();
   stop_poke();
   correction_.undo();
@@ -184,6 +200,7 @@ void EditorSession::undo() {
 }
 
 void EditorSession::redo() {
+  clear_moved_field();
   drag_end();
   stop_poke();
   correction_.redo();
@@ -331,7 +348,8 @@ int EditorSession::simulation_active_vertices() const {
 MeshData EditorSession::snapshot() const {
   MeshData d = data_;
   d.V = mesh().positions();
-  if (field_.size() == d.V.rows() && !field_name_.empty()) d.vertex_scalars[field_name_] = field_;
+  if (field_.size() == d.V.rows() && !field_name_.empty() && field_name_ != kMovedField)
+    d.vertex_scalars[field_name_] = field_;
   if (vectors_.rows() == d.V.rows()) {
     d.vertex_scalars["paint_vector_x"] = vectors_.col(0);
     d.vertex_scalars["paint_vector_y"] = vectors_.col(1);

@@ -691,6 +691,43 @@ try {
   check('the preview when the mouse stops equals the released correction', maxDiff(preview, corrected) < 1e-3,
         `preview vs release ${maxDiff(preview, corrected)}`);
   check('correct moves vertices', maxDiff(corrected, rest) > 0.5, `max move ${maxDiff(corrected, rest)}`);
+  // Until the next action the wall is coloured by how far it moved: the rendered colour
+  // at the most-moved visible vertex is the colour map's top (yellow: green over blue),
+  // at an unmoved visible one its bottom (purple: blue over green).
+  {
+    await page.waitForFunction(() => meshpde.fieldName === 'moved (mm)', null, { timeout: 10000 }).catch(() => {});
+    await page.waitForTimeout(300);
+    const colours = await page.evaluate(() => {
+      const P = meshpde.positions, f = meshpde.field, cam = meshpde.cameraDirection();
+      if (!f) return null;
+      const gl = document.querySelector('#viewport > canvas');
+      const c = document.createElement('canvas');
+      c.width = gl.width; c.height = gl.height;
+      const ctx = c.getContext('2d');
+      ctx.drawImage(gl, 0, 0);
+      let top = -1, zero = -1, best = -Infinity;
+      for (let i = 0; i < f.length; ++i) {
+        const p = [P[3 * i], P[3 * i + 1], P[3 * i + 2]], n = Math.hypot(...p);
+        const facing = (p[0] * cam[0] + p[1] * cam[1] + p[2] * cam[2]) / n;  // the sphere's normal towards the camera
+        if (facing < 0.6 || !meshpde.canvasPixelOf(p).inside) continue;
+        if (f[i] > best) { best = f[i]; top = i; }
+        if (f[i] === 0 && (zero < 0 || facing > 0.8)) zero = i;
+      }
+      const at = (i) => {
+        const q = meshpde.canvasPixelOf([P[3 * i], P[3 * i + 1], P[3 * i + 2]]);
+        return Array.from(ctx.getImageData(Math.round(q.x), Math.round(q.y), 1, 1).data.slice(0, 3));
+      };
+      return { top: top >= 0 ? at(top) : null, zero: zero >= 0 ? at(zero) : null, max: Math.max(...f),
+               legend: !document.getElementById('legend').hidden && document.getElementById('legend-name').textContent };
+    });
+    const reply = await page.evaluate(() => meshpde.lastCorrect);
+    check('after a correction the wall is coloured by how far it moved (rendered pixels, legend)',
+          !!colours && !!colours.top && !!colours.zero && colours.top[1] > colours.top[2] + 30 &&
+          colours.zero[2] > colours.zero[1] + 10 && colours.legend === 'moved (mm)' &&
+          Math.abs(colours.max - reply.max_displacement) < 1e-3,
+          JSON.stringify({ colours, max_displacement: reply && reply.max_displacement }));
+    await page.screenshot({ path: join(shots, 'editor-moved.png') });
+  }
   check('no self-intersections after a correction', (await page.evaluate(() => meshpde.intersections)) === 0);
   // The stats panel shows what the correction did, as the reply says and as the
   // positions show; the solvers' figures wait under a closed "details".
@@ -800,6 +837,34 @@ try {
   check('painted vectors come back as arrows', (await page.evaluate(() => meshpde.arrowCount)) > 50);
   await page.screenshot({ path: join(shots, 'editor-vectors.png') });
   await page.check('input[name=paint-kind][value=scalar]');
+
+  // A paint click right after a poke's release: the value shows and the surface is at
+  // rest (the server ends the probe at once: DragSession.ANewToolEndsThePokeAtOnce).
+  {
+    const atRest = await positions(page);
+    await page.check('input[name=tool][value=poke]');
+    await dragBy(page, centre, 0, -70);
+    await page.waitForFunction(() => meshpde.forceVisible, null, { timeout: 10000 }).catch(() => {});
+    await page.waitForTimeout(200);
+    const pokedBy = maxDiff(await positions(page), atRest);
+    await page.mouse.up();
+    await page.check('input[name=tool][value=paint]');
+    await page.fill('#paint-value', '3');
+    const oks = await page.evaluate(() => meshpde.oks);
+    const t = Date.now();
+    await page.mouse.click(centre.x + 60, centre.y - 40);
+    await page.waitForFunction((n) => meshpde.oks > n && meshpde.lastOk === 'paint', oks, { timeout: 30000 }).catch(() => {});
+    const repliedMs = Date.now() - t;
+    await page.waitForFunction(() => meshpde.fieldName === 'paint' && meshpde.field && Math.max(...meshpde.field) > 2.5,
+                               null, { timeout: 30000 }).catch(() => {});
+    const shownMs = Date.now() - t;
+    await page.waitForTimeout(300);
+    const offRest = maxDiff(await positions(page), atRest);
+    // The latency is printed, not asserted (a shared machine).
+    console.log(`paint right after a poke: reply ${repliedMs} ms, value on screen ${shownMs} ms after the click`);
+    check('paint right after a poke: the value shows and the surface is at rest',
+          pokedBy > 0.05 && shownMs < 30000 && offRest < 1e-5, JSON.stringify({ pokedBy, repliedMs, shownMs, offRest }));
+  }
 
   // ---------------------------------------------------------------- save and reload
   const [download] = await Promise.all([page.waitForEvent('download'), page.click('#save')]);

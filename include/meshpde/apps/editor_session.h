@@ -139,6 +139,7 @@ class EditorSession {
  private:
   void stop_poke();
   void check_vertex(int v) const;
+  void clear_moved_field();  // ends a correction's colouring (the next action)
   double begin_preview(CorrectionHandle handle, double radius, const Eigen::VectorXd& stiffness,
                        const TissueParams& tissue);
 
