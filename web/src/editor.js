@@ -375,9 +375,21 @@ function pick(ev) {
     const d = hit.point.distanceToSquared(new THREE.Vector3(P[3 * i], P[3 * i + 1], P[3 * i + 2]));
     if (d < bestD) { bestD = d; best = i; }
   }
-  return { vertex: best, point: hit.point.clone() };
+  // The triangle's normal in the scene (the mesh is drawn untransformed).
+  return { vertex: best, point: hit.point.clone(), normal: hit.face ? hit.face.normal.clone() : null };
 }
-let drag = null;  // {vertex, start, plane}
+let drag = null;  // {vertex, start, plane, mode, normal, up, keep}
+// The correct tool's drag direction (the "drag along" choice): the screen's plane; the
+// surface normal at the picked point, turned towards the camera (the mouse's vertical
+// motion pulls the wall towards the viewer or pushes it away); or the plane of the 2D
+// slice view (the motion's component across that plane dropped).
+const SLICE_NORMAL_AXIS = { axial: 2, coronal: 1, sagittal: 0 };
+function dragOffset(p) {
+  const o = p.clone().sub(drag.start);
+  if (drag.mode === 'normal') return drag.normal.clone().multiplyScalar(o.dot(drag.up));
+  if (drag.mode === 'slice') o.setComponent(drag.keep, 0);
+  return o;
+}
 function planePoint(ev) {
   const r = renderer.domElement.getBoundingClientRect();
   const ndc = new THREE.Vector2(((ev.clientX - r.left) / r.width) * 2 - 1, -((ev.clientY - r.top) / r.height) * 2 + 1);
@@ -404,7 +416,26 @@ renderer.domElement.addEventListener('pointerdown', (ev) => {
   if (t === 'heat' || t === 'wave') { send({ type: 'source', vertex: hit.vertex }); return; }
   controls.enabled = false;
   const normal = camera.getWorldDirection(new THREE.Vector3());
-  drag = { vertex: hit.vertex, start: hit.point, plane: new THREE.Plane().setFromNormalAndCoplanarPoint(normal, hit.point) };
+  drag = { vertex: hit.vertex, start: hit.point, plane: new THREE.Plane().setFromNormalAndCoplanarPoint(normal, hit.point),
+    mode: 'screen' };
+  if (t === 'correct') {
+    const mode = $('drag-mode').value, slice = $('img-2d') ? $('img-2d').value : 'none';
+    if (mode === 'normal' && hit.normal) {
+      // The picked triangle's normal, on the side the camera sees; the screen's up.
+      const n = hit.normal.clone();
+      if (n.dot(normal) > 0) n.negate();
+      drag.mode = 'normal';
+      drag.normal = n;
+      drag.up = camera.up.clone().projectOnPlane(normal).normalize();
+      status('correct: drag up to pull the wall towards you, down to push it away (along its normal)');
+    } else if (mode === 'slice' && slice in SLICE_NORMAL_AXIS) {
+      drag.mode = 'slice';
+      drag.keep = SLICE_NORMAL_AXIS[slice];
+      status(`correct: the drag stays in the ${slice} slice's plane`);
+    } else if (mode === 'slice') {
+      status('correct: no 2D slice is shown (choose one under image), so the drag follows the screen', true);
+    }
+  }
   renderer.domElement.setPointerCapture(ev.pointerId);
   if (t === 'poke') { state.poking = true; send({ type: 'poke_begin', vertex: hit.vertex, influence: +$('reach').value }); }
   // The correct tool previews live: the server factors the region once, then each
@@ -416,14 +447,14 @@ renderer.domElement.addEventListener('pointermove', (ev) => {
   if (!drag) return;
   const p = planePoint(ev);
   if (!p) return;
-  const offset = p.clone().sub(drag.start);
+  const offset = dragOffset(p);
   if (tool() === 'poke') {
     const now = performance.now();
     if (now - lastMove < 8) return;  // at most about 120 probe updates a second
     lastMove = now;
     send({ type: 'poke_move', offset: offset.toArray() });
   } else {
-    dragLine.geometry.setFromPoints([drag.start, p]);
+    dragLine.geometry.setFromPoints([drag.start, drag.start.clone().add(offset)]);
     dragLine.visible = true;
     invalidate();
     if (tool() === 'correct' && $('method').value === 'fem') {
@@ -437,7 +468,7 @@ renderer.domElement.addEventListener('pointermove', (ev) => {
 function endDrag(ev) {
   if (!drag) return;
   const p = planePoint(ev) || drag.start;
-  const offset = p.clone().sub(drag.start);
+  const offset = dragOffset(p);
   if (tool() === 'poke') send({ type: 'poke_end' });
   else if (tool() === 'paint' && offset.length() > 0)
     send({ type: 'paint_vector', vertex: drag.vertex, vector: offset.toArray(), g1: +$('g1').value, g2: +$('g2').value });

@@ -551,6 +551,48 @@ async function imageChecks() {
             report.point_arrays.displacement?.components === 3 && report.displacement_error < 1e-4 &&
             report.displacement_max > 0.5, JSON.stringify({ err: report.displacement_error, max: report.displacement_max }));
     }
+    // "drag along: the 2D slice's plane": a diagonal drag in the 3D view moves the picked
+    // point in the axial plane only (no component along z, the axial slice's normal).
+    {
+      await page.selectOption('#img-2d', 'axial');
+      await page.check('input[name=tool][value=correct]');
+      await page.selectOption('#drag-mode', 'slice');
+      await page.click('#view-anterior');  // the screen's vertical is the patient's z
+      await page.waitForTimeout(300);
+      const from = await page.evaluate(() => {
+        const c = document.querySelector('#viewport > canvas').getBoundingClientRect();
+        const mid = { x: c.left + c.width / 2, y: c.top + c.height / 2 };
+        let best = null, bestD = Infinity;
+        for (let i = 0; i < meshpde.vertexCount; ++i) {
+          const q = meshpde.screenOf(i), d = Math.hypot(q.x - mid.x, q.y - mid.y);
+          if (d < bestD) { bestD = d; best = q; }
+        }
+        return best;
+      });
+      const before = await positions(page);
+      const oksS = await page.evaluate(() => meshpde.oks);
+      await dragBy(page, from, 25, -20);
+      await page.mouse.up();
+      await page.waitForFunction((n) => meshpde.oks > n && meshpde.lastOk === 'correct', oksS, { timeout: 60000 })
+        .catch(() => {});
+      await page.waitForTimeout(300);
+      const after = await positions(page);
+      const reply = await page.evaluate(() => meshpde.lastCorrect);
+      const T = await page.evaluate(() => Array.from(meshpde.triangles));
+      const hp = (reply && reply.handle_point) || { triangle: 0, barycentric: [NaN, NaN, NaN] };
+      const moved = [0, 1, 2].map((c) => [0, 1, 2].reduce((sum, k) => {
+        const i = T[3 * hp.triangle + k];
+        return sum + hp.barycentric[k] * (after[3 * i + c] - before[3 * i + c]);
+      }, 0));
+      const len = Math.hypot(...moved);
+      // The view's vertical has a z component, so the same drag along the screen would
+      // have moved the point along z.
+      const up = await page.evaluate(() => meshpde.cameraUp());
+      check('a drag in the 2D slice\'s plane moves the picked point within the axial plane',
+            len > 0.3 && Math.abs(moved[2]) < 1e-3 * len + 1e-4 && Math.abs(up[2]) > 0.3,
+            JSON.stringify({ moved, up, action: reply && reply.intersection_action }));
+      await page.selectOption('#drag-mode', 'screen');
+    }
     // A slice along an axis that is not a patient axis is refused in words.
     const errs = await page.evaluate(() => meshpde.errors);
     await page.evaluate(() => meshpde.send({ type: 'slice', axis: 'oblique', position: 0 }));
@@ -811,6 +853,40 @@ try {
   await page.waitForFunction((n) => meshpde.oks > n && meshpde.lastOk === 'undo', keyOks, { timeout: 20000 }).catch(() => {});
   await movedFrom(corrected, -1e-5);
   check('Ctrl+Z undoes', maxDiff(await positions(page), corrected) < 1e-5);
+
+  // Push/pull: with "drag along: the normal", an upward drag on the sphere's front moves
+  // the picked point along the surface normal, towards the viewer (a screen-plane drag
+  // there moves it across the normal, almost invisibly).
+  {
+    await page.check('input[name=tool][value=correct]');
+    await page.selectOption('#drag-mode', 'normal');
+    const before = await positions(page);
+    const oksN = await page.evaluate(() => meshpde.oks);
+    await dragBy(page, centre, 0, -40);
+    await page.mouse.up();
+    await page.waitForFunction((n) => meshpde.oks > n && meshpde.lastOk === 'correct', oksN, { timeout: 60000 })
+      .catch(() => {});
+    await page.waitForTimeout(300);
+    const after = await positions(page);
+    const reply = await page.evaluate(() => meshpde.lastCorrect);
+    const T = await page.evaluate(() => Array.from(meshpde.triangles));
+    const cam = await page.evaluate(() => meshpde.cameraDirection());
+    const hp = (reply && reply.handle_point) || { triangle: 0, barycentric: [NaN, NaN, NaN] };
+    const blend = (P, c) => [0, 1, 2].reduce((sum, k) => sum + hp.barycentric[k] * P[3 * T[3 * hp.triangle + k] + c], 0);
+    const at = [0, 1, 2].map((c) => blend(before, c));
+    const moved = [0, 1, 2].map((c) => blend(after, c) - at[c]);
+    const len = Math.hypot(...moved);
+    // The sphere is centred at the origin: its normal at the point is the point's direction.
+    const along = moved.reduce((sum, m, c) => sum + m * at[c], 0) / (len * Math.hypot(...at));
+    const towards = moved.reduce((sum, m, c) => sum + m * cam[c], 0);
+    check('push/pull: an upward drag moves the picked point along the normal, towards the viewer',
+          len > 0.3 && Math.abs(along) > 0.98 && towards > 0, JSON.stringify({ len, along, towards }));
+    await page.selectOption('#drag-mode', 'screen');
+    const oksU = await page.evaluate(() => meshpde.oks);
+    await page.click('#undo');
+    await page.waitForFunction((n) => meshpde.oks > n && meshpde.lastOk === 'undo', oksU, { timeout: 20000 }).catch(() => {});
+    await movedFrom(before, -1e-5);
+  }
 
   // ---------------------------------------------------------------- paint
   await page.check('input[name=tool][value=paint]');
