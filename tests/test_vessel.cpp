@@ -196,6 +196,34 @@ TEST(Vessel, FadeBoundaryNeedsARadiusAndTheDirectSolver) {
   EXPECT_EQ(parse_region_boundary("fade"), RegionBoundary::Fade);
 }
 
+// The guard's continuation applies at least what limiting the one-shot field applies
+// (max_substeps = 1: no smaller step may be taken), and both leave no new pair.
+TEST(Vessel, TheGuardsStepsApplyAtLeastTheLimitedOneShotField) {
+  const Mesh m = make(y_bifurcation(BifurcationParams{}));
+  const int v = carina(m);
+  ASSERT_GE(v, 0);
+  CorrectionParams p;
+  p.handles = {{v, Eigen::Vector3d(8, 0, 0)}};
+  p.radius = 10;
+  const CorrectionResult steps = correct_vessel(m, p);
+  p.max_substeps = 1;
+  const CorrectionResult one = correct_vessel(m, p);
+  EXPECT_NE(one.intersection_action.find("limited"), std::string::npos) << one.intersection_action;
+  EXPECT_EQ(one.substeps, 1);
+  EXPECT_GT(one.applied_fraction, 0.5);
+  EXPECT_GE(steps.applied_fraction, one.applied_fraction - 1e-12);
+  for (const CorrectionResult* r : {&steps, &one}) {
+    EXPECT_EQ(r->new_self_intersections, 0);
+    Mesh after = m;
+    after.set_positions(r->V);
+    EXPECT_TRUE(SelfIntersectionChecker(after).all_pairs().empty());
+    // The handle moved by the fraction applied.
+    EXPECT_NEAR((r->V.row(v) - m.positions().row(v)).norm(), r->applied_fraction * 8.0, 1e-9 * 8.0);
+  }
+  std::printf("guard: steps applied %.3f (%s), one-shot limited %.3f\n", steps.applied_fraction,
+              steps.intersection_action.c_str(), one.applied_fraction);
+}
+
 TEST(Vessel, CarinaDragFarCreatesNoIntersections) {
   BifurcationParams bp;
   const Mesh m = make(y_bifurcation(bp));

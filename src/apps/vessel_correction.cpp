@@ -1081,6 +1081,7 @@ Field guarded_steps(const Mesh& mesh, const CorrectionParams& p, const FemProble
   for (;;) {
     const double remainder = 1 - done;
     double failed = remainder;  // the smallest step tried here (all intersect)
+    Field failed_step;          // its field
     bool taken = false;
     // From V0 the whole displacement is the one-shot field, which intersects.
     for (double size = steps == 0 ? 0.5 : remainder; size == remainder || size >= smallest * (1 - 1e-12); size *= 0.5) {
@@ -1093,9 +1094,11 @@ Field guarded_steps(const Mesh& mesh, const CorrectionParams& p, const FemProble
         break;
       }
       failed = size;
+      failed_step = step;
     }
     if (!taken) {
-      const Field step = step_of(failed);
+      // (No step tried when max_substeps allows none smaller than the first: the whole.)
+      const Field step = failed_step.size() > 0 ? failed_step : step_of(failed);
       const double t = limit(total, step);
       // The one-shot field limited as a whole may reach farther.
       const double whole = limit(Field::Zero(mesh.num_vertices(), 3), one_shot);
