@@ -242,7 +242,8 @@ _CORRECT_DOC = """
     or an (n,) array of them, one per vertex (elasticity then weighs the static solve
     too, relative to its largest value).
     allow_intersections: do not split or limit a correction that would make the
-    surface intersect itself (default False); max_substeps: how far it is split. A
+    surface intersect itself (default False); max_substeps: the guard's smallest step
+    is 1 / max_substeps of the displacement (default 8; 1 only limits the one-shot field). A
     correction that is limited says so with a UserWarning.
     face_labels: (m,) a label per triangle (``fields.cells["ModelFaceID"]`` or
     ``["CellEntityIds"]`` of :func:`read_mesh`); caps: "labels" (default: the flat
