@@ -352,8 +352,8 @@ std::pair<std::string, std::string> EditorPage::save(const SaveOptions& options)
   MeshData d = session_->snapshot();
   const double per_unit = millimetres_per(source_.units);
   d.V /= per_unit;  // back in the unit it came in
+  const Positions D = (session_->mesh().positions() - session_->original_positions()) / per_unit;
   if (options.displacement) {
-    const Positions D = (session_->mesh().positions() - session_->original_positions()) / per_unit;
     for (int c = 0; c < 3; ++c) {
       const std::string key = std::string("displacement_") + "xyz"[c];
       d.vertex_scalars[key] = D.col(c);
@@ -362,11 +362,9 @@ std::pair<std::string, std::string> EditorPage::save(const SaveOptions& options)
   }
   // Normals read with the file are stale once vertices moved: recomputed on the
   // surface saved (mesh_io.h, refresh_normal_fields).
-  if ((session_->mesh().positions() - session_->original_positions()).cwiseAbs().maxCoeff() > 0)
-    refresh_normal_fields(d);
+  if (D.size() > 0 && D.cwiseAbs().maxCoeff() > 0) refresh_normal_fields(d);
   // The frame the page worked in (--space, else the file's tag, else LPS).
   d.space = to_string(space_);
-  std::transform(d.space.begin(), d.space.end(), d.space.begin(), [](unsigned char c) { return std::toupper(c); });
   return {mesh_bytes(d, name), name};
 }
 

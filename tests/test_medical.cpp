@@ -226,23 +226,29 @@ TEST(Vtp, LegacyAsciiWithSlicerSpaceHeader) {
   EXPECT_EQ(d.vertex_scalars.at("thickness")(3), 2.0);
 }
 
+namespace {
+// A mesh of one triangle with corners V (3 x 3).
+MeshData one_triangle(Positions V) {
+  MeshData d;
+  d.V = std::move(V);
+  d.F = Triangles{{0, 1, 2}};
+  return d;
+}
+}  // namespace
+
 TEST(Vtp, TheFrameIsWrittenAsSlicerWritesIt) {
   // A .vtp carries its frame as 3D Slicer's SPACE field data, as a legacy .vtk carries
   // it in its header; both read back (that VTK, so Slicer, finds the array:
   // VtkReaders.OurVtpFrameIsTheFieldDataSlicerReads).
   for (const std::string frame : {"RAS", "LPS"}) {
-    MeshData d;
-    d.V = Positions{{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
-    d.F = Triangles{{0, 1, 2}};
+    MeshData d = one_triangle(Positions{{0, 0, 0}, {1, 0, 0}, {0, 1, 0}});
     d.space = frame;
     for (const std::string kind : {"vtp", "vtk"}) {
       const std::string bytes = write_vtk_mesh_to_memory(d, kind);
       EXPECT_EQ(read_vtk_mesh_from_memory(bytes, kind, "framed." + kind).space, frame) << kind;
     }
   }
-  MeshData plain;
-  plain.V = Positions{{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
-  plain.F = Triangles{{0, 1, 2}};
+  const MeshData plain = one_triangle(Positions{{0, 0, 0}, {1, 0, 0}, {0, 1, 0}});
   EXPECT_EQ(read_vtk_mesh_from_memory(write_vtk_mesh_to_memory(plain, "vtp"), "vtp", "plain.vtp").space, "");
 }
 
@@ -253,9 +259,7 @@ TEST(Vtp, PointsKeepTheirType) {
     EXPECT_EQ(read_vtk_mesh(test::data_dir() / "aorta-closed-6k.vtp").points_type, "Float32");
   }
   for (const std::string type : {"Float32", "Float64"}) {
-    MeshData d;
-    d.V = Positions{{0, 0, 0}, {1.1, 0, 0}, {0, 1.3, 0.1}};
-    d.F = Triangles{{0, 1, 2}};
+    MeshData d = one_triangle(Positions{{0, 0, 0}, {1.1, 0, 0}, {0, 1.3, 0.1}});
     d.points_type = type;
     for (const std::string kind : {"vtp", "vtk"}) {
       const MeshData back = read_vtk_mesh_from_memory(write_vtk_mesh_to_memory(d, kind), kind, "typed." + kind);

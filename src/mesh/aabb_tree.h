@@ -1,6 +1,6 @@
 // Internal: axis-aligned bounding boxes and a bounding-volume hierarchy over
 // triangles (median split on the longest axis, four triangles a leaf), shared by
-// the self-intersection checker and the surface distance.
+// the self-intersection checker, the surface distance and the vessel-radius estimate.
 #pragma once
 
 #include <Eigen/Core>
@@ -165,5 +165,23 @@ struct Tree {
     return best;
   }
 };
+
+// The box of triangle f of (V, F).
+template <class PointRows, class TriangleRows>
+Box triangle_box(const PointRows& V, const TriangleRows& F, int f) {
+  Box b;
+  for (int k = 0; k < 3; ++k) b.add(Vec(V.row(F(f, k)).transpose()));
+  return b;
+}
+
+// A tree over all of (V, F)'s triangles.
+template <class PointRows, class TriangleRows>
+Tree triangle_tree(const PointRows& V, const TriangleRows& F) {
+  Tree tree;
+  std::vector<int> all(static_cast<std::size_t>(F.rows()));
+  std::iota(all.begin(), all.end(), 0);
+  tree.build(all, [&](int f) { return triangle_box(V, F, f); });
+  return tree;
+}
 
 }  // namespace meshpde::detail

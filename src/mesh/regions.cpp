@@ -127,14 +127,24 @@ std::vector<int> ring_ball(const Mesh& mesh, int source, int rings) {
   return out;
 }
 
+namespace {
+
+// Whether `spec` gives its region by radius (else by rings). \throw InputError unless
+// exactly one of the two is given.
+bool by_radius(const RegionSpec& spec) {
+  const bool radius = spec.radius > 0 && std::isfinite(spec.radius), rings = spec.rings > 0;
+  if (radius == rings)
+    throw InputError(fmt::format("give a region as a radius > 0 or as rings > 0, not both (radius {}, rings {})",
+                                 spec.radius, spec.rings));
+  return radius;
+}
+
+}  // namespace
+
 std::vector<int> region_around(const Mesh& mesh, int source, const RegionSpec& spec) {
   if (source < 0 || source >= mesh.num_vertices())
     throw InputError(fmt::format("vertex {} does not exist (the mesh has {} vertices)", source, mesh.num_vertices()));
-  const bool by_radius = spec.radius > 0 && std::isfinite(spec.radius), by_rings = spec.rings > 0;
-  if (by_radius == by_rings)
-    throw InputError(fmt::format("give a region as a radius > 0 or as rings > 0, not both (radius {}, rings {})",
-                                 spec.radius, spec.rings));
-  if (!by_radius) return ring_ball(mesh, source, spec.rings);
+  if (!by_radius(spec)) return ring_ball(mesh, source, spec.rings);
   std::vector<int> out;
   for (const auto& [v, d] : geodesic_distances_from(mesh, GeodesicSources{.vertices = {source}}, spec.radius))
     out.push_back(v);
@@ -196,9 +206,7 @@ std::vector<int> influence_region(const Mesh& mesh, std::span<const int> handles
   for (const int h : handles) {
     // Edge paths, not region_around's surface distance: the rule before the smooth
     // boundary, kept as it was for comparison.
-    const bool by_radius = spec.radius > 0 && std::isfinite(spec.radius);
-    if (by_radius == (spec.rings > 0)) region_around(mesh, h, spec);  // throws the message
-    std::vector<int> ball = by_radius ? geodesic_ball(mesh, h, spec.radius) : ring_ball(mesh, h, spec.rings);
+    std::vector<int> ball = by_radius(spec) ? geodesic_ball(mesh, h, spec.radius) : ring_ball(mesh, h, spec.rings);
     if (spec.radius > 0 && clamp_at_radius) {
       const double edge = mean_edge_length_among(mesh, ball);
       if (edge > 0 && spec.radius > 2 * edge) ball = geodesic_ball(mesh, h, spec.radius - edge);

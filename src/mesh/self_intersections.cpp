@@ -224,11 +224,7 @@ struct SelfIntersectionChecker::Impl {
   mutable std::vector<int> stamp;  // per triangle: last call that marked it moved
   mutable int call = 0;
 
-  Box box(const Positions& V, int t) const {
-    Box b;
-    for (int c = 0; c < 3; ++c) b.add(V.row(F(t, c)).transpose());
-    return b;
-  }
+  Box box(const Positions& V, int t) const { return detail::triangle_box(V, F, t); }
   Vec at(const Positions& V, int v) const { return V.row(v).transpose(); }
 
   // Whether triangles s and t overlap at positions V beyond the corners they share;

@@ -11,23 +11,6 @@
 
 namespace meshpde {
 
-namespace {
-
-// A bounding-volume hierarchy over all of (V, F)'s triangles.
-detail::Tree triangle_tree(const Positions& V, const Triangles& F) {
-  detail::Tree tree;
-  std::vector<int> all(static_cast<std::size_t>(F.rows()));
-  std::iota(all.begin(), all.end(), 0);
-  tree.build(all, [&](int f) {
-    detail::Box b;
-    for (int k = 0; k < 3; ++k) b.add(V.row(F(f, k)).transpose());
-    return b;
-  });
-  return tree;
-}
-
-}  // namespace
-
 Eigen::Vector3d closest_point_on_triangle(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
                                           const Eigen::Vector3d& c) {
   // By Voronoi regions of the triangle (Ericson, Real-Time Collision Detection, section
@@ -94,7 +77,7 @@ std::vector<SurfacePoint> closest_surface_points(const Mesh& mesh, std::span<con
   const auto& V = mesh.positions();
   const auto& F = mesh.triangles();
   auto corner = [&](int f, int k) { return Eigen::Vector3d(V.row(F(f, k)).transpose()); };
-  const detail::Tree tree = triangle_tree(V, F);
+  const detail::Tree tree = detail::triangle_tree(V, F);
   std::vector<SurfacePoint> out;
   out.reserve(points.size());
   for (std::size_t i = 0; i < points.size(); ++i) {
@@ -118,7 +101,7 @@ std::vector<SurfacePoint> closest_surface_points(const Mesh& mesh, std::span<con
 
 double directed_hausdorff(const Positions& VA, const Triangles& FA, const Positions& VB, const Triangles& FB) {
   auto corner = [&](int f, int k) { return Eigen::Vector3d(VB.row(FB(f, k)).transpose()); };
-  const detail::Tree tree = triangle_tree(VB, FB);
+  const detail::Tree tree = detail::triangle_tree(VB, FB);
   auto to_b = [&](const Eigen::Vector3d& p) {
     return tree.nearest(p, [&](int f) { return point_triangle_distance(p, corner(f, 0), corner(f, 1), corner(f, 2)); });
   };

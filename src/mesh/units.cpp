@@ -78,14 +78,7 @@ double median_vessel_radius(const Mesh& mesh) {
   const auto& V = mesh.positions();
   const auto& F = mesh.triangles();
   if (mesh.num_faces() == 0) return 0;
-  detail::Tree tree;
-  std::vector<int> ids(static_cast<std::size_t>(mesh.num_faces()));
-  std::iota(ids.begin(), ids.end(), 0);
-  tree.build(ids, [&](int f) {
-    detail::Box b;
-    for (int k = 0; k < 3; ++k) b.add(V.row(F(f, k)).transpose());
-    return b;
-  });
+  const detail::Tree tree = detail::triangle_tree(V, F);
   const Eigen::MatrixX3d N = outward_vertex_normals(mesh);
   const int step = std::max(1, mesh.num_vertices() / 2000);
   std::vector<double> radii;

@@ -125,6 +125,30 @@ async function dragBy(page, from, dx, dy, steps = 12) {
   }
 }
 
+// A correct-tool drag in the 3D view from `from` by (dx, dy) pixels, released and
+// answered: the positions before and after.
+async function correctDragBy(page, from, dx, dy) {
+  const before = await positions(page);
+  const oks = await page.evaluate(() => meshpde.oks);
+  await dragBy(page, from, dx, dy);
+  await page.mouse.up();
+  await page.waitForFunction((n) => meshpde.oks > n && meshpde.lastOk === 'correct', oks, { timeout: 60000 })
+    .catch(() => {});
+  await page.waitForTimeout(300);
+  return { before, after: await positions(page) };
+}
+
+// The last correction's picked surface point (its triangle's corners weighted by its
+// barycentric coordinates, as the reply names them): where it was and how it moved.
+async function handlePointMotion(page, before, after) {
+  const reply = await page.evaluate(() => meshpde.lastCorrect);
+  const T = await page.evaluate(() => Array.from(meshpde.triangles));
+  const hp = (reply && reply.handle_point) || { triangle: 0, barycentric: [NaN, NaN, NaN] };
+  const blend = (P, c) => [0, 1, 2].reduce((sum, k) => sum + hp.barycentric[k] * P[3 * T[3 * hp.triangle + k] + c], 0);
+  const at = [0, 1, 2].map((c) => blend(before, c));
+  return { reply, at, moved: [0, 1, 2].map((c) => blend(after, c) - at[c]) };
+}
+
 // The largest distance a vertex moved between two position arrays (x, y, z a vertex).
 const maxDiffNorm = (a, b) => {
   let m = 0;
@@ -510,17 +534,10 @@ async function imageChecks() {
     await page.waitForTimeout(300);
     const after = await positions(page);
     const drag = await page.evaluate(() => meshpde.imageView.lastDrag);
-    const reply = await page.evaluate(() => meshpde.lastCorrect);
+    const { reply, moved } = await handlePointMotion(page, before, after);
     check('dragging the cut line sends a correction', !!drag && (await page.evaluate(() => meshpde.lastOk)) === 'correct');
     if (drag && reply) {
-      // The surface point under the cut line moves by the drag: its triangle's corners,
-      // weighted by its barycentric coordinates (the reply names both).
-      const T = await page.evaluate(() => Array.from(meshpde.triangles));
-      const hp = reply.handle_point || { triangle: 0, barycentric: [NaN, NaN, NaN] };
-      const moved = [0, 1, 2].map((c) => [0, 1, 2].reduce((sum, k) => {
-        const i = T[3 * hp.triangle + k];
-        return sum + hp.barycentric[k] * (after[3 * i + c] - before[3 * i + c]);
-      }, 0));
+      // The surface point under the cut line moves by the drag.
       const off = Math.hypot(...moved.map((m, c) => m - drag.move[c]));
       check('the dragged surface point moves by the drag, in the axial plane',
             Math.abs(drag.move[2]) < 1e-9 && Math.hypot(...drag.move) > 0.5 && off < 1e-3 * Math.hypot(...drag.move) + 1e-4 &&
@@ -569,21 +586,8 @@ async function imageChecks() {
         }
         return best;
       });
-      const before = await positions(page);
-      const oksS = await page.evaluate(() => meshpde.oks);
-      await dragBy(page, from, 25, -20);
-      await page.mouse.up();
-      await page.waitForFunction((n) => meshpde.oks > n && meshpde.lastOk === 'correct', oksS, { timeout: 60000 })
-        .catch(() => {});
-      await page.waitForTimeout(300);
-      const after = await positions(page);
-      const reply = await page.evaluate(() => meshpde.lastCorrect);
-      const T = await page.evaluate(() => Array.from(meshpde.triangles));
-      const hp = (reply && reply.handle_point) || { triangle: 0, barycentric: [NaN, NaN, NaN] };
-      const moved = [0, 1, 2].map((c) => [0, 1, 2].reduce((sum, k) => {
-        const i = T[3 * hp.triangle + k];
-        return sum + hp.barycentric[k] * (after[3 * i + c] - before[3 * i + c]);
-      }, 0));
+      const { before, after } = await correctDragBy(page, from, 25, -20);
+      const { reply, moved } = await handlePointMotion(page, before, after);
       const len = Math.hypot(...moved);
       // The view's vertical has a z component, so the same drag along the screen would
       // have moved the point along z.
@@ -768,7 +772,6 @@ try {
           colours.zero[2] > colours.zero[1] + 10 && colours.legend === 'moved (mm)' &&
           Math.abs(colours.max - reply.max_displacement) < 1e-3,
           JSON.stringify({ colours, max_displacement: reply && reply.max_displacement }));
-    await page.screenshot({ path: join(shots, 'editor-moved.png') });
   }
   check('no self-intersections after a correction', (await page.evaluate(() => meshpde.intersections)) === 0);
   // The stats panel shows what the correction did, as the reply says and as the
@@ -860,21 +863,9 @@ try {
   {
     await page.check('input[name=tool][value=correct]');
     await page.selectOption('#drag-mode', 'normal');
-    const before = await positions(page);
-    const oksN = await page.evaluate(() => meshpde.oks);
-    await dragBy(page, centre, 0, -40);
-    await page.mouse.up();
-    await page.waitForFunction((n) => meshpde.oks > n && meshpde.lastOk === 'correct', oksN, { timeout: 60000 })
-      .catch(() => {});
-    await page.waitForTimeout(300);
-    const after = await positions(page);
-    const reply = await page.evaluate(() => meshpde.lastCorrect);
-    const T = await page.evaluate(() => Array.from(meshpde.triangles));
+    const { before, after } = await correctDragBy(page, centre, 0, -40);
+    const { at, moved } = await handlePointMotion(page, before, after);
     const cam = await page.evaluate(() => meshpde.cameraDirection());
-    const hp = (reply && reply.handle_point) || { triangle: 0, barycentric: [NaN, NaN, NaN] };
-    const blend = (P, c) => [0, 1, 2].reduce((sum, k) => sum + hp.barycentric[k] * P[3 * T[3 * hp.triangle + k] + c], 0);
-    const at = [0, 1, 2].map((c) => blend(before, c));
-    const moved = [0, 1, 2].map((c) => blend(after, c) - at[c]);
     const len = Math.hypot(...moved);
     // The sphere is centred at the origin: its normal at the point is the point's direction.
     const along = moved.reduce((sum, m, c) => sum + m * at[c], 0) / (len * Math.hypot(...at));
