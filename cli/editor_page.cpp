@@ -58,10 +58,18 @@ Eigen::Vector3d vec3(const nlohmann::json& j, const char* key) {
   if (!v.allFinite()) throw InputError(fmt::format("'{}' is not finite", key));
   return v;
 }
-// The surface point nearest to the message's "point" [x, y, z] (mm, the page's frame).
+// The surface point nearest to the message's "point" [x, y, z] (mm, the page's frame):
+// on its "triangle" when the message names the one the page picked (no search over
+// the mesh, which a hover on a large mesh could not afford), else anywhere.
 SurfacePoint surface_point_of(const Mesh& mesh, const nlohmann::json& j) {
   const Eigen::Vector3d x = vec3(j, "point");
-  return closest_surface_points(mesh, std::span<const Eigen::Vector3d>(&x, 1))[0];
+  if (!j.contains("triangle")) return closest_surface_points(mesh, std::span<const Eigen::Vector3d>(&x, 1))[0];
+  if (!j["triangle"].is_number_integer()) throw InputError("'triangle' must be an integer");
+  const int f = j["triangle"].get<int>();
+  if (f < 0 || f >= mesh.num_faces())
+    throw InputError(fmt::format("triangle {} does not exist (the mesh has {} triangles)", f, mesh.num_faces()));
+  const auto corner = [&](int k) -> Eigen::Vector3d { return mesh.positions().row(mesh.triangles()(f, k)); };
+  return {f, closest_point_on_triangle(x, corner(0), corner(1), corner(2))};
 }
 
 int vertex_of(const nlohmann::json& j) {
@@ -463,6 +471,9 @@ void EditorPage::handle(const std::string& payload, bool binary) {
     } else if (type == "slice") {
       send_slice(j);
       return;  // the SLC frame is the answer
+    } else if (type == "rim") {
+      send_rim(j);
+      return;  // the RIM frame is the answer
     } else if (type == "save_segmentation") {
       reply.update(save_segmentation());
     } else if (type == "ping") {
@@ -541,6 +552,27 @@ void EditorPage::send_slice(const nlohmann::json& j) {
   for (const Eigen::Vector3d* x : {&s.origin, &s.u, &s.v})
     for (int k = 0; k < 3; ++k) put<float>(b, static_cast<float>((*x)[k]));
   b.append(reinterpret_cast<const char*>(s.pixels.data()), s.pixels.size());
+  send_binary(std::move(b));
+}
+
+// What a drag at the hovered point would touch: the region's rim and the handle's, as
+// line segments on the surface (EditorSession::region_rim).
+void EditorPage::send_rim(const nlohmann::json& j) {
+  const double radius = number(j, "radius", 8);
+  const double seq = number(j, "seq", 0);
+  const RegionRim r = session_->region_rim(surface_point_of(session_->mesh(), j), radius);
+  std::string b = "RIM ";
+  b.reserve(28 + 24 * (r.rim.size() + r.handle.size()));
+  put<std::uint32_t>(b, seq >= 0 && seq < 4294967296.0 ? static_cast<std::uint32_t>(seq) : 0u);
+  put<std::uint32_t>(b, static_cast<std::uint32_t>(r.region_vertices));
+  put<float>(b, static_cast<float>(radius));
+  put<float>(b, static_cast<float>(r.handle_radius));
+  put<std::uint32_t>(b, static_cast<std::uint32_t>(r.rim.size()));
+  put<std::uint32_t>(b, static_cast<std::uint32_t>(r.handle.size()));
+  for (const auto* list : {&r.rim, &r.handle})
+    for (const LevelSetSegment& s : *list)
+      for (const Eigen::Vector3d* x : {&s.a, &s.b})
+        for (int k = 0; k < 3; ++k) put<float>(b, static_cast<float>((*x)[k]));
   send_binary(std::move(b));
 }
 

@@ -13,6 +13,9 @@
 //   "SLC " u32 axis (0 axial, 1 coronal, 2 sagittal), u32 width, u32 height, u32 seq,
 //          f32 position, f32 origin[3], f32 u[3], f32 v[3], u8 pixels[width * height]
 //          (a slice of the image: pixel (a, b) at origin + a u + b v, row b at b * width)
+//   "RIM " u32 seq, u32 region vertices, f32 radius, f32 handle radius, u32 n, u32 m,
+//          f32 segments[6 (n + m)]   (what a drag at the hovered point would touch: n
+//          segments of the region's rim, then m of the handle's, each two points)
 // Text frames are JSON objects with a "type" (see docs/editor.md).
 #pragma once
 
@@ -135,6 +138,7 @@ class EditorPage {
   void send_binary(std::string bytes);
   void send_stats(bool now);
   void send_slice(const nlohmann::json& request);
+  void send_rim(const nlohmann::json& request);
   nlohmann::json image_json() const;
   nlohmann::json save_segmentation();
 

@@ -8,6 +8,7 @@
 #include <chrono>
 #include <limits>
 #include <map>
+#include <numbers>
 #include <queue>
 #include <random>
 #include <thread>
@@ -504,4 +505,44 @@ TEST(DragSession, APointDragPreviewEqualsTheReleasedPointCorrection) {
   EXPECT_FALSE(s.dragging());
   // A point outside the mesh's triangles is refused in words.
   EXPECT_THROW(s.drag_begin(SurfacePoint{mesh.num_faces()}, 9.0), InputError);
+}
+
+// What the editor draws under the cursor before a press: on a sphere of radius 10, the
+// rim at a radius of 8 mm is the small circle at great-circle distance 8 from the point
+// (within 1 % of the radius, along all of it), a closed curve as long as that circle,
+// and the handle's rim the one at a quarter of it; the count of vertices inside is the
+// region that a drag from that point then moves.
+TEST(DragSession, TheRimUnderTheCursorIsTheCircleTheDragWillMove) {
+  GeneratedMesh g = icosphere(4);
+  const double rho = 10, R = 8;
+  g.V *= rho;
+  EditorSession s(as_mesh_data(g));
+  const Mesh& mesh = s.mesh();
+  const Eigen::Vector3d x = Eigen::Vector3d(3, 4, 9).normalized() * rho;
+  const SurfacePoint sp = closest_surface_points(mesh, std::span<const Eigen::Vector3d>(&x, 1))[0];
+  const Eigen::Vector3d c = position(mesh, sp).normalized();
+  const RegionRim rim = s.region_rim(sp, R);
+  EXPECT_DOUBLE_EQ(rim.handle_radius, kHandleRadiusFraction * R);
+  const auto check = [&](const std::vector<LevelSetSegment>& segments, double radius, const char* what) {
+    ASSERT_GT(segments.size(), 8u) << what;
+    double worst = 0, length = 0;
+    for (const LevelSetSegment& seg : segments) {
+      for (const Eigen::Vector3d* y : {&seg.a, &seg.b})
+        worst = std::max(worst, std::abs(rho * std::acos(std::clamp(y->normalized().dot(c), -1.0, 1.0)) - radius));
+      length += (seg.b - seg.a).norm();
+    }
+    EXPECT_LT(worst, 0.01 * R) << what;
+    EXPECT_NEAR(length, 2 * std::numbers::pi * rho * std::sin(radius / rho), 0.01 * length) << what;
+    // Closed: every end is the end of exactly two segments.
+    std::map<std::pair<long, long>, int> ends;
+    for (const LevelSetSegment& seg : segments)
+      for (const Eigen::Vector3d* y : {&seg.a, &seg.b}) ++ends[{std::lround(y->x() * 1e6), std::lround(y->y() * 1e6)}];
+    for (const auto& [key, count] : ends) EXPECT_EQ(count, 2) << what;
+  };
+  check(rim.rim, R, "region");
+  check(rim.handle, rim.handle_radius, "handle");
+  s.drag_begin(sp, R);
+  EXPECT_EQ(rim.region_vertices, s.drag_region_vertices());
+  EXPECT_THROW(s.region_rim(sp, 0), InputError);
+  EXPECT_THROW(s.region_rim(SurfacePoint{mesh.num_faces()}, R), InputError);
 }

@@ -8,6 +8,7 @@
 
 #include "meshpde/apps/interpolation.h"
 #include "meshpde/core/errors.h"
+#include "meshpde/mesh/geodesic_distance.h"
 #include "meshpde/mesh/topology.h"
 #include "meshpde/operators/intrinsic_delaunay.h"
 #include "meshpde/operators/laplacian.h"
@@ -97,6 +98,32 @@ void EditorSession::drag_move(const Eigen::Vector3d& offset) {
   if (!dragging()) throw InputError("drag_move without drag_begin");
   if (!offset.allFinite()) throw InputError("drag offset is not finite");
   drag_offset_ = offset;
+}
+
+RegionRim EditorSession::region_rim(const SurfacePoint& point, double radius) const {
+  if (!(radius > 0) || !std::isfinite(radius)) throw InputError("region radius must be a length > 0");
+  check_surface_point(mesh(), point, "region rim");
+  RegionRim out;
+  out.handle_radius = kHandleRadiusFraction * radius;
+  // Distances a little beyond the radius, so that every triangle the rim crosses has
+  // its corners measured; a corner still unreached lies beyond that reach, and is
+  // given the reach (its triangle's crossing then sits a little too far out).
+  const double reach = radius + 3 * mean_edge_;
+  const Mesh& m = mesh();
+  Eigen::VectorXd d = Eigen::VectorXd::Constant(m.num_vertices(), reach);
+  std::vector<int> faces;
+  std::vector<char> seen(static_cast<std::size_t>(m.num_faces()), 0);
+  const VertexFaces& around = m.vertex_faces();
+  for (const auto& [v, dist] : geodesic_distances_from(m, GeodesicSources{.points = {point}}, reach)) {
+    d[v] = dist;
+    out.region_vertices += dist < radius;
+    for (int k = around.offsets[static_cast<std::size_t>(v)]; k < around.offsets[static_cast<std::size_t>(v) + 1]; ++k)
+      if (const int f = around.faces[static_cast<std::size_t>(k)]; !seen[static_cast<std::size_t>(f)]++)
+        faces.push_back(f);
+  }
+  out.rim = level_set_segments(m, d, radius, faces);
+  if (out.handle_radius > 0) out.handle = level_set_segments(m, d, out.handle_radius, faces);
+  return out;
 }
 
 void EditorSession::drag_end() {

@@ -232,6 +232,12 @@ int write_seeds(const fs::path& root) {
         R"({"type": "drag_move", "offset": [0.5, 0, 0]})",
         R"({"type": "correct", "vertex": 1, "point": [0.1, 0.2, 0.3], "move": [0.5, 0, 0], "radius": 5})",
         R"({"type": "correct", "vertex": 2, "point": [9, -3, 1e9], "move": [0, 0, 1], "radius": 1e-30})"}},
+      {"rim.txt",
+       {R"({"type": "rim", "point": [0.1, 0.2, 0.3], "radius": 5, "seq": 1})",
+        R"({"type": "rim", "point": [0.1, 0.2, 0.3], "triangle": 3, "radius": 0.5, "seq": 2})",
+        R"({"type": "rim", "point": [1e300, 0, 0], "triangle": -1, "radius": 1e300, "seq": 3})",
+        R"({"type": "drag_begin", "vertex": 1, "point": [0.1, 0.2, 0.3], "triangle": 2, "radius": 5})",
+        R"({"type": "correct", "vertex": 1, "point": [0.1, 0.2, 0.3], "triangle": 2, "move": [0.5, 0, 0]})"}},
       {"springs.txt",
        {R"({"type": "correct", "vertex": 2, "move": [1, 1, 0], "radius": 3, "method": "springs", "image": false})"}},
   };

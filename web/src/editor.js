@@ -47,8 +47,11 @@ const invalidate = () => { dirty = true; };
 document.addEventListener('input', invalidate);
 document.addEventListener('change', invalidate);
 
+// The surface is pushed back a little in depth so that the lines drawn on it (the rim
+// of what a drag would touch) are not lost in it.
 const material = new THREE.MeshStandardMaterial({
   vertexColors: true, side: THREE.DoubleSide, roughness: 0.65, metalness: 0.0, flatShading: false,
+  polygonOffset: true, polygonOffsetFactor: 1, polygonOffsetUnits: 1,
 });
 const wireMaterial = new THREE.MeshBasicMaterial({ color: 0x222222, wireframe: true, transparent: true, opacity: 0.25 });
 let mesh = null, wire = null, geometry = null;
@@ -58,13 +61,24 @@ scene.add(arrow);
 const arrows = new THREE.LineSegments(new THREE.BufferGeometry(), new THREE.LineBasicMaterial({ color: 0xd62728 }));
 arrows.visible = false;
 scene.add(arrows);
-const dragLine = new THREE.Line(new THREE.BufferGeometry().setFromPoints([new THREE.Vector3(), new THREE.Vector3()]),
-  new THREE.LineBasicMaterial({ color: 0x1f77b4 }));
-dragLine.visible = false;
-scene.add(dragLine);
+// The correct tool's marks: before a press, the rim of the region a drag at the point
+// under the cursor would move (orange) and of its handle (blue); while dragging, the
+// handle (a blue dot) and the drag vector (a blue arrow), drawn over the surface.
+const RIM_COLOR = 0xff7f0e, HANDLE_COLOR = 0x1f77b4;
+const rimLines = new THREE.LineSegments(new THREE.BufferGeometry(), new THREE.LineBasicMaterial({ color: RIM_COLOR }));
+const handleLines = new THREE.LineSegments(new THREE.BufferGeometry(),
+  new THREE.LineBasicMaterial({ color: HANDLE_COLOR }));
+const handleDot = new THREE.Mesh(new THREE.SphereGeometry(1, 16, 12),
+  new THREE.MeshBasicMaterial({ color: HANDLE_COLOR, depthTest: false }));
+const dragArrow = new THREE.ArrowHelper(new THREE.Vector3(0, 1, 0), new THREE.Vector3(), 1, HANDLE_COLOR);
+for (const o of [rimLines, handleLines, handleDot, dragArrow]) { o.visible = false; o.renderOrder = 2; scene.add(o); }
+dragArrow.line.material.depthTest = false;
+dragArrow.cone.material.depthTest = false;
 
+// The 3D view fills the view, or its right half while the 2D view is docked beside it.
 function resize() {
-  const w = viewport.clientWidth, h = viewport.clientHeight;
+  const docked = viewport.classList.contains('docked');
+  const w = docked ? Math.floor(viewport.clientWidth / 2) : viewport.clientWidth, h = viewport.clientHeight;
   renderer.setSize(w, h);
   camera.aspect = w / Math.max(h, 1);
   camera.updateProjectionMatrix();
@@ -250,6 +264,7 @@ ws.onmessage = (ev) => {
     else if (tag === 'FLD ') applyField(ev.data);
     else if (tag === 'VEC ') applyVectors(ev.data);
     else if (tag === 'SLC ') imageView.onSlice(ev.data);
+    else if (tag === 'RIM ') applyRim(ev.data);
     state.updates += 1;
     return;
   }
@@ -289,7 +304,7 @@ ws.onmessage = (ev) => {
     state.lastOk = m.request; state.oks += 1;
     // One message per action, replaced by the next: what this one did.
     if (m.request in DONE) status(DONE[m.request]);
-    if (m.request === 'drag_begin')
+    if (m.request === 'drag_begin' && drag)  // (a click's, already released: nothing to say)
       status(`dragging: region of ${m.region_vertices} vertices ready in ${m.setup_ms.toFixed(1)} ms`);
     if (m.request === 'correct') {
       state.lastCorrect = m;
@@ -314,6 +329,7 @@ ws.onmessage = (ev) => {
   } else if (m.type === 'error') {
     state.lastError = m.message; state.errors += 1;
     if (m.request === 'slice') imageView.onSliceError();
+    if (m.request === 'rim') { rimInFlight = false; hideRim(); }
     status(m.message, true);
   }
 };
@@ -356,7 +372,8 @@ let forceScale = 1e-30;
 // The correct tool's options, shared by the 3D drag and the 2D slice view's drag.
 const correctOptions = () => ({ radius: +$('radius').value, method: $('method').value, image: $('image').checked,
   dynamic: $('dynamic').checked });
-const imageView = createImageView({ scene, state, send, $, correctOptions, invalidate });
+const imageView = createImageView({ scene, state, send, $, correctOptions, invalidate,
+  relayout: () => { resize(); invalidate(); } });
 
 // ---------------------------------------------------------------- gestures
 const raycaster = new THREE.Raycaster();
@@ -376,18 +393,74 @@ function pick(ev) {
     if (d < bestD) { bestD = d; best = i; }
   }
   // The triangle's normal in the scene (the mesh is drawn untransformed).
-  return { vertex: best, point: hit.point.clone(), normal: hit.face ? hit.face.normal.clone() : null };
+  return { vertex: best, triangle: hit.faceIndex, point: hit.point.clone(),
+    normal: hit.face ? hit.face.normal.clone() : null };
 }
+
+// ---------------------------------------------------------------- what a drag will touch
+// Hovering with the correct tool (fem) asks the server for the rim of the region and of
+// the handle a drag at the point under the cursor would have (`rim` request, `RIM `
+// frame): one request on its way at a time, the newest hover waiting for its answer.
+let rimSeq = 0, rimInFlight = false, rimPending = null;
+const correctHover = () => tool() === 'correct' && $('method').value === 'fem';
+function requestRim(hit) {
+  const m = { type: 'rim', point: hit.point.toArray(), triangle: hit.triangle, radius: +$('radius').value,
+    seq: ++rimSeq };
+  if (rimInFlight) { rimPending = m; return; }
+  rimInFlight = true;
+  send(m);
+}
+function hideRim() {
+  rimPending = null;
+  if (rimLines.visible || handleLines.visible || handleDot.visible) invalidate();
+  rimLines.visible = handleLines.visible = handleDot.visible = false;
+  state.rim = null;
+}
+function segments(lines, xyz) {
+  lines.geometry.dispose();
+  lines.geometry = new THREE.BufferGeometry();
+  lines.geometry.setAttribute('position', new THREE.BufferAttribute(xyz, 3));
+  lines.geometry.computeBoundingSphere();
+  lines.visible = xyz.length > 0;
+}
+// The handle's dot: a fixed size on screen (1 % of the distance from the camera).
+function placeDot(p) {
+  handleDot.position.copy(p);
+  handleDot.scale.setScalar(0.006 * camera.position.distanceTo(p));
+  handleDot.visible = true;
+}
+function applyRim(buf) {
+  rimInFlight = false;
+  const dv = new DataView(buf);
+  const seq = dv.getUint32(4, true), regionVertices = dv.getUint32(8, true);
+  const radius = dv.getFloat32(12, true), handleRadius = dv.getFloat32(16, true);
+  const n = dv.getUint32(20, true), m = dv.getUint32(24, true);
+  if (rimPending) { const next = rimPending; rimPending = null; rimInFlight = true; send(next); }
+  // A hover that ended (or a drag that began) while this was on its way: not shown.
+  if (seq !== rimSeq || drag || !correctHover() || !hovered) return;
+  const xyz = new Float32Array(buf.slice(28, 28 + 24 * (n + m)));
+  segments(rimLines, xyz.subarray(0, 6 * n));
+  segments(handleLines, xyz.subarray(6 * n));
+  placeDot(hovered.point);
+  state.rim = { seq, regionVertices, radius, handleRadius, point: hovered.point.toArray(),
+    rim: xyz.slice(0, 6 * n), handle: xyz.slice(6 * n) };
+  $('stat-rim').textContent = `${regionVertices.toLocaleString()} vertices within ${radius} mm`;
+}
+let hovered = null;
 let drag = null;  // {vertex, start, plane, mode, normal, up, keep}
 // The correct tool's drag direction (the "drag along" choice): the screen's plane; the
 // surface normal at the picked point, turned towards the camera (the mouse's vertical
 // motion pulls the wall towards the viewer or pushes it away); or the plane of the 2D
 // slice view (the motion's component across that plane dropped).
 const SLICE_NORMAL_AXIS = { axial: 2, coronal: 1, sagittal: 0 };
+// The wheel, while the button is held, pushes or pulls along the picked point's normal
+// in every mode: each notch a sixteenth of the region's radius (0.5 mm at 8 mm), up
+// towards the viewer.
 function dragOffset(p) {
-  const o = p.clone().sub(drag.start);
-  if (drag.mode === 'normal') return drag.normal.clone().multiplyScalar(o.dot(drag.up));
-  if (drag.mode === 'slice') o.setComponent(drag.keep, 0);
+  let o = p.clone().sub(drag.start);
+  if (drag.mode === 'normal') o = drag.normal.clone().multiplyScalar(o.dot(drag.up));
+  else if (drag.mode === 'slice') o.setComponent(drag.keep, 0);
+  if (drag.wheel && drag.facing) o.addScaledVector(drag.facing, drag.wheel);
   return o;
 }
 function planePoint(ev) {
@@ -416,16 +489,22 @@ renderer.domElement.addEventListener('pointerdown', (ev) => {
   if (t === 'heat' || t === 'wave') { send({ type: 'source', vertex: hit.vertex }); return; }
   controls.enabled = false;
   const normal = camera.getWorldDirection(new THREE.Vector3());
-  drag = { vertex: hit.vertex, start: hit.point, plane: new THREE.Plane().setFromNormalAndCoplanarPoint(normal, hit.point),
-    mode: 'screen' };
+  drag = { vertex: hit.vertex, triangle: hit.triangle, start: hit.point,
+    plane: new THREE.Plane().setFromNormalAndCoplanarPoint(normal, hit.point), mode: 'screen', wheel: 0,
+    last: hit.point.clone() };
+  hideRim();
   if (t === 'correct') {
     const mode = $('drag-mode').value, slice = $('img-2d') ? $('img-2d').value : 'none';
+    // The picked triangle's normal, on the side the camera sees (the wheel's direction).
+    if (hit.normal) {
+      drag.facing = hit.normal.clone();
+      if (drag.facing.dot(normal) > 0) drag.facing.negate();
+    }
+    placeDot(hit.point);
     if (mode === 'normal' && hit.normal) {
-      // The picked triangle's normal, on the side the camera sees; the screen's up.
-      const n = hit.normal.clone();
-      if (n.dot(normal) > 0) n.negate();
+      // Along that normal, the screen's up pulling.
       drag.mode = 'normal';
-      drag.normal = n;
+      drag.normal = drag.facing;
       drag.up = camera.up.clone().projectOnPlane(normal).normalize();
       status('correct: drag up to pull the wall towards you, down to push it away (along its normal)');
     } else if (mode === 'slice' && slice in SLICE_NORMAL_AXIS) {
@@ -441,49 +520,101 @@ renderer.domElement.addEventListener('pointerdown', (ev) => {
   // The correct tool previews live: the server factors the region once, then each
   // move is a product with its basis; releasing sends the real correction.
   if (t === 'correct' && $('method').value === 'fem')
-    send({ type: 'drag_begin', vertex: hit.vertex, point: hit.point.toArray(), radius: +$('radius').value });
+    send({ type: 'drag_begin', vertex: hit.vertex, point: hit.point.toArray(), triangle: hit.triangle,
+      radius: +$('radius').value });
 });
-renderer.domElement.addEventListener('pointermove', (ev) => {
-  if (!drag) return;
-  const p = planePoint(ev);
-  if (!p) return;
-  const offset = dragOffset(p);
+// The drag vector as an arrow from the picked point, the handle's dot at its head.
+function showDragVector(offset) {
+  const length = offset.length();
+  dragArrow.visible = length > 0;
+  if (length > 0) {
+    dragArrow.position.copy(drag.start);
+    dragArrow.setDirection(offset.clone().normalize());
+    dragArrow.setLength(length, Math.min(0.3 * length, 0.02 * camera.position.distanceTo(drag.start)),
+      Math.min(0.15 * length, 0.01 * camera.position.distanceTo(drag.start)));
+  }
+  if (tool() === 'correct') placeDot(drag.start.clone().add(offset));
+  invalidate();
+}
+function moveDrag(offset, force = false) {
   if (tool() === 'poke') {
     const now = performance.now();
-    if (now - lastMove < 8) return;  // at most about 120 probe updates a second
+    if (!force && now - lastMove < 8) return;  // at most about 120 probe updates a second
     lastMove = now;
     send({ type: 'poke_move', offset: offset.toArray() });
-  } else {
-    dragLine.geometry.setFromPoints([drag.start, drag.start.clone().add(offset)]);
-    dragLine.visible = true;
-    invalidate();
-    if (tool() === 'correct' && $('method').value === 'fem') {
-      const now = performance.now();
-      if (now - lastMove < 8) return;
-      lastMove = now;
-      send({ type: 'drag_move', offset: offset.toArray() });
-    }
+    return;
   }
+  showDragVector(offset);
+  if (tool() === 'correct' && $('method').value === 'fem') {
+    const now = performance.now();
+    if (!force && now - lastMove < 8) return;
+    lastMove = now;
+    send({ type: 'drag_move', offset: offset.toArray() });
+  }
+}
+// A hover picks at most every 40 ms (a pick tests every triangle: milliseconds on a large
+// mesh), the last position always.
+let hoverEvent = null, hoverTimer = 0, lastHoverPick = 0;
+function hoverPick() {
+  hoverTimer = 0;
+  lastHoverPick = performance.now();
+  if (drag || !hoverEvent || !correctHover()) return;
+  hovered = pick(hoverEvent);
+  if (hovered) requestRim(hovered);
+  else hideRim();
+}
+renderer.domElement.addEventListener('pointermove', (ev) => {
+  if (!drag) {
+    if (ev.buttons || !correctHover()) { if (hovered) { hovered = null; hideRim(); } return; }
+    hoverEvent = { clientX: ev.clientX, clientY: ev.clientY };
+    if (!hoverTimer) hoverTimer = setTimeout(hoverPick, Math.max(0, 40 - (performance.now() - lastHoverPick)));
+    return;
+  }
+  const p = planePoint(ev);
+  if (!p) return;
+  drag.last = p;
+  moveDrag(dragOffset(p));
 });
+renderer.domElement.addEventListener('pointerleave', () => { if (!drag) { hovered = null; hoverEvent = null; hideRim(); } });
+// Another tool or method hides the rim; another radius redraws it where the cursor is.
+document.querySelectorAll('input[name=tool]').forEach((r) => r.addEventListener('change', () => { hovered = null; hideRim(); }));
+$('method').addEventListener('change', () => { hovered = null; hideRim(); });
+$('radius').addEventListener('input', () => { if (hovered && +$('radius').value > 0) requestRim(hovered); });
+renderer.domElement.addEventListener('wheel', (ev) => {
+  if (!drag || tool() !== 'correct' || !drag.facing) return;
+  ev.preventDefault();
+  drag.wheel += (ev.deltaY < 0 ? 1 : -1) * (+$('radius').value / 16);
+  moveDrag(dragOffset(drag.last), true);
+}, { passive: false });
 function endDrag(ev) {
   if (!drag) return;
-  const p = planePoint(ev) || drag.start;
+  const p = planePoint(ev) || drag.last;
   const offset = dragOffset(p);
   if (tool() === 'poke') send({ type: 'poke_end' });
   else if (tool() === 'paint' && offset.length() > 0)
     send({ type: 'paint_vector', vertex: drag.vertex, vector: offset.toArray(), g1: +$('g1').value, g2: +$('g2').value });
   else if (tool() === 'correct' && offset.length() > 0)
     // The picked surface point moves (not its nearest vertex); replaces the preview.
-    send({ type: 'correct', vertex: drag.vertex, point: drag.start.toArray(), move: offset.toArray(), ...correctOptions() });
+    send({ type: 'correct', vertex: drag.vertex, point: drag.start.toArray(), triangle: drag.triangle,
+      move: offset.toArray(), ...correctOptions() });
   else if (tool() === 'correct') send({ type: 'drag_end' });
   state.poking = false;
+  state.lastDrag = { start: drag.start.toArray(), offset: offset.toArray() };
   drag = null;
-  dragLine.visible = false;
+  dragArrow.visible = false;
+  handleDot.visible = false;
   invalidate();
   controls.enabled = true;
 }
 renderer.domElement.addEventListener('pointerup', endDrag);
 renderer.domElement.addEventListener('pointercancel', endDrag);
+// A double click on the surface moves the image's three planes through that point.
+renderer.domElement.addEventListener('dblclick', (ev) => {
+  const hit = state.imageView.image ? pick(ev) : null;
+  if (!hit) return;
+  imageView.moveTo(hit.point.toArray());
+  status(`the image's planes moved through (${hit.point.toArray().map((x) => x.toFixed(1)).join(', ')}) mm`);
+});
 
 // ---------------------------------------------------------------- buttons, files
 $('load-generated').onclick = () => send({ type: 'generate', kind: $('generate').value });
@@ -562,6 +693,10 @@ $('save').onclick = async () => {
   // The segmentation the server opened: the corrected one is written beside it.
   if (state.segmentation) send({ type: 'save_segmentation' });
 };
+
+// Which of the correct tool's marks are on show, and where the handle's dot is (tests).
+window.meshpde.marks = () => ({ rim: rimLines.visible, handleRim: handleLines.visible, dot: handleDot.visible,
+  arrow: dragArrow.visible, dotAt: handleDot.position.toArray() });
 
 // Screen position of a vertex (for tests and scripted demos).
 window.meshpde.screenOf = (i) => {

@@ -13,8 +13,13 @@ const NORMAL = [2, 1, 0];               // the coordinate each plane holds fixed
 // The letter of the patient direction each axis points to, in each frame.
 const LETTERS = { RAS: ['R', 'A', 'S'], LPS: ['L', 'P', 'S'] };
 
-// invalidate() asks the page to draw its 3D view again (it draws only on change).
-export function createImageView({ scene, state, send, $, correctOptions, invalidate }) {
+// Window and level presets: [window, level] in the image's values (Hounsfield units for
+// CT); auto and MR are computed from the volume's value range and percentiles.
+const PRESETS = { cta: [600, 150], 'ct-soft': [400, 40], 'ct-bone': [1500, 450] };
+
+// invalidate() asks the page to draw its 3D view again (it draws only on change);
+// relayout() to size it again (the 2D view docked beside it, or not).
+export function createImageView({ scene, state, send, $, correctOptions, invalidate, relayout }) {
   const view = {
     image: null,                        // the mesh message's "image"
     slices: [null, null, null],         // the last SLC frame of each plane, decoded
@@ -49,7 +54,24 @@ export function createImageView({ scene, state, send, $, correctOptions, invalid
   const want = [null, null, null], inflight = [false, false, false], sentAt = new Map();
   let seq = 0;
 
-  const windowLevel = () => ({ window: +$('img-window').value, level: +$('img-level').value });
+  // The typed numbers are the window and level (a preset may lie beyond the sliders'
+  // range, the volume's values); the sliders follow them.
+  const windowLevel = () => ({ window: +$('img-window-value').value, level: +$('img-level-value').value });
+  function setWindowLevel(w, l) {
+    $('img-window-value').value = +w.toPrecision(6);
+    $('img-level-value').value = +l.toPrecision(6);
+    $('img-window').value = w;
+    $('img-level').value = l;
+  }
+  function applyPreset() {
+    const im = view.image, name = $('img-preset').value;
+    if (!im || name === 'custom') return;
+    const p1 = im.level - im.window / 2, p99 = im.level + im.window / 2, [vmin, vmax] = im.range;
+    const [w, l] = name === 'full' ? [vmax - vmin, (vmax + vmin) / 2]
+      : name === 'mr' ? [p99 - vmin, (p99 + vmin) / 2]
+        : PRESETS[name] || [im.window, im.level];
+    setWindowLevel(Math.max(w, +$('img-window').min || 1e-6), l);
+  }
   function request(k) {
     if (!view.image || inflight[k] || !want[k]) return;
     const w = want[k];
@@ -75,6 +97,7 @@ export function createImageView({ scene, state, send, $, correctOptions, invalid
     view.image = m.image || null;
     $('image-options').hidden = !view.image;
     $('slice-box').hidden = true;
+    layout();
     for (let k = 0; k < 3; ++k) { planes[k].visible = false; lines[k].visible = false; view.slices[k] = null; }
     for (let k = 0; k < 3; ++k) views[k] = { zoom: 1, ca: null, cb: null };
     if (!view.image) return;
@@ -89,7 +112,10 @@ export function createImageView({ scene, state, send, $, correctOptions, invalid
     const valueStep = (vmax - vmin) / 500 || 1;  // a window is never 0: the server refuses it
     for (const id of ['img-window', 'img-level']) { $(id).min = id === 'img-window' ? valueStep : vmin; $(id).max = vmax; }
     $('img-window').step = $('img-level').step = valueStep;
-    $('img-window').value = im.window; $('img-level').value = im.level;
+    $('img-window-value').step = $('img-level-value').step = +valueStep.toPrecision(3);
+    $('img-window-value').min = +valueStep.toPrecision(3);
+    $('img-preset').value = 'auto';
+    setWindowLevel(im.window, im.level);
     $('img-name').textContent = `${im.name}: ${im.dims.join(' × ')} voxels, mesh in ${im.space}`;
     $('slice-box').hidden = $('img-2d').value === 'none';
     // The planes start through the mesh, so that each one cuts the wall: now for a
@@ -240,10 +266,30 @@ export function createImageView({ scene, state, send, $, correctOptions, invalid
     const a = (x - x0) / scale - 0.5, b = s.height - (y - y0) / scale - 0.5;
     return [0, 1, 2].map((c) => s.origin[c] + a * s.u[c] + b * s.v[c]);
   }
+  // The 2D view's canvases take the size of their box (resized by its grip, or docked
+  // beside the 3D view); the 3D view is sized again when docking changes.
+  let docked = false;
+  function layout() {
+    const box = $('slice-box');
+    const dock = $('img-dock').checked && !box.hidden;
+    if (dock !== docked) {
+      docked = dock;
+      $('viewport').classList.toggle('docked', dock);
+      relayout();
+    }
+    if (box.hidden) return false;
+    const w = Math.max(1, box.clientWidth), h = Math.max(1, box.clientHeight);
+    if (canvas.width === w && canvas.height === h) return false;
+    canvas.width = overlay.width = w;
+    canvas.height = overlay.height = h;
+    return true;
+  }
+  view.docked = () => docked;
   const scratch = document.createElement('canvas');
   function draw2d() {
     const k = twoD();
     $('slice-box').hidden = !view.image || k < 0;
+    layout();
     if (k < 0 || !view.slices[k]) return;
     const s = view.slices[k];
     scratch.width = s.width; scratch.height = s.height;
@@ -434,7 +480,52 @@ export function createImageView({ scene, state, send, $, correctOptions, invalid
       planes[k].visible = lines[k].visible = $(`img-${AXES[k]}-show`).checked && !!view.slices[k];
     };
   }
-  for (const id of ['img-window', 'img-level']) $(id).oninput = askAll;
+  for (const id of ['img-window', 'img-level'])
+    $(id).oninput = () => {
+      $(`${id}-value`).value = +(+$(id).value).toPrecision(6);
+      $('img-preset').value = 'custom';
+      askAll();
+    };
+  for (const id of ['img-window', 'img-level'])
+    $(`${id}-value`).onchange = () => {
+      const w = +$('img-window-value').value, l = +$('img-level-value').value;
+      if (!(w > 0) || !Number.isFinite(l)) { applyPreset(); return; }  // back to a valid pair
+      setWindowLevel(w, l);
+      $('img-preset').value = 'custom';
+      askAll();
+    };
+  $('img-preset').onchange = () => { applyPreset(); askAll(); };
   $('img-2d').onchange = draw2d;
+  $('img-dock').onchange = () => { layout(); draw2d(); };
+  // The grip at the 2D view's top right corner: the box grows up and to the right.
+  $('slice-grip').addEventListener('pointerdown', (ev) => {
+    ev.preventDefault();
+    ev.stopPropagation();
+    const box = $('slice-box'), main = $('viewport');
+    const start = { x: ev.clientX, y: ev.clientY, w: box.clientWidth, h: box.clientHeight };
+    const move = (e) => {
+      box.style.width = `${Math.min(main.clientWidth - 16, Math.max(160, start.w + e.clientX - start.x))}px`;
+      box.style.height = `${Math.min(main.clientHeight - 16, Math.max(160, start.h - (e.clientY - start.y)))}px`;
+      if (layout()) draw2d();
+    };
+    const up = () => { window.removeEventListener('pointermove', move); window.removeEventListener('pointerup', up); };
+    window.addEventListener('pointermove', move);
+    window.addEventListener('pointerup', up);
+  });
+  window.addEventListener('resize', () => { if (layout()) draw2d(); });
+
+  // The three planes through a point of the scene (a double click on the surface, as
+  // 3D Slicer's crosshair does), each within the volume.
+  view.moveTo = (p) => {
+    const im = view.image;
+    if (!im) return;
+    const [lo, hi] = im.bounds;
+    for (let k = 0; k < 3; ++k) {
+      const n = NORMAL[k];
+      $(`img-${AXES[k]}`).value = Math.min(Math.max(p[n], lo[n]), hi[n]);
+    }
+    view.movedTo = p;
+    askAll();
+  };
   return view;
 }

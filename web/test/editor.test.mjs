@@ -513,6 +513,7 @@ async function imageChecks() {
       await page.mouse.dblclick(box.x + px, box.y + py);
       check('a double click fits the slice again', (await page.evaluate(() => meshpde.imageView.zoom2d())) === 1);
     }
+    await windowLevelAndLayoutChecks(page);
     // Drag the axial cut line 3 canvas pixels (about 3 mm) across itself: a correction
     // moves the vertex nearest the pressed point by the drag, in the plane.
     await page.selectOption('#img-2d', 'axial');
@@ -608,6 +609,117 @@ async function imageChecks() {
   }
   if (sanitized) { console.log('slice timing: not measured in the sanitizer build'); return; }
   await sliceTiming();
+}
+
+// Window and level typed and from presets, read back from the rendered 2D view at the
+// cut line (the level set's zero, so the grey there is 255 (0 - (L - W / 2)) / W);
+// a double click on the surface moves the three planes there; the 2D view resized by
+// its grip and docked beside the 3D view, both views drawn.
+async function windowLevelAndLayoutChecks(page) {
+  await page.selectOption('#img-2d', 'axial');
+  const greyOnLine = () => page.evaluate(() => {
+    const c = document.getElementById('slice-view'), img = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;
+    const out = [];
+    for (const [x, y] of meshpde.imageView.cutLine2d()) {
+      if (x < 2 || y < 2 || x > c.width - 3 || y > c.height - 3) continue;
+      out.push(img[4 * (Math.floor(y) * c.width + Math.floor(x))]);
+    }
+    return out;
+  });
+  let shown = await page.evaluate(() => meshpde.imageView.shown);
+  await page.fill('#img-window-value', '20');
+  await page.press('#img-window-value', 'Tab');
+  await page.fill('#img-level-value', '-5');
+  await page.press('#img-level-value', 'Tab');
+  shown = await slicesShown(page, shown + 5);
+  const typed = quantile(await greyOnLine(), 0.5);
+  check('typed window 20 and level -5: the rendered grey at the wall is 191', Math.abs(typed - 191) < 10 &&
+        (await page.inputValue('#img-preset')) === 'custom', `median grey on the cut line ${typed}`);
+  await page.selectOption('#img-preset', 'cta');
+  shown = await slicesShown(page, shown + 2);
+  const cta = quantile(await greyOnLine(), 0.5);
+  const numbers = [await page.inputValue('#img-window-value'), await page.inputValue('#img-level-value')];
+  check('the CT angiography preset: window 600, level 150 in the numbers and the rendered grey 64 at the wall',
+        numbers.join() === '600,150' && Math.abs(cta - 63.75) < 3, JSON.stringify({ numbers, cta }));
+  await page.selectOption('#img-preset', 'auto');
+  shown = await slicesShown(page, shown + 2);
+  const auto = await page.evaluate(() => [+document.getElementById('img-window-value').value,
+    +document.getElementById('img-level-value').value, meshpde.imageView.image.window, meshpde.imageView.image.level]);
+  check('the auto preset is the server\'s default window and level again',
+        Math.abs(auto[0] - auto[2]) < 1e-4 * auto[2] && Math.abs(auto[1] - auto[3]) < 1e-4 * Math.abs(auto[2]), JSON.stringify(auto));
+
+  // A double click on the surface: the three planes through the picked point.
+  {
+    await page.check('input[name=tool][value=correct]');
+    const from = await page.evaluate(() => {
+      const c = document.querySelector('#viewport > canvas').getBoundingClientRect();
+      const mid = { x: c.left + 0.6 * c.width, y: c.top + 0.4 * c.height };  // clear of the 2D view (bottom left)
+      let best = -1, bestD = Infinity;
+      for (let i = 0; i < meshpde.vertexCount; ++i) {
+        const q = meshpde.screenOf(i), d = Math.hypot(q.x - mid.x, q.y - mid.y);
+        if (d < bestD) { bestD = d; best = i; }
+      }
+      return { ...meshpde.screenOf(best), vertex: best };
+    });
+    const before = await page.evaluate(() => meshpde.imageView.slices.map((sl) => sl.position));
+    await page.mouse.dblclick(from.x, from.y);
+    shown = await slicesShown(page, shown + 2);
+    const r = await page.evaluate((v) => {
+      const P = meshpde.positions, iv = meshpde.imageView, step = +document.getElementById('img-axial').step;
+      return { to: iv.movedTo, vertex: [P[3 * v], P[3 * v + 1], P[3 * v + 2]], step,
+        at: iv.slices.map((sl) => sl.position), status: document.getElementById('status').textContent };
+    }, from.vertex);
+    const off = r.to ? [2, 1, 0].map((n, k) => Math.abs(r.at[k] - r.to[n])) : [Infinity];
+    check('a double click on the surface moves the three planes through the picked point',
+          !!r.to && Math.max(...off) <= r.step + 1e-3 && Math.hypot(...r.to.map((x, c) => x - r.vertex[c])) < 3 &&
+          r.at.some((a, k) => Math.abs(a - before[k]) > r.step) && /planes moved through/.test(r.status),
+          JSON.stringify({ ...r, before, off }));
+  }
+
+  // The grip: 100 px wider and 80 px taller; the slice drawn to the new size.
+  const sliceDrawn = () => page.evaluate(() => {
+    const c = document.getElementById('slice-view'), d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;
+    let lit = 0;
+    for (let i = 0; i < d.length; i += 4) if (d[i] > 8) lit += 1;
+    return { w: c.width, h: c.height, lit: lit / (d.length / 4), box: document.getElementById('slice-box').getBoundingClientRect().toJSON() };
+  });
+  const before = await sliceDrawn();
+  const grip = await page.locator('#slice-grip').boundingBox();
+  await page.mouse.move(grip.x + grip.width / 2, grip.y + grip.height / 2);
+  await page.mouse.down();
+  for (let k = 1; k <= 5; ++k) { await page.mouse.move(grip.x + grip.width / 2 + 20 * k, grip.y + grip.height / 2 - 16 * k); await page.waitForTimeout(20); }
+  await page.mouse.up();
+  await page.waitForTimeout(200);
+  const grown = await sliceDrawn();
+  check('the grip resizes the 2D view (up and to the right) and the slice is drawn to the new size',
+        grown.w === before.w + 100 && grown.h === before.h + 80 && Math.abs(grown.box.bottom - before.box.bottom) < 1 &&
+        grown.lit > 0.3, JSON.stringify({ before, grown }));
+  // Docked: the 2D view the left half, the 3D view the right half, both drawn.
+  await page.check('#img-dock');
+  await page.waitForTimeout(400);
+  const dock = await page.evaluate(() => ({ main: document.getElementById('viewport').getBoundingClientRect().toJSON(),
+    gl: document.querySelector('#viewport > canvas').getBoundingClientRect().toJSON(),
+    box: document.getElementById('slice-box').getBoundingClientRect().toJSON(),
+    inner: document.getElementById('slice-box').clientWidth }));
+  const docked2d = await sliceDrawn(), docked3d = await drawnFraction(page);
+  check('docked: the 2D view fills the left half, the 3D view the right half, both drawn',
+        Math.abs(dock.box.width - dock.main.width / 2) < 2 && Math.abs(dock.box.height - dock.main.height) < 2 &&
+        Math.abs(dock.gl.left - (dock.main.left + dock.main.width / 2)) < 2 && Math.abs(dock.gl.width - dock.main.width / 2) < 2 &&
+        docked2d.w === dock.inner && docked2d.lit > 0.3 && docked3d > 0.01,
+        JSON.stringify({ dock, lit: docked2d.lit, drawn3d: docked3d }));
+  await page.screenshot({ path: join(shots, 'editor-image-docked.png') });
+  await page.uncheck('#img-dock');
+  await page.evaluate(() => {
+    const box = document.getElementById('slice-box');
+    box.style.width = box.style.height = '';
+    window.dispatchEvent(new Event('resize'));
+  });
+  await page.waitForTimeout(300);
+  const back = await page.evaluate(() => ({ main: document.getElementById('viewport').clientWidth,
+    gl: document.querySelector('#viewport > canvas').getBoundingClientRect().width,
+    w: document.getElementById('slice-view').width }));
+  check('undocked: the 3D view has the whole width again, the 2D view its first size', Math.abs(back.gl - back.main) < 2 &&
+        back.w === before.w, JSON.stringify(back));
 }
 
 // Slider move to the new slice on screen, on a generated 512 x 512 x 300 CT
@@ -713,6 +825,60 @@ try {
   // ---------------------------------------------------------------- correct, undo, redo
   await page.check('input[name=tool][value=correct]');
   await page.fill('#radius', '6');
+  // Before pressing, the rim of what a drag would touch follows the cursor: on this
+  // sphere (radius 10, centred at the origin) the circle at great-circle distance 6 from
+  // the point under the cursor (orange) and at 1.5, the handle's size (blue), drawn.
+  await page.mouse.move(centre.x - 5, centre.y);
+  await page.mouse.move(centre.x, centre.y);
+  await page.waitForFunction(() => meshpde.rim && meshpde.rim.radius === 6, null, { timeout: 20000 }).catch(() => {});
+  await page.waitForTimeout(300);
+  const rim = await page.evaluate(() => {
+    const r = meshpde.rim;
+    if (!r) return null;
+    const c = r.point, cn = Math.hypot(...c);
+    const gc = (xyz) => {  // great-circle distances (radius 10) of the ends from the point
+      const out = [];
+      for (let i = 0; i < xyz.length; i += 3) {
+        const p = [xyz[i], xyz[i + 1], xyz[i + 2]], n = Math.hypot(...p);
+        out.push(10 * Math.acos(Math.min(1, (p[0] * c[0] + p[1] * c[1] + p[2] * c[2]) / (n * cn))));
+      }
+      return out;
+    };
+    // Rendered: the rim's orange within a pixel of each of its ends on the camera's side,
+    // the handle's blue dot at the point.
+    const gl = document.querySelector('#viewport > canvas');
+    const cv = document.createElement('canvas');
+    cv.width = gl.width; cv.height = gl.height;
+    const ctx = cv.getContext('2d');
+    ctx.drawImage(gl, 0, 0);
+    const cam = meshpde.cameraDirection();
+    const near = (p, test) => {
+      const q = meshpde.canvasPixelOf(p);
+      const d = ctx.getImageData(Math.round(q.x) - 1, Math.round(q.y) - 1, 3, 3).data;
+      for (let i = 0; i < d.length; i += 4) if (test(d[i], d[i + 1], d[i + 2])) return true;
+      return false;
+    };
+    const orange = (R, G, B) => R > 190 && G > 80 && G < 170 && B < 90;
+    let seen = 0, tried = 0;
+    for (let i = 0; i < r.rim.length; i += 3) {
+      const p = [r.rim[i], r.rim[i + 1], r.rim[i + 2]];
+      if ((p[0] * cam[0] + p[1] * cam[1] + p[2] * cam[2]) / Math.hypot(...p) < 0.3) continue;
+      tried += 1;
+      if (near(p, orange)) seen += 1;
+    }
+    const dist = gc(r.rim), handle = gc(r.handle);
+    return { regionVertices: r.regionVertices, handleRadius: r.handleRadius, ends: dist.length,
+      worst: Math.max(...dist.map((d) => Math.abs(d - 6))), handleWorst: Math.max(...handle.map((d) => Math.abs(d - 1.5))),
+      drawn: tried ? seen / tried : 0, tried, dot: near(c, (R, G, B) => B > 140 && R < 90 && G > 80 && G < 160),
+      stat: document.getElementById('stat-rim').textContent, marks: meshpde.marks() };
+  });
+  check('hovering with the correct tool: the rim at the radius on the surface, and the handle\'s at a quarter of it',
+        !!rim && rim.ends > 16 && rim.worst < 0.12 && rim.handleWorst < 0.12 && rim.handleRadius === 1.5 &&
+        rim.marks.rim && rim.marks.handleRim, JSON.stringify(rim));
+  check('the rim and the handle\'s dot are drawn (rendered pixels), and the panel counts the vertices inside',
+        !!rim && rim.tried > 8 && rim.drawn > 0.6 && rim.dot &&
+        rim.stat === `${rim.regionVertices.toLocaleString()} vertices within 6 mm`, JSON.stringify(rim));
+  await page.screenshot({ path: join(shots, 'editor-rim.png') });
   const oks = await page.evaluate(() => meshpde.oks);
   await dragBy(page, centre, 40, -30);
   // While the button is held the surface follows the handle (the drag preview: the
@@ -726,6 +892,19 @@ try {
   }, rest, { timeout: 30000 }).catch(() => {});
   await page.waitForTimeout(500);  // the last move's frame
   const preview = await positions(page);
+  // While dragging: no rim; the handle's dot where the handle is now, and the drag's arrow.
+  {
+    const marks = await page.evaluate(() => meshpde.marks());
+    const drag = await page.evaluate(() => {
+      const { dotAt } = meshpde.marks(), P = meshpde.positions;
+      let best = Infinity;  // the dot is on the previewed surface: its distance to the nearest vertex
+      for (let i = 0; i < P.length; i += 3) best = Math.min(best, Math.hypot(P[i] - dotAt[0], P[i + 1] - dotAt[1], P[i + 2] - dotAt[2]));
+      return best;
+    });
+    check('while dragging the rim is gone, the handle\'s dot rides on the previewed surface and the arrow shows the drag',
+          !marks.rim && !marks.handleRim && marks.dot && marks.arrow && drag < 0.6,
+          JSON.stringify({ ...marks, dot_to_nearest_vertex: drag }));
+  }
   check('a correct drag previews the surface before release', maxDiff(preview, rest) > 0.3,
         `max move ${maxDiff(preview, rest)}`);
   await page.mouse.up();
@@ -737,6 +916,9 @@ try {
   check('the preview when the mouse stops equals the released correction', maxDiff(preview, corrected) < 1e-3,
         `preview vs release ${maxDiff(preview, corrected)}`);
   check('correct moves vertices', maxDiff(corrected, rest) > 0.5, `max move ${maxDiff(corrected, rest)}`);
+  check('the correction moved the region the rim showed before the press',
+        !!rim && (await page.evaluate(() => meshpde.lastCorrect.region_vertices)) === rim.regionVertices,
+        JSON.stringify({ rim: rim && rim.regionVertices, correction: await page.evaluate(() => meshpde.lastCorrect.region_vertices) }));
   // Until the next action the wall is coloured by how far it moved: the rendered colour
   // at the most-moved visible vertex is the colour map's top (yellow: green over blue),
   // at an unmoved visible one its bottom (purple: blue over green).
@@ -873,6 +1055,28 @@ try {
     check('push/pull: an upward drag moves the picked point along the normal, towards the viewer',
           len > 0.3 && Math.abs(along) > 0.98 && towards > 0, JSON.stringify({ len, along, towards }));
     await page.selectOption('#drag-mode', 'screen');
+    const oksU = await page.evaluate(() => meshpde.oks);
+    await page.click('#undo');
+    await page.waitForFunction((n) => meshpde.oks > n && meshpde.lastOk === 'undo', oksU, { timeout: 20000 }).catch(() => {});
+    await movedFrom(before, -1e-5);
+  }
+  // The wheel while the button is held: four notches up pull the picked point out along
+  // its normal by four sixteenths of the radius (1.5 mm at 6 mm), the mouse still.
+  {
+    const before = await positions(page);
+    const oksW = await page.evaluate(() => meshpde.oks);
+    await page.mouse.move(centre.x, centre.y);
+    await page.mouse.down();
+    for (let k = 0; k < 4; ++k) { await page.mouse.wheel(0, -100); await page.waitForTimeout(60); }
+    await page.mouse.up();
+    await page.waitForFunction((n) => meshpde.oks > n && meshpde.lastOk === 'correct', oksW, { timeout: 60000 }).catch(() => {});
+    await page.waitForTimeout(300);
+    const after = await positions(page);
+    const { at, moved } = await handlePointMotion(page, before, after);
+    const len = Math.hypot(...moved);
+    const along = moved.reduce((sum, m, c) => sum + m * at[c], 0) / (len * Math.hypot(...at));
+    check('the wheel during a drag pulls the picked point out along the normal, a sixteenth of the radius a notch',
+          Math.abs(len - 1.5) < 0.01 && along > 0.99, JSON.stringify({ len, along }));
     const oksU = await page.evaluate(() => meshpde.oks);
     await page.click('#undo');
     await page.waitForFunction((n) => meshpde.oks > n && meshpde.lastOk === 'undo', oksU, { timeout: 20000 }).catch(() => {});

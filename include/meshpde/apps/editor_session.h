@@ -23,10 +23,21 @@
 #include "meshpde/apps/vessel_correction.h"
 #include "meshpde/io/mesh_io.h"
 #include "meshpde/mesh/caps.h"
+#include "meshpde/mesh/level_set.h"
 #include "meshpde/operators/laplacian.h"
 #include "meshpde/pde/pde_session.h"
 
 namespace meshpde {
+
+/// What a drag at a surface point would touch (EditorSession::region_rim): the curves on
+/// the surface at the correction's region radius and at its handle's size, both measured
+/// on the surface from the point (mesh/geodesic_distance.h), as the correction measures.
+struct RegionRim {
+  std::vector<LevelSetSegment> rim;     ///< where the surface distance is the radius
+  std::vector<LevelSetSegment> handle;  ///< where it is the handle's radius (empty for a point handle)
+  int region_vertices = 0;              ///< vertices nearer than the radius
+  double handle_radius = 0;             ///< mm: the default handle's size for this radius
+};
 
 class EditorSession {
  public:
@@ -82,6 +93,11 @@ class EditorSession {
   double drag_begin(const SurfacePoint& point, double radius, const Eigen::VectorXd& stiffness = Eigen::VectorXd(),
                     const TissueParams& tissue = {});
   void drag_move(const Eigen::Vector3d& offset);
+  /// The rim of the region a drag at `point` with this radius would move, and of its
+  /// handle (the page draws them under the cursor before a press). Costs one surface
+  /// distance computation over the region (a few ms for 10k vertices).
+  /// \throw InputError for a bad point or radius.
+  RegionRim region_rim(const SurfacePoint& point, double radius) const;
   void drag_end();  ///< drops the preview (correct() drops it too)
   bool dragging() const { return preview_ != nullptr; }
   int drag_region_vertices() const;
