@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cstdint>
+#include <cstring>
 #include <filesystem>
 #include <nlohmann/json.hpp>
 #include <vector>
@@ -22,6 +23,7 @@
 #include "meshpde/io/dicom.h"
 #include "meshpde/io/medical_io.h"
 #include "meshpde/io/segmentation_io.h"
+#include "meshpde/io/zip_archive.h"
 #endif
 
 namespace meshpde::cli {
@@ -82,7 +84,114 @@ double number(const nlohmann::json& j, const char* key, double fallback) {
   return j[key].get<double>();
 }
 
+// A session file's binary entries, read with every length checked.
+struct Reader {
+  const std::string& bytes;
+  std::string what;
+  std::size_t at = 0;
+  template <class T>
+  T take() {
+    if (bytes.size() - at < sizeof(T)) throw InputError(fmt::format("{}: ends early (byte {})", what, at));
+    T v;
+    std::memcpy(&v, bytes.data() + at, sizeof(T));
+    at += sizeof(T);
+    return v;
+  }
+  void magic(const char* m) {
+    if (bytes.compare(0, 4, m) != 0) throw InputError(fmt::format("{}: does not start with {}", what, m));
+    at = 4;
+  }
+  void end() const {
+    if (at != bytes.size())
+      throw InputError(fmt::format("{}: {} bytes more than it declares", what, bytes.size() - at));
+  }
+};
+
+// history.bin: "MPH1", u32 vertices, u32 steps, u32 current; the original positions (f64
+// x, y, z a vertex, mm); then for each later step u32 n and n times (u32 vertex, f64 x,
+// y, z): the vertices whose position differs from the step before, where they are.
+std::string encode_history(const std::vector<Positions>& h, std::size_t current) {
+  std::string b = "MPH1";
+  const auto nv = static_cast<std::uint32_t>(h.front().rows());
+  put<std::uint32_t>(b, nv);
+  put<std::uint32_t>(b, static_cast<std::uint32_t>(h.size()));
+  put<std::uint32_t>(b, static_cast<std::uint32_t>(current));
+  for (std::uint32_t v = 0; v < nv; ++v)
+    for (int c = 0; c < 3; ++c) put<double>(b, h.front()(v, c));
+  for (std::size_t k = 1; k < h.size(); ++k) {
+    std::vector<std::uint32_t> changed;
+    for (std::uint32_t v = 0; v < nv; ++v)
+      if (h[k].row(v) != h[k - 1].row(v)) changed.push_back(v);
+    put<std::uint32_t>(b, static_cast<std::uint32_t>(changed.size()));
+    for (const std::uint32_t v : changed) {
+      put<std::uint32_t>(b, v);
+      for (int c = 0; c < 3; ++c) put<double>(b, h[k](v, c));
+    }
+  }
+  return b;
+}
+
+std::pair<std::vector<Positions>, std::size_t> decode_history(const std::string& bytes, const std::string& what,
+                                                              Eigen::Index vertices) {
+  Reader r{bytes, what};
+  r.magic("MPH1");
+  const auto nv = r.take<std::uint32_t>(), steps = r.take<std::uint32_t>(), current = r.take<std::uint32_t>();
+  if (nv != vertices) throw InputError(fmt::format("{}: for {} vertices, the mesh has {}", what, nv, vertices));
+  if (steps < 1 || current >= steps) throw InputError(fmt::format("{}: {} steps, at step {}", what, steps, current));
+  // Each step takes at least 4 bytes: a count that cannot be met is refused before
+  // anything is allocated for it.
+  if (steps > bytes.size() / 4) throw InputError(fmt::format("{}: {} steps in {} bytes", what, steps, bytes.size()));
+  std::vector<Positions> h;
+  h.emplace_back(static_cast<Eigen::Index>(nv), 3);
+  for (std::uint32_t v = 0; v < nv; ++v)
+    for (int c = 0; c < 3; ++c) h.back()(v, c) = r.take<double>();
+  for (std::uint32_t k = 1; k < steps; ++k) {
+    h.push_back(h.back());
+    const auto n = r.take<std::uint32_t>();
+    for (std::uint32_t i = 0; i < n; ++i) {
+      const auto v = r.take<std::uint32_t>();
+      if (v >= nv) throw InputError(fmt::format("{}: step {} moves vertex {} of {}", what, k, v, nv));
+      for (int c = 0; c < 3; ++c) h.back()(v, c) = r.take<double>();
+    }
+  }
+  r.end();
+  return {std::move(h), current};
+}
+
+// tissue.bin: "MPT1", then the stiffness, mass, elasticity and viscosity fields, each
+// u32 n (0: none, else one a vertex) and n f64.
+std::string encode_tissue(const CorrectionParams& t) {
+  std::string b = "MPT1";
+  for (const Eigen::VectorXd* f :
+       {&t.stiffness, &t.tissue.mass_field, &t.tissue.elasticity_field, &t.tissue.viscosity_field}) {
+    put<std::uint32_t>(b, static_cast<std::uint32_t>(f->size()));
+    for (Eigen::Index i = 0; i < f->size(); ++i) put<double>(b, (*f)[i]);
+  }
+  return b;
+}
+
+CorrectionParams decode_tissue(const std::string& bytes, const std::string& what, Eigen::Index vertices) {
+  Reader r{bytes, what};
+  r.magic("MPT1");
+  CorrectionParams t;
+  for (Eigen::VectorXd* f :
+       {&t.stiffness, &t.tissue.mass_field, &t.tissue.elasticity_field, &t.tissue.viscosity_field}) {
+    const auto n = r.take<std::uint32_t>();
+    if (n != 0 && n != vertices)
+      throw InputError(fmt::format("{}: a field of {} values for {} vertices", what, n, vertices));
+    f->resize(n);
+    for (std::uint32_t i = 0; i < n; ++i) (*f)[i] = r.take<double>();
+    if (!f->allFinite()) throw InputError(fmt::format("{}: a value is not finite", what));
+  }
+  r.end();
+  return t;
+}
+
 }  // namespace
+
+bool is_session_file(const std::string& name) {
+  return lower_name(name).ends_with(".meshpde");
+}
 
 Loaded parse_mesh_bytes(const std::string& bytes, const std::string& name) {
   Loaded l;
@@ -100,8 +209,8 @@ Loaded parse_mesh_bytes(const std::string& bytes, const std::string& name) {
     // Everything the page opens, meshes and volumes: the upload is either.
 #ifdef MESHPDE_HAVE_MEDICAL
     throw InputError(
-        fmt::format("{}: the editor opens meshes (.obj .off .ply .stl .vtp .vtk) and volumes (.mha "
-                    ".nii .nii.gz .nrrd, or a DICOM series zipped into one .zip)",
+        fmt::format("{}: the editor opens meshes (.obj .off .ply .stl .vtp .vtk), volumes (.mha "
+                    ".nii .nii.gz .nrrd, or a DICOM series zipped into one .zip) and sessions it saved (.meshpde)",
                     l.name));
 #else
     throw InputError(
@@ -246,10 +355,15 @@ void EditorPage::load(Loaded l) {
   // and displacement typed); save() scales back.
   MeshData mm = l.data;
   mm.V *= millimetres_per(l.units);
-  session_ = std::make_unique<EditorSession>(mm, image_ ? image_->edges : nullptr, space_, laplacian_);
+  auto session = std::make_unique<EditorSession>(mm, image_ ? image_->edges : nullptr, space_, laplacian_);
+  open(std::move(l), std::move(session), nullptr);
+}
+
+void EditorPage::open(Loaded l, std::unique_ptr<EditorSession> session, const nlohmann::json& page) {
+  session_ = std::move(session);
   source_ = std::move(l);
   tissue_ = CorrectionParams{};
-  intersections_ = 0;
+  intersections_ = session_->self_intersections();
   const Mesh& m = session_->mesh();
   nlohmann::json segmentation = nullptr;
 #ifdef MESHPDE_HAVE_MEDICAL
@@ -275,6 +389,8 @@ void EditorPage::load(Loaded l) {
              {"units", to_string(source_.units)},
              {"space", to_string(space_)},  // the patient frame of the coordinates: the page's standard views
              {"units_warning", units.empty() ? nlohmann::json() : nlohmann::json(units)},
+             {"page", page},  // a reopened session's page settings (null otherwise)
+             {"history_step", session_->history_step()},
              {"fields", [&] {
                 std::vector<std::string> names;
                 for (const auto& [k, v] : source_.data.vertex_scalars) names.push_back(k);
@@ -338,6 +454,7 @@ void EditorPage::upload_image(const std::string& bytes, const std::string& name)
 }
 
 int EditorPage::upload(const std::string& bytes, const std::string& name) {
+  if (is_session_file(name)) return open_session(bytes, name);
   Loaded l = parse_mesh_bytes(bytes, name);
   l.units = upload_units_;
   const Mesh check(l.data.V, l.data.F);  // validates before the page's mesh is replaced
@@ -374,6 +491,107 @@ std::pair<std::string, std::string> EditorPage::save(const SaveOptions& options)
   // The frame the page worked in (--space, else the file's tag, else LPS).
   d.space = to_string(space_);
   return {mesh_bytes(d, name), name};
+}
+
+// A session file: a zip archive of session.json (what is where, the frame, the page's
+// settings), mesh.vtp (the mesh as it was opened, in its own unit, every array kept),
+// history.bin, tissue.bin and image.mha (the volume as read, when the page has one).
+std::pair<std::string, std::string> EditorPage::save_session(const std::string& page) const {
+#ifdef MESHPDE_HAVE_MEDICAL
+  if (!session_) throw InputError("no mesh loaded");
+  const auto settings = nlohmann::json::parse(page.empty() ? std::string("{}") : page, nullptr, false);
+  if (settings.is_discarded() || !settings.is_object())
+    throw InputError("session: the page's settings are not a JSON object");
+  const bool tissue = tissue_.stiffness.size() || tissue_.tissue.mass_field.size() ||
+                      tissue_.tissue.elasticity_field.size() || tissue_.tissue.viscosity_field.size();
+  nlohmann::json j = {
+      {"format", "meshpde-session"},
+      {"version", 1},
+      {"mesh", {{"file", "mesh.vtp"}, {"name", source_.name}, {"units", to_string(source_.units)}}},
+      {"space", to_string(space_)},
+      {"history",
+       {{"file", "history.bin"}, {"steps", session_->history().size()}, {"current", session_->history_step()}}},
+      {"tissue", tissue ? nlohmann::json{{"file", "tissue.bin"}} : nlohmann::json()},
+      {"image", image_ ? nlohmann::json{{"file", "image.mha"}, {"name", image_->name}} : nlohmann::json()},
+      {"page", settings}};
+  std::vector<std::pair<std::string, std::string>> entries;
+  entries.emplace_back("session.json", j.dump(1));
+  entries.emplace_back("mesh.vtp", write_vtk_mesh_to_memory(source_.data, "vtp"));
+  entries.emplace_back("history.bin", encode_history(session_->history(), session_->history_step()));
+  if (tissue) entries.emplace_back("tissue.bin", encode_tissue(tissue_));
+  if (image_) entries.emplace_back("image.mha", write_metaimage_to_memory(*image_->volume));
+  return {write_zip(entries), fs::path(source_.name).stem().string() + "-session.meshpde"};
+#else
+  (void)page;
+  throw InputError("session files need meshpde built with meshpde::medical");
+#endif
+}
+
+int EditorPage::open_session(const std::string& bytes, const std::string& name) {
+#ifdef MESHPDE_HAVE_MEDICAL
+  const std::string base = fs::path(name).filename().string();
+  // The image as float voxels, the mesh and the history: bounded like an upload.
+  const auto entries = read_zip_entries(bytes, base, 4 * kMaxUploadedVoxels + (std::size_t{1} << 30));
+  const auto entry = [&](const std::string& e) -> const std::string& {
+    const auto it = entries.find(e);
+    if (it == entries.end()) throw InputError(fmt::format("{}: the session has no {}", base, e));
+    return it->second;
+  };
+  const auto j = nlohmann::json::parse(entry("session.json"), nullptr, false);
+  if (j.is_discarded() || !j.is_object() || j.value("format", std::string()) != "meshpde-session")
+    throw InputError(
+        fmt::format("{}: not a meshpde session (session.json names no \"format\": \"meshpde-session\")", base));
+  if (j.value("version", 0) != 1)
+    throw InputError(
+        fmt::format("{}: a session of version {}; this meshpde reads version 1", base, j.value("version", 0)));
+  const auto text = [&](const nlohmann::json& o, const char* key) {
+    if (!o.is_object() || !o.contains(key) || !o[key].is_string())
+      throw InputError(fmt::format("{}: session.json has no \"{}\"", base, key));
+    return o[key].get<std::string>();
+  };
+  Loaded l;
+  l.name = fs::path(text(j["mesh"], "name")).filename().string();
+  l.units = parse_length_unit(text(j["mesh"], "units"));
+  const std::string mesh_file = text(j["mesh"], "file");
+  l.data = read_vtk_mesh_from_memory(entry(mesh_file), "vtp", base + ": " + mesh_file);
+  const Space space = parse_space(text(j, "space"));
+  auto [history, current] = decode_history(entry(text(j["history"], "file")), base + ": history", l.data.V.rows());
+  CorrectionParams tissue;
+  if (j.contains("tissue") && !j["tissue"].is_null())
+    tissue = decode_tissue(entry(text(j["tissue"], "file")), base + ": tissue", l.data.V.rows());
+  std::shared_ptr<const EditorImage> image = image_;
+  if (j.contains("image") && !j["image"].is_null()) {
+    const std::string image_file = text(j["image"], "file"), image_name = text(j["image"], "name");
+    static std::atomic<unsigned> serial{0};
+    const fs::path tmp = fs::temp_directory_path() / fmt::format("meshpde-session-{}-{}.mha", ::getpid(), ++serial);
+    struct RemoveAtExit {
+      fs::path path;
+      ~RemoveAtExit() {
+        std::error_code ec;
+        fs::remove(path, ec);
+      }
+    } remove_at_exit{tmp};
+    write_file_atomically(tmp, entry(image_file));
+    Volume v = read_volume(tmp, kMaxUploadedVoxels);
+    v.name = image_name;
+    image = prepare_editor_image(std::move(v), image_name);
+  }
+  // The whole session is built before anything of the page changes: a damaged file
+  // leaves the page as it was.
+  MeshData mm = l.data;
+  mm.V = history.front();  // the original positions in mm, exactly as saved
+  auto session = std::make_unique<EditorSession>(mm, image ? image->edges : nullptr, space, laplacian_);
+  session->restore_history(std::move(history), current);
+  const nlohmann::json page = j.contains("page") && j["page"].is_object() ? j["page"] : nlohmann::json::object();
+  image_ = image;
+  space_ = space;
+  open(std::move(l), std::move(session), page);
+  tissue_ = std::move(tissue);
+  return session_->mesh().num_vertices();
+#else
+  (void)bytes;
+  throw InputError(fmt::format("{}: session files need meshpde built with meshpde::medical", name));
+#endif
 }
 
 void EditorPage::handle(const std::string& payload, bool binary) {

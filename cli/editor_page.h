@@ -79,6 +79,8 @@ struct EditorImage {
 std::shared_ptr<const EditorImage> load_editor_image(const std::string& path, const std::string& series = "");
 /// The same for a volume read already; `name` is shown on the page.
 std::shared_ptr<const EditorImage> prepare_editor_image(Volume volume, const std::string& name);
+/// Whether an upload named `name` is a saved editor session (*.meshpde: EditorPage::save_session).
+bool is_session_file(const std::string& name);
 /// Whether an upload named `name` is a volume (by its extension; a .zip holds a DICOM
 /// series) rather than a mesh.
 bool is_volume_upload(const std::string& name);
@@ -132,8 +134,23 @@ class EditorPage {
   /// as the SPACE tag (.vtp field data, .vtk title).
   /// \throw InputError with no mesh loaded or an unknown format.
   std::pair<std::string, std::string> save(const SaveOptions& options = {}) const;
+  /// The page's session as one file and the name to download it as (NAME-session.meshpde):
+  /// the mesh as it was opened (every array kept), every correction with the undo and
+  /// redo history and the step shown, the tissue brushes, the image (as read) and the
+  /// frame, and `page` (a JSON object: the page's own settings, given back on reopening).
+  /// Paint, heat and wave are not kept. \throw InputError with no mesh loaded or `page`
+  /// not a JSON object.
+  std::pair<std::string, std::string> save_session(const std::string& page) const;
+  /// Reopens a saved session (an upload named *.meshpde): its mesh, history at its step,
+  /// tissue, image (else the page keeps its own) and frame; the "mesh" message carries
+  /// its page settings. Returns the vertex count. \throw InputError naming the file and
+  /// what is wrong (the page keeps what it had).
+  int open_session(const std::string& bytes, const std::string& name);
 
  private:
+  // Makes `session` (built for `l`) the page's and sends it: a "mesh" message (with a
+  // reopened session's page settings, `page`) and a MESH frame.
+  void open(Loaded l, std::unique_ptr<EditorSession> session, const nlohmann::json& page);
   void send_json(const nlohmann::json& j);
   void send_binary(std::string bytes);
   void send_stats(bool now);

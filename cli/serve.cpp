@@ -227,6 +227,17 @@ class EditorServer {
         throw InputError("--units goes with a MESH: a segmentation's surface is made in millimetres");
       segmentation_ = load_editor_segmentation(a.segmentation, a.segment, a.overwrite);
       initial_ = segmentation_surface(*segmentation_);  // in LPS, as its space says
+    } else if (!a.mesh.empty() && is_session_file(a.mesh)) {
+      // A saved session: each page reopens it. Opened once here, so that a damaged file
+      // is refused at the start rather than on every page.
+      std::ifstream in(a.mesh, std::ios::binary);
+      if (!in) throw InputError(fmt::format("{}: cannot open", a.mesh));
+      std::ostringstream bytes;
+      bytes << in.rdbuf();
+      initial_session_ = bytes.str();
+      initial_session_name_ = fs::path(a.mesh).filename().string();
+      EditorPage check(PageSink{.text = [](std::string) {}, .binary = [](std::string) {}}, nullptr, Space::LPS);
+      check.open_session(initial_session_, initial_session_name_);
     } else if (!a.mesh.empty()) {
       initial_.data = read_mesh_file(a.mesh);
       initial_.name = fs::path(a.mesh).filename().string();
@@ -286,7 +297,10 @@ class EditorServer {
     page.worker->post(
         [this, h, c] {
           try {
-            c->load(initial_);
+            if (initial_session_.empty())
+              c->load(initial_);
+            else
+              c->open_session(initial_session_, initial_session_name_);
           } catch (const std::exception& e) {
             send_json(h, {{"type", "error"}, {"message", e.what()}});
           }
@@ -382,9 +396,11 @@ class EditorServer {
     const std::string path = req.resource.substr(0, qpos);
     const auto query = query_params(qpos == std::string::npos ? "" : req.resource.substr(qpos + 1));
     try {
-      if (path == "/api/upload" || path == "/api/save") {
-        const bool upload = path == "/api/upload";
+      if (path == "/api/upload" || path == "/api/save" || path == "/api/session") {
+        const bool upload = path == "/api/upload", session = path == "/api/session";
         if (upload && req.method != "POST") return respond(json_response(405, {{"error", "POST the file"}}));
+        if (session && req.method != "POST")
+          return respond(json_response(405, {{"error", "POST the page's settings (a JSON object)"}}));
         Hdl h = 0;
         Page* p = find_page(query, h);
         if (!p) return respond(json_response(400, {{"error", "unknown client"}}));
@@ -394,7 +410,7 @@ class EditorServer {
         SaveOptions save_options;
         if (query.count("format")) save_options.format = query.at("format");
         save_options.displacement = query.count("displacement") && query.at("displacement") == "1";
-        auto task = [c, upload, respond, body = req.body, save_options,
+        auto task = [c, upload, session, respond, body = req.body, save_options,
                      name = query.count("name") ? query.at("name") : std::string("upload.ply")] {
           try {
             if (upload && is_volume_upload(name)) {
@@ -404,7 +420,7 @@ class EditorServer {
               const int vertices = c->upload(body, name);
               respond(json_response(200, {{"ok", true}, {"vertices", vertices}}));
             } else {
-              auto [bytes, filename] = c->save(save_options);
+              auto [bytes, filename] = session ? c->save_session(body) : c->save(save_options);
               net::HttpResponse r{200, std::move(bytes), "application/octet-stream", {}};
               r.headers.emplace_back("Content-Disposition", fmt::format("attachment; filename=\"{}\"", filename));
               respond(std::move(r));
@@ -433,6 +449,7 @@ class EditorServer {
   net::WebServer server_;
   fs::path web_root_;
   Loaded initial_;
+  std::string initial_session_, initial_session_name_;  // a saved session each page opens
   Space space_ = Space::LPS;
   LengthUnit units_ = LengthUnit::Millimetre;
   LaplacianKind laplacian_ = LaplacianKind::Auto;
@@ -460,7 +477,8 @@ void add_serve_command(CLI::App& app) {
   auto* cmd = app.add_subcommand("serve", "Interactive browser editor: poke, correct, paint, heat and wave, live");
   auto a = std::make_shared<ServeArgs>();
   a->web_root = default_web_root();
-  cmd->add_option("MESH", a->mesh, "Mesh to open (default: a generated dented bifurcation)");
+  cmd->add_option("MESH", a->mesh,
+                  "Mesh to open, or a session saved by the page (.meshpde) (default: a generated dented bifurcation)");
   cmd->add_option("--port", a->port, "TCP port (0: any free port)")->capture_default_str();
   cmd->add_option("--host", a->host, "Address to bind (default loopback only; 0.0.0.0 exposes the editor)")
       ->capture_default_str();

@@ -17,9 +17,11 @@
 #include "meshpde/core/errors.h"
 #include "meshpde/image/volume_slice.h"
 #include "meshpde/io/medical_io.h"
+#include "meshpde/io/zip_archive.h"
 #include "meshpde/mesh/mesh.h"
 #include "solver_problems.h"
 #include "test_data.h"
+#include "test_support.h"
 
 using namespace meshpde;
 namespace fs = std::filesystem;
@@ -791,4 +793,58 @@ TEST(Vtp, EveryRealVtpMeshGetsTheDirectSolversAnswerFromTheGlobalSolver) {
     if (!test::have_data(name)) continue;
     test::expect_global_matches_direct(name, read_any_mesh(test::data_dir() / name));
   }
+}
+
+// write_metaimage_to_memory: an oblique volume with odd spacing and non-integer values
+// reads back exactly (every voxel, origin, spacing and direction bit for bit).
+TEST(Volume, AMetaImageWrittenInMemoryReadsBackExactly) {
+  Volume v;
+  v.dims = {4, 5, 6};
+  v.values = ramp(4, 5, 6);
+  for (float& x : v.values) x = x / 3.0f - 7.25f;
+  v.spacing = kSpacing;
+  v.origin = kOffset + Eigen::Vector3d(0.1, 1.0 / 3, -2.0 / 7);
+  v.direction = rotation();
+  const fs::path mha = scratch("written.mha");
+  write_bytes(mha, write_metaimage_to_memory(v));
+  const Volume back = read_volume(mha);
+  EXPECT_EQ(back.dims, v.dims);
+  EXPECT_EQ(back.values, v.values);
+  EXPECT_EQ(back.spacing, v.spacing);
+  EXPECT_EQ(back.origin, v.origin);
+  EXPECT_EQ(back.direction, v.direction);
+  v.spacing[1] = 0;
+  EXPECT_THROW(write_metaimage_to_memory(v), InputError);
+}
+
+// io/zip_archive.h: entries written into an archive in memory read back as they were
+// (empty, binary with zero bytes, a megabyte); a damaged or oversized archive is
+// refused naming it.
+TEST(Zip, AnArchiveWrittenInMemoryReadsBackItsEntries) {
+  std::string binary(1000, '\0');
+  for (std::size_t i = 0; i < binary.size(); i += 7) binary[i] = static_cast<char>(i);
+  std::string big(1 << 20, 'x');
+  for (std::size_t i = 0; i < big.size(); i += 4096) big[i] = static_cast<char>('a' + i % 26);
+  const std::vector<std::pair<std::string, std::string>> entries = {
+      {"session.json", R"({"format": "meshpde-session"})"},
+      {"empty.bin", ""},
+      {"binary.bin", binary},
+      {"big.txt", big}};
+  const std::string zip = write_zip(entries);
+  EXPECT_LT(zip.size(), big.size() / 10) << "entries are deflated";
+  const auto back = read_zip_entries(zip, "test.meshpde", 2 << 20);
+  ASSERT_EQ(back.size(), entries.size());
+  for (const auto& [name, data] : entries) EXPECT_EQ(back.at(name), data) << name;
+  // Beyond the size given: refused before unpacking.
+  EXPECT_NE(
+      test::error_of([&] { read_zip_entries(zip, "test.meshpde", 1 << 20); }).find("test.meshpde: unpacks to more"),
+      std::string::npos);
+  // Cut short, or not an archive at all.
+  EXPECT_NE(test::error_of([&] {
+              read_zip_entries(zip.substr(0, zip.size() / 2), "cut.meshpde", 2 << 20);
+            }).find("cut.meshpde"),
+            std::string::npos);
+  EXPECT_NE(
+      test::error_of([&] { read_zip_entries("not a zip", "text.meshpde", 2 << 20); }).find("text.meshpde: not a zip"),
+      std::string::npos);
 }

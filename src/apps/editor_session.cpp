@@ -226,6 +226,14 @@ void EditorSession::undo() {
   geometry_.refresh();
 }
 
+void EditorSession::restore_history(std::vector<Positions> history, std::size_t current) {
+  clear_moved_field();
+  drag_end();
+  stop_poke();
+  correction_.restore(std::move(history), current);
+  geometry_.refresh();
+}
+
 void EditorSession::redo() {
   clear_moved_field();
   drag_end();

@@ -1333,6 +1333,31 @@ void CorrectionSession::redo() {
   mesh_.set_positions(history_[current_]);
 }
 
+void CorrectionSession::restore(std::vector<Positions> history, std::size_t current) {
+  const Positions& original = history_.front();
+  if (history.empty() || current >= history.size())
+    throw InputError(fmt::format("a history of {} steps cannot be at step {}", history.size(), current));
+  std::vector<int> touched;
+  std::vector<char> moved(static_cast<std::size_t>(original.rows()), 0);
+  for (std::size_t k = 0; k < history.size(); ++k) {
+    const Positions& P = history[k];
+    if (P.rows() != original.rows() || !P.allFinite())
+      throw InputError(fmt::format("history step {}: {} positions for {} vertices, or one not finite", k, P.rows(),
+                                   original.rows()));
+    if (k == 0 && P != original) throw InputError("history step 0 is not the mesh's own positions");
+    for (Eigen::Index v = 0; v < P.rows(); ++v)
+      if (!moved[static_cast<std::size_t>(v)] && P.row(v) != original.row(v)) {
+        moved[static_cast<std::size_t>(v)] = 1;
+        touched.push_back(static_cast<int>(v));
+      }
+  }
+  std::sort(touched.begin(), touched.end());
+  history_ = std::move(history);
+  current_ = current;
+  touched_ = std::move(touched);
+  mesh_.set_positions(history_[current_]);
+}
+
 int CorrectionSession::new_self_intersections() const {
   return original_checker_.count_new(mesh_.positions(), touched_);
 }

@@ -12,6 +12,9 @@
 
 #include "meshpde/io/mesh_io.h"
 #include "meshpde/mesh/generators.h"
+#ifdef MESHPDE_FUZZ_EDITOR
+#include "editor_page.h"
+#endif
 #ifdef MESHPDE_FUZZ_MEDICAL
 #include "meshpde/io/medical_io.h"
 #endif
@@ -274,6 +277,23 @@ int write_seeds(const fs::path& root) {
 )",
       count);
   put(root / "vtk", "binary.vtk", write_vtk_mesh_to_memory(m, "vtk"), count);
+#ifdef MESHPDE_FUZZ_EDITOR
+  {
+    // A saved session: a correction made, another undone, a tissue brush, no image.
+    cli::EditorPage page(cli::PageSink{.text = [](std::string) {}, .binary = [](std::string) {}}, nullptr, Space::RAS);
+    cli::Loaded l;
+    l.data = m;
+    l.name = "small.vtp";
+    page.load(l);
+    for (const char* message :
+         {R"({"type": "brush", "vertex": 1, "radius": 3, "value": 5})",
+          R"({"type": "correct", "vertex": 2, "move": [0, 0, 0.1], "radius": 4})",
+          R"({"type": "correct", "vertex": 3, "move": [0.1, 0, 0], "radius": 4})", R"({"type": "undo"})"})
+      page.handle(message, false);
+    put(root / "editor_upload", "upload-session.bin",
+        std::string(1, '\x07') + page.save_session(R"({"tool": "correct"})").first, count);
+  }
+#endif
   put(root / "vtk", "ascii.vtk",
       "# vtk DataFile Version 3.0\nSPACE=RAS\nASCII\nDATASET POLYDATA\nPOINTS 4 float\n0 0 0 1 0 0 1 1 0 0 1 0\n"
       "POLYGONS 1 5\n4 0 1 2 3\nPOINT_DATA 4\nSCALARS s float 1\nLOOKUP_TABLE default\n1 2 3 4\n",

@@ -261,9 +261,10 @@ int editor_message(const std::uint8_t* data, std::size_t size) {
 int editor_upload(const std::uint8_t* data, std::size_t size) {
   return guarded([&] {
     if (size == 0) return;
-    static const char* kNames[] = {"up.obj", "up.off", "up.ply", "up.stl", "up.vtp", "up.vtk", "series.zip"};
+    static const char* kNames[] = {"up.obj", "up.off", "up.ply",     "up.stl",
+                                   "up.vtp", "up.vtk", "series.zip", "session.meshpde"};
     cli::EditorPage page(checking_sink(), nullptr, Space::LPS);
-    const char* name = kNames[data[0] % 7];
+    const char* name = kNames[data[0] % 8];
     if (cli::is_volume_upload(name)) {  // a DICOM series zipped
       page.upload_image(bytes(data + 1, size - 1), name);
       return;

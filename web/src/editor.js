@@ -141,7 +141,45 @@ function buildMesh(buf) {
   fitView(HOME_DIRECTION, HOME_UP);
   imageView.onMeshLoaded();
   imageView.onPositions();
+  // A reopened session: its settings, camera and image view as they were saved.
+  if (pendingPage) { applyPageSettings(pendingPage); pendingPage = null; }
   state.ready = true;
+}
+
+// ---------------------------------------------------------------- a session's settings
+// What a saved session keeps of the page (EditorPage::save_session stores it as given):
+// the tools' options, the view and the image's.
+const SETTING_INPUTS = ['reach', 'radius', 'method', 'drag-mode', 'image', 'dynamic', 'brush-property', 'brush-value',
+  'brush-radius', 'paint-value', 'g1', 'g2', 'wireframe', 'surface', 'save-format', 'save-displacement'];
+function pageSettings() {
+  const inputs = {};
+  for (const id of SETTING_INPUTS) inputs[id] = $(id).type === 'checkbox' ? $(id).checked : $(id).value;
+  return { tool: tool(), inputs, camera: { position: camera.position.toArray(), target: controls.target.toArray(),
+    up: camera.up.toArray() }, image: state.imageView.image ? imageView.settings() : null };
+}
+let pendingPage = null;
+function applyPageSettings(s) {
+  for (const id of SETTING_INPUTS) {
+    const v = s.inputs?.[id];
+    if (v === undefined) continue;
+    if ($(id).type === 'checkbox') $(id).checked = !!v;
+    else $(id).value = v;
+    $(id).dispatchEvent(new Event('input'));
+    $(id).dispatchEvent(new Event('change'));
+  }
+  const radio = document.querySelector(`input[name=tool][value="${s.tool}"]`);
+  if (radio) { radio.checked = true; radio.dispatchEvent(new Event('change')); }
+  const c = s.camera;
+  if (c && [c.position, c.target, c.up].every((x) => Array.isArray(x) && x.length === 3 && x.every(Number.isFinite))) {
+    camera.up.fromArray(c.up);
+    camera.position.fromArray(c.position);
+    makeControls();
+    controls.target.fromArray(c.target);
+    camera.lookAt(controls.target);
+    controls.update();
+  }
+  imageView.applySettings(s.image);
+  invalidate();
 }
 
 // The view a mesh opens with, and reset view: from the front right above, y up.
@@ -274,11 +312,15 @@ ws.onmessage = (ev) => {
   else if (m.type === 'mesh') {
     state.ready = false; state.name = m.name; state.meanEdge = m.mean_edge; state.space = m.space || 'LPS';
     state.segmentation = m.segmentation;
+    pendingPage = m.page || null;
+    state.historyStep = m.history_step;
     $('mesh-name').textContent = `${m.name}: ${m.vertices.toLocaleString()} vertices`;
     $('save').title = m.segmentation
       ? `Download the edited surface, and write ${m.segmentation.output} beside ${m.segmentation.input}`
       : 'Download the edited mesh in its own format';
     const notes = [];
+    if (m.page) notes.push(`reopened a saved session of ${m.name}: ${m.history_step} correction` +
+                           `${m.history_step === 1 ? '' : 's'} applied, with their undo and redo`);
     if (m.segmentation) notes.push(`editing segment '${m.segmentation.segment}' of ${m.segmentation.input}`);
     if (m.held_vertices) notes.push(`${m.held_vertices} vertices of flat caps are held`);
     if (m.units && m.units !== 'mm') notes.push(`${m.name} is in ${m.units}: shown and edited in mm, saved in ${m.units}`);
@@ -664,7 +706,7 @@ async function upload(file) {
     try { msg = (await r.json()).error || msg; } catch { /* not JSON: keep the status */ }
     status(`upload refused: ${msg}`, true);
     state.lastError = msg; state.errors += 1;
-  } else status(`opened ${file.name}`);
+  } else if (!/\.meshpde$/i.test(file.name)) status(`opened ${file.name}`);  // a session says what it reopened
 }
 $('file').onchange = () => { if ($('file').files[0]) upload($('file').files[0]); };
 viewport.addEventListener('dragover', (ev) => { ev.preventDefault(); viewport.classList.add('drop'); });
@@ -674,6 +716,24 @@ viewport.addEventListener('drop', (ev) => {
   viewport.classList.remove('drop');
   if (ev.dataTransfer.files[0]) upload(ev.dataTransfer.files[0]);
 });
+// The whole session as one file: the server writes the mesh, the corrections with
+// their history, the tissue and the image; the page adds its settings.
+$('save-session').onclick = async () => {
+  const r = await fetch(`/api/session?client=${state.client}`, { method: 'POST', body: JSON.stringify(pageSettings()) });
+  if (!r.ok) {
+    const why = (await r.json().catch(() => ({}))).error;
+    status(`saving the session failed: ${why || r.status}`, true);
+    return;
+  }
+  const name = /filename="([^"]+)"/.exec(r.headers.get('Content-Disposition') || '')?.[1] || 'session.meshpde';
+  const a = document.createElement('a');
+  a.href = URL.createObjectURL(await r.blob());
+  a.download = name;
+  document.body.appendChild(a);
+  a.click();
+  a.remove();
+  status(`saved the session as ${name}: open it again with file… (or meshpde serve ${name})`);
+};
 $('save').onclick = async () => {
   const format = $('save-format').value, displacement = $('save-displacement').checked ? 1 : 0;
   const r = await fetch(`/api/save?client=${state.client}&format=${format}&displacement=${displacement}`);

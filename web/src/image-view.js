@@ -514,6 +514,24 @@ export function createImageView({ scene, state, send, $, correctOptions, invalid
   });
   window.addEventListener('resize', () => { if (layout()) draw2d(); });
 
+  // The view's settings, kept in a saved session and given back when it is reopened.
+  view.settings = () => ({ planes: AXES.map((a) => +$(`img-${a}`).value), show: AXES.map((a) => $(`img-${a}-show`).checked),
+    window: +$('img-window-value').value, level: +$('img-level-value').value, preset: $('img-preset').value,
+    twoD: $('img-2d').value, dock: $('img-dock').checked });
+  view.applySettings = (s) => {
+    if (!s || !view.image) return;
+    AXES.forEach((a, k) => {
+      if (Number.isFinite(s.planes?.[k])) $(`img-${a}`).value = s.planes[k];
+      if (typeof s.show?.[k] === 'boolean') $(`img-${a}-show`).checked = s.show[k];
+    });
+    if (s.window > 0 && Number.isFinite(s.level)) setWindowLevel(s.window, s.level);
+    if (typeof s.preset === 'string' && [...$('img-preset').options].some((o) => o.value === s.preset)) $('img-preset').value = s.preset;
+    if (['axial', 'coronal', 'sagittal', 'none'].includes(s.twoD)) $('img-2d').value = s.twoD;
+    $('img-dock').checked = !!s.dock;
+    askAll();
+    draw2d();
+  };
+
   // The three planes through a point of the scene (a double click on the surface, as
   // 3D Slicer's crosshair does), each within the volume.
   view.moveTo = (p) => {

@@ -598,6 +598,7 @@ async function imageChecks() {
             JSON.stringify({ moved, up, action: reply && reply.intersection_action }));
       await page.selectOption('#drag-mode', 'screen');
     }
+    await sessionChecks(page);
     // A slice along an axis that is not a patient axis is refused in words.
     const errs = await page.evaluate(() => meshpde.errors);
     await page.evaluate(() => meshpde.send({ type: 'slice', axis: 'oblique', position: 0 }));
@@ -615,17 +616,19 @@ async function imageChecks() {
 // cut line (the level set's zero, so the grey there is 255 (0 - (L - W / 2)) / W);
 // a double click on the surface moves the three planes there; the 2D view resized by
 // its grip and docked beside the 3D view, both views drawn.
+// The rendered 2D view's grey at each point of its cut line.
+const greyOnCutLine = (page) => page.evaluate(() => {
+  const c = document.getElementById('slice-view'), img = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;
+  const out = [];
+  for (const [x, y] of meshpde.imageView.cutLine2d()) {
+    if (x < 2 || y < 2 || x > c.width - 3 || y > c.height - 3) continue;
+    out.push(img[4 * (Math.floor(y) * c.width + Math.floor(x))]);
+  }
+  return out;
+});
 async function windowLevelAndLayoutChecks(page) {
   await page.selectOption('#img-2d', 'axial');
-  const greyOnLine = () => page.evaluate(() => {
-    const c = document.getElementById('slice-view'), img = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;
-    const out = [];
-    for (const [x, y] of meshpde.imageView.cutLine2d()) {
-      if (x < 2 || y < 2 || x > c.width - 3 || y > c.height - 3) continue;
-      out.push(img[4 * (Math.floor(y) * c.width + Math.floor(x))]);
-    }
-    return out;
-  });
+  const greyOnLine = () => greyOnCutLine(page);
   let shown = await page.evaluate(() => meshpde.imageView.shown);
   await page.fill('#img-window-value', '20');
   await page.press('#img-window-value', 'Tab');
@@ -720,6 +723,99 @@ async function windowLevelAndLayoutChecks(page) {
     w: document.getElementById('slice-view').width }));
   check('undocked: the 3D view has the whole width again, the 2D view its first size', Math.abs(back.gl - back.main) < 2 &&
         back.w === before.w, JSON.stringify(back));
+}
+
+// Save session, then reopen it in a page of a server started without the image (the
+// session carries it) and with `meshpde serve FILE.meshpde`: the same surface, the undo
+// and redo history at the same step, the image, the settings and the camera; a
+// damaged session is refused naming the file.
+async function sessionChecks(page) {
+  const undoOk = async (p, kind) => {
+    const n = await p.evaluate(() => meshpde.oks);
+    await p.click(`#${kind}`);
+    await p.waitForFunction(([m, k]) => meshpde.oks > m && meshpde.lastOk === k, [n, kind], { timeout: 20000 }).catch(() => {});
+    await p.waitForTimeout(300);
+  };
+  const afterAll = await positions(page);
+  await undoOk(page, 'undo');  // one correction undone: the session has something to redo
+  await page.check('input[name=tool][value=correct]');
+  await page.fill('#radius', '5');
+  await page.selectOption('#drag-mode', 'normal');
+  await page.selectOption('#img-2d', 'axial');
+  await page.fill('#img-window-value', '20');
+  await page.press('#img-window-value', 'Tab');
+  await page.fill('#img-level-value', '-5');
+  await page.press('#img-level-value', 'Tab');
+  await page.click('#view-anterior');
+  await page.waitForTimeout(500);
+  const saved = await page.evaluate(() => ({ step: meshpde.canUndo && meshpde.canRedo, cam: meshpde.cameraDirection(),
+    axial: +document.getElementById('img-axial').value }));
+  const shownPositions = await positions(page);
+  const [download] = await Promise.all([page.waitForEvent('download'), page.click('#save-session')]);
+  const file = join(shots, download.suggestedFilename());
+  await download.saveAs(file);
+  check('save session downloads NAME-session.meshpde', download.suggestedFilename() === 'aorta-closed-6k-session.meshpde' &&
+        saved.step, download.suggestedFilename());
+
+  const reopened = async (p, how) => {
+    await p.waitForFunction(() => meshpde.ready && meshpde.name === 'aorta-closed-6k.vtp' && meshpde.imageView.shown >= 3 &&
+      meshpde.canUndo && meshpde.canRedo, null, { timeout: 60000 }).catch(() => {});
+    await p.waitForTimeout(500);
+    const r = await p.evaluate(() => ({ undo: meshpde.canUndo, redo: meshpde.canRedo, cam: meshpde.cameraDirection(),
+      tool: document.querySelector('input[name=tool]:checked').value, radius: document.getElementById('radius').value,
+      mode: document.getElementById('drag-mode').value, image: meshpde.imageView.image && meshpde.imageView.image.name,
+      window: document.getElementById('img-window-value').value, level: document.getElementById('img-level-value').value,
+      axial: +document.getElementById('img-axial').value, status: document.getElementById('status').textContent }));
+    const diff = maxDiff(await positions(p), shownPositions);
+    const grey = quantile(await greyOnCutLine(p), 0.5);
+    const camOff = Math.hypot(...r.cam.map((c, k) => c - saved.cam[k]));
+    check(`${how}: the same surface, undo and redo, the image drawn with the saved window, the settings and the camera`,
+          diff < 1e-6 && r.undo && r.redo && r.tool === 'correct' && r.radius === '5' && r.mode === 'normal' &&
+          r.image === 'aorta-levelset.mha' && r.window === '20' && r.level === '-5' && Math.abs(r.axial - saved.axial) < 1e-6 &&
+          Math.abs(grey - 191) < 10 && camOff < 1e-6 && /reopened a saved session of aorta-closed-6k\.vtp: 1 correction applied/.test(r.status),
+          JSON.stringify({ ...r, diff, grey, camOff }));
+  };
+  const s3 = await startServer([]);
+  const context = await browser.newContext({ viewport: { width: 1280, height: 800 } });
+  try {
+    const p = await context.newPage();
+    p.on('pageerror', (e) => check('no page errors (session)', false, e.message));
+    await p.goto(s3.url);
+    await p.waitForFunction(() => meshpde.ready && meshpde.client > 0, null, { timeout: 30000 });
+    await p.setInputFiles('#file', file);
+    await reopened(p, 'a session reopened by file… on a server without the image');
+    await undoOk(p, 'redo');
+    const redone = maxDiff(await positions(p), afterAll);
+    await undoOk(p, 'undo');
+    await undoOk(p, 'undo');
+    const original = await p.evaluate(() => meshpde.canUndo);
+    check('the reopened history redoes to the last correction and undoes to the file as opened', redone < 1e-5 && !original,
+          JSON.stringify({ redone, canUndoAtTheStart: original }));
+    // Half the file: refused, naming it; the page keeps what it had.
+    const half = readFileSync(file).subarray(0, Math.floor(readFileSync(file).length / 2));
+    const refused = await p.evaluate(async (bytes) => {
+      const r = await fetch(`/api/upload?client=${meshpde.client}&name=broken.meshpde`, { method: 'POST', body: new Uint8Array(bytes) });
+      return { status: r.status, error: (await r.json()).error, name: meshpde.name };
+    }, Array.from(half));
+    check('a damaged session is refused naming the file, and the page keeps its mesh',
+          refused.status === 400 && /broken\.meshpde/.test(refused.error) && refused.name === 'aorta-closed-6k.vtp', JSON.stringify(refused));
+  } finally {
+    await context.close();
+    await stopServer(s3);
+  }
+  // meshpde serve FILE.meshpde: every page opens the session.
+  const s4 = await startServer([file]);
+  const context4 = await browser.newContext({ viewport: { width: 1280, height: 800 } });
+  try {
+    const p = await context4.newPage();
+    p.on('pageerror', (e) => check('no page errors (served session)', false, e.message));
+    await p.goto(s4.url);
+    await reopened(p, 'meshpde serve FILE.meshpde');
+  } finally {
+    await context4.close();
+    await stopServer(s4);
+  }
+  await undoOk(page, 'redo');
 }
 
 // Slider move to the new slice on screen, on a generated 512 x 512 x 300 CT
@@ -1226,7 +1322,7 @@ try {
     return { status: r.status, error: (await r.json()).error };
   });
   check('an upload of another format lists every format the page opens', unknown.status === 400 &&
-        ['notes.txt', '.obj', '.off', '.ply', '.stl', '.vtp', '.vtk', '.mha', '.nii.gz', '.nrrd', '.zip'].every((w) => unknown.error.includes(w)),
+        ['notes.txt', '.obj', '.off', '.ply', '.stl', '.vtp', '.vtk', '.mha', '.nii.gz', '.nrrd', '.zip', '.meshpde'].every((w) => unknown.error.includes(w)),
         JSON.stringify(unknown));
   check('the page survives a refused upload', (await page.evaluate(() => meshpde.vertexCount)) === 2562);
 

@@ -112,6 +112,11 @@ class EditorSession {
   bool can_redo() const { return correction_.can_redo(); }
   void undo();
   void redo();
+  /// The corrections' history (positions after each step, the first the original) and
+  /// the step shown; restore_history() puts back a saved one (CorrectionSession::restore).
+  const std::vector<Positions>& history() const { return correction_.history(); }
+  std::size_t history_step() const { return correction_.current(); }
+  void restore_history(std::vector<Positions> history, std::size_t current);
   int self_intersections() const { return correction_.new_self_intersections(); }
   bool has_image() const { return edges_ != nullptr; }
   /// Guides the corrections from now on by `edges` (an image's edge map, in the

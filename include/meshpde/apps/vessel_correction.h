@@ -357,6 +357,13 @@ class CorrectionSession {
   bool can_redo() const { return current_ + 1 < history_.size(); }
   void undo();  ///< \throw InputError when there is nothing to undo
   void redo();  ///< \throw InputError when there is nothing to redo
+  /// The positions after each step, the first the original, and the step shown now.
+  const std::vector<Positions>& history() const { return history_; }
+  std::size_t current() const { return current_; }
+  /// Replaces the history by `history` (a saved session reopened), at step `current`.
+  /// \throw InputError (the session unchanged) unless history[0] is the mesh's original
+  ///        positions, every step holds finite positions of every vertex and current is a step.
+  void restore(std::vector<Positions> history, std::size_t current);
   /// Triangle pairs intersecting at the current positions that did not in the
   /// original (cost follows the vertices moved so far).
   int new_self_intersections() const;

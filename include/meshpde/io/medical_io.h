@@ -64,4 +64,9 @@ Volume read_volume(const std::filesystem::path& path, const VolumeReadOptions& o
 Volume read_volume(const std::filesystem::path& path, std::size_t max_voxels = 0);
 // Whether read_volume() reads a path: is_volume_path() in mesh_io.h.
 
+/// The volume as a MetaImage file (.mha: one header and 32-bit float voxels, LPS origin
+/// and direction as ITK writes them) that read_volume reads back exactly.
+/// \throw InputError for a volume that does not validate.
+std::string write_metaimage_to_memory(const Volume& volume);
+
 }  // namespace meshpde
