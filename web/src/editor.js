@@ -16,7 +16,25 @@ window.meshpde = state;
 
 // ---------------------------------------------------------------- scene
 const viewport = $('viewport');
-const renderer = new THREE.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true });
+// A browser without a GPU draws with a software rasterizer (SwiftShader, llvmpipe),
+// where multisampling and physically based shading cost most of a frame: there the
+// page draws without multisampling, with Lambert shading, and at half resolution while
+// a drag or poke is on (web/test/throughput.mjs --browser-drag measures it).
+function softwareRenderer() {
+  try {
+    const gl = document.createElement('canvas').getContext('webgl2');
+    if (!gl) return false;
+    const info = gl.getExtension('WEBGL_debug_renderer_info');
+    const name = `${gl.getParameter(gl.RENDERER)} ${info ? gl.getParameter(info.UNMASKED_RENDERER_WEBGL) : ''}`;
+    gl.getExtension('WEBGL_lose_context')?.loseContext();
+    return /swiftshader|llvmpipe|softpipe|software/i.test(name);
+  } catch {
+    return false;
+  }
+}
+// (?quality=full in the address keeps multisampling and full shading regardless.)
+state.software = !new URLSearchParams(location.search).has('quality') && softwareRenderer();
+const renderer = new THREE.WebGLRenderer({ antialias: !state.software, preserveDrawingBuffer: true });
 renderer.setPixelRatio(window.devicePixelRatio);
 viewport.appendChild(renderer.domElement);
 const scene = new THREE.Scene();
@@ -49,10 +67,21 @@ document.addEventListener('change', invalidate);
 
 // The surface is pushed back a little in depth so that the lines drawn on it (the rim
 // of what a drag would touch) are not lost in it.
-const material = new THREE.MeshStandardMaterial({
-  vertexColors: true, side: THREE.DoubleSide, roughness: 0.65, metalness: 0.0, flatShading: false,
-  polygonOffset: true, polygonOffsetFactor: 1, polygonOffsetUnits: 1,
-});
+const material = state.software
+  ? new THREE.MeshLambertMaterial({ vertexColors: true, side: THREE.DoubleSide, polygonOffset: true,
+    polygonOffsetFactor: 1, polygonOffsetUnits: 1 })
+  : new THREE.MeshStandardMaterial({ vertexColors: true, side: THREE.DoubleSide, roughness: 0.65, metalness: 0.0,
+    flatShading: false, polygonOffset: true, polygonOffsetFactor: 1, polygonOffsetUnits: 1 });
+// Half resolution while a drag or poke is on (software rasterizers only), the full one
+// again once it ends.
+function interactive(on) {
+  if (!state.software) return;
+  const ratio = on ? 0.5 * window.devicePixelRatio : window.devicePixelRatio;
+  if (renderer.getPixelRatio() === ratio) return;
+  renderer.setPixelRatio(ratio);
+  resize();
+  invalidate();
+}
 const wireMaterial = new THREE.MeshBasicMaterial({ color: 0x222222, wireframe: true, transparent: true, opacity: 0.25 });
 let mesh = null, wire = null, geometry = null;
 const arrow = new THREE.ArrowHelper(new THREE.Vector3(0, 1, 0), new THREE.Vector3(), 1, 0xd62728);
@@ -94,6 +123,7 @@ function viridis(t) {
 }
 const BASE = [0.72, 0.78, 0.88], MOVING = [1.0, 0.55, 0.15];
 
+let baseColours = false;  // every vertex has the base colour (nothing to repaint while that holds)
 function paintColors() {
   if (!geometry) return;
   const col = geometry.getAttribute('color');
@@ -104,6 +134,7 @@ function paintColors() {
   if (R && !state.field)
     for (let i = 0; i < 3 * n; ++i) largest = Math.max(largest, Math.abs(P[i] - R[i]));
   const tol = Math.max(1e-3 * state.meanEdge, 0.02 * largest);
+  let allBase = true;
   for (let i = 0; i < n; ++i) {
     let c = BASE;
     if (state.field) c = viridis(hi > lo ? (state.field[i] - lo) / (hi - lo) : 0.5);
@@ -111,9 +142,48 @@ function paintColors() {
       const dx = P[3 * i] - R[3 * i], dy = P[3 * i + 1] - R[3 * i + 1], dz = P[3 * i + 2] - R[3 * i + 2];
       if (dx * dx + dy * dy + dz * dz > tol * tol) c = MOVING;  // the part the probe moves: its active domain
     }
+    if (c !== BASE) allBase = false;
     col.setXYZ(i, c[0], c[1], c[2]);
   }
+  baseColours = allBase;
   col.needsUpdate = true;
+}
+
+// The triangles around each vertex (compressed rows), for normals updated where
+// vertices moved rather than over the whole mesh.
+let vertexFaces = null;
+function buildVertexFaces(nv, T) {
+  const offsets = new Uint32Array(nv + 1), faces = new Uint32Array(T.length);
+  for (let k = 0; k < T.length; ++k) offsets[T[k] + 1] += 1;
+  for (let v = 0; v < nv; ++v) offsets[v + 1] += offsets[v];
+  const fill = offsets.slice(0, nv);
+  for (let k = 0; k < T.length; ++k) faces[fill[T[k]]++] = Math.floor(k / 3);
+  return { offsets, faces, mark: new Uint32Array(nv), epoch: 0 };
+}
+// Vertex normals of the moved vertices and their neighbours: the sum of their
+// triangles' area-weighted normals, normalized (what computeVertexNormals does for all).
+function updateNormals(ids) {
+  const P = state.positions, T = state.triangles, N = geometry.getAttribute('normal').array;
+  const { offsets, faces, mark } = vertexFaces;
+  const epoch = ++vertexFaces.epoch, touched = [];
+  for (const v of ids)
+    for (let k = offsets[v]; k < offsets[v + 1]; ++k)
+      for (let c = 0; c < 3; ++c) {
+        const w = T[3 * faces[k] + c];
+        if (mark[w] !== epoch) { mark[w] = epoch; touched.push(w); }
+      }
+  for (const v of touched) {
+    let nx = 0, ny = 0, nz = 0;
+    for (let k = offsets[v]; k < offsets[v + 1]; ++k) {
+      const f = 3 * faces[k], a = 3 * T[f], b = 3 * T[f + 1], c = 3 * T[f + 2];
+      const ux = P[c] - P[b], uy = P[c + 1] - P[b + 1], uz = P[c + 2] - P[b + 2];
+      const wx = P[a] - P[b], wy = P[a + 1] - P[b + 1], wz = P[a + 2] - P[b + 2];
+      nx += uy * wz - uz * wy; ny += uz * wx - ux * wz; nz += ux * wy - uy * wx;
+    }
+    const len = Math.hypot(nx, ny, nz) || 1;
+    N[3 * v] = nx / len; N[3 * v + 1] = ny / len; N[3 * v + 2] = nz / len;
+  }
+  geometry.getAttribute('normal').needsUpdate = true;
 }
 
 function buildMesh(buf) {
@@ -136,6 +206,7 @@ function buildMesh(buf) {
   state.vertexCount = nv; state.faceCount = nf;
   state.positions = pos; state.rest = pos.slice(); state.field = null; state.fieldName = '';
   state.triangles = idx;
+  vertexFaces = buildVertexFaces(nv, idx);
   $('legend').hidden = true;
   paintColors();
   fitView(HOME_DIRECTION, HOME_UP);
@@ -220,7 +291,13 @@ state.view = 'home';
 window.meshpde.cameraDirection = () => camera.position.clone().sub(controls.target).normalize().toArray();
 window.meshpde.cameraUp = () => camera.up.toArray();
 
+// Where a page's time goes (web/test/throughput.mjs --browser-drag reads it): ms of
+// page work per position update, and of drawing per frame, the last 1,000 of each.
+state.timing = { page: [], draw: [] };
+const timed = (list, ms) => { list.push(ms); if (list.length > 1000) list.shift(); };
+
 function applyPositions(buf) {
+  const t0 = performance.now();
   const dv = new DataView(buf);
   const n = dv.getUint32(4, true);
   const ids = new Uint32Array(buf.slice(8, 8 + 4 * n));
@@ -231,10 +308,14 @@ function applyPositions(buf) {
     P[3 * i] = xyz[3 * k]; P[3 * i + 1] = xyz[3 * k + 1]; P[3 * i + 2] = xyz[3 * k + 2];
   }
   geometry.getAttribute('position').needsUpdate = true;
-  geometry.computeVertexNormals();
+  // A few moved vertices: their normals and their neighbours'; many: all of them.
+  if (n < state.vertexCount / 8) updateNormals(ids);
+  else geometry.computeVertexNormals();
   if (!state.poking) state.rest = P.slice();  // a correction, undo or redo: the new rest shape
-  paintColors();
+  // The colours change with a field or a poke; a drag's preview leaves them at the base.
+  if (state.field || state.poking || !baseColours) paintColors();
   imageView.onPositions();
+  timed(state.timing.page, performance.now() - t0);
 }
 
 // Arrows for a vector field: a shaft and two barbs each, longest = 8 % of the mesh size.
@@ -558,6 +639,7 @@ renderer.domElement.addEventListener('pointerdown', (ev) => {
     }
   }
   renderer.domElement.setPointerCapture(ev.pointerId);
+  interactive(true);
   if (t === 'poke') { state.poking = true; send({ type: 'poke_begin', vertex: hit.vertex, influence: +$('reach').value }); }
   // The correct tool previews live: the server factors the region once, then each
   // move is a product with its basis; releasing sends the real correction.
@@ -645,6 +727,7 @@ function endDrag(ev) {
   drag = null;
   dragArrow.visible = false;
   handleDot.visible = false;
+  interactive(false);
   invalidate();
   controls.enabled = true;
 }
@@ -778,7 +861,9 @@ function loop() {
   if (!dirty) return;
   dirty = false;
   controls.update();
+  const t0 = performance.now();
   renderer.render(scene, camera);
+  timed(state.timing.draw, performance.now() - t0);
   fpsCount += 1;
   state.frames += 1;
 }

@@ -4,6 +4,14 @@
 //
 //   node web/test/throughput.mjs MESHPDE_BINARY MESH [--influence L] [--seconds S] [--warmup W]
 //   node web/test/throughput.mjs MESHPDE_BINARY MESH --slices [VOLUME] [--space ras|lps]
+//   node web/test/throughput.mjs MESHPDE_BINARY MESH --browser-drag [--seconds S] [--radius R]
+//
+// --browser-drag measures a correct drag in the page itself (Debian's chromium through
+// playwright-core, headless, drawing in software): the mouse presses on the mesh
+// and circles for S seconds while the preview streams; it reports the position updates
+// the page applied and the frames it drew per second, and where an update's time goes:
+// the server's time to build it (stats frame_ms), the page's work on it (decode, normals,
+// colours) and the drawing of a frame.
 //
 // --slices times the image view's slices: 30 slider positions along each of the three
 // planes, one request at a time, from the request to the whole SLC frame received
@@ -28,7 +36,7 @@ const opt = (name, fallback) => {
 };
 const influence = opt('--influence', 0), seconds = opt('--seconds', 4), warmup = opt('--warmup', 0);
 const simulation = rest.includes('--wave') ? 'wave' : rest.includes('--heat') ? 'heat' : '';
-const slices = rest.includes('--slices');
+const slices = rest.includes('--slices'), browserDrag = rest.includes('--browser-drag');
 if (!binary || !meshPath) {
   console.error('usage: node web/test/throughput.mjs MESHPDE_BINARY MESH [--influence L] [--seconds S] [--slices [VOLUME]]');
   process.exit(2);
@@ -56,6 +64,85 @@ const port = await new Promise((resolve, reject) => {
   });
   server.on('exit', (c) => reject(new Error(`server exited ${c}`)));
 });
+
+if (browserDrag) {
+  // The page as it draws in a software-rendered browser, and with ?quality=full (as a
+  // GPU would draw it: multisampled, physically based shading, full resolution) as the
+  // baseline of the same run.
+  const out = { software_mode: await dragInTheBrowser(port, ''), full_quality: await dragInTheBrowser(port, '?quality=full') };
+  server.kill('SIGINT');
+  console.log(JSON.stringify(out, null, 2));
+  process.exit(0);
+}
+
+// A correct drag in chromium: the page's own rates and timings (see the header).
+async function dragInTheBrowser(port, query) {
+  const { chromium } = await import('playwright-core');
+  const browser = await chromium.launch({
+    executablePath: process.env.CHROMIUM || '/usr/bin/chromium',
+    args: ['--no-sandbox', '--disable-gpu', '--enable-unsafe-swiftshader', '--disable-dev-shm-usage'],
+  });
+  try {
+    const page = await (await browser.newContext({ viewport: { width: 1280, height: 800 } })).newPage();
+    await page.goto(`http://127.0.0.1:${port}/${query}`);
+    await page.waitForFunction(() => window.meshpde?.ready, null, { timeout: 120000 });
+    await page.check('input[name=tool][value=correct]');
+    await page.fill('#radius', String(opt('--radius', 8)));
+    const box = await page.locator('#viewport > canvas').boundingBox();
+    // The vertex drawn nearest the view's centre: where the drag starts.
+    const from = await page.evaluate(() => {
+      const c = document.querySelector('#viewport > canvas').getBoundingClientRect();
+      const mid = { x: c.left + c.width / 2, y: c.top + c.height / 2 };
+      let best = null, bestD = Infinity;
+      for (let i = 0; i < meshpde.vertexCount; i += 7) {
+        const q = meshpde.screenOf(i), d = Math.hypot(q.x - mid.x, q.y - mid.y);
+        if (d < bestD) { bestD = d; best = q; }
+      }
+      return best;
+    });
+    await page.mouse.move(from.x, from.y);
+    await page.mouse.down();
+    await page.waitForFunction(() => meshpde.lastOk === 'drag_begin', null, { timeout: 60000 }).catch(() => {});
+    const region = await page.evaluate(() => document.getElementById('status').textContent);
+    const before = await page.evaluate(() => ({ updates: meshpde.updates, frames: meshpde.frames,
+      page: meshpde.timing.page.length, draw: meshpde.timing.draw.length }));
+    // The mouse circles at 60 moves a second, as a real one would (pointer events sent
+    // in the page on a timer: the browser's own pace, not this script's round trips).
+    const t0 = Date.now();
+    const r = Math.min(40, box.width / 10);
+    const moved = await page.evaluate(([x, y, radius, ms]) => new Promise((done) => {
+      const canvas = document.querySelector('#viewport > canvas'), frame = [];
+      let k = 0;
+      const timer = setInterval(() => {
+        k += 1;
+        canvas.dispatchEvent(new PointerEvent('pointermove', { bubbles: true, pointerId: 1, buttons: 1,
+          clientX: x + radius * Math.sin(k / 10), clientY: y - radius * (1 - Math.cos(k / 10)) }));
+        if (k % 30 === 0) frame.push(+document.getElementById('stat-frame').textContent);
+      }, 1000 / 60);
+      setTimeout(() => { clearInterval(timer); done({ moves: k, frame }); }, ms);
+    }), [from.x, from.y, r, seconds * 1000]);
+    const stats = moved.frame;
+    const elapsed = (Date.now() - t0) / 1000;
+    const after = await page.evaluate(() => ({ updates: meshpde.updates, frames: meshpde.frames,
+      page: meshpde.timing.page, draw: meshpde.timing.draw, vertices: meshpde.vertexCount }));
+    await page.mouse.up();
+    const tail = (list, n) => list.slice(Math.max(0, list.length - n));
+    const pct = (a, q) => { const x = [...a].sort((u, v) => u - v); return x.length ? +x[Math.min(x.length - 1, Math.floor(q * x.length))].toFixed(1) : 0; };
+    const pageMs = tail(after.page, after.page.length - before.page), drawMs = tail(after.draw, after.draw.length - before.draw);
+    return {
+      vertices: after.vertices, seconds: +elapsed.toFixed(2), drag_set_up: region,
+      software_renderer_detected: await page.evaluate(() => meshpde.software),
+      mouse_moves_per_second: +(moved.moves / elapsed).toFixed(1),
+      updates_per_second: +((after.updates - before.updates) / elapsed).toFixed(1),
+      frames_per_second: +((after.frames - before.frames) / elapsed).toFixed(1),
+      server_frame_ms_p50: pct(stats.filter(Number.isFinite), 0.5),
+      page_ms_per_update_p50: pct(pageMs, 0.5), page_ms_per_update_p90: pct(pageMs, 0.9),
+      draw_ms_per_frame_p50: pct(drawMs, 0.5), draw_ms_per_frame_p90: pct(drawMs, 0.9),
+    };
+  } finally {
+    await browser.close();
+  }
+}
 
 // A minimal RFC 6455 client: text frames out (masked), any frames in.
 const sock = net.connect(port, '127.0.0.1');
