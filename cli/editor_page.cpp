@@ -666,9 +666,12 @@ void EditorPage::handle(const std::string& payload, bool binary) {
                     {"time_ms", r.time_ms},
                     {"boundary", to_string(p.boundary)},
                     {"handle_radius", r.handle_radius}});
+      if (s.image_pull().size() > 0) reply["image_pull_max"] = s.image_pull().maxCoeff();
       if (const auto& h = p.handles.front(); h.point)
         reply["handle_point"] = {{"triangle", h.point->face},
                                  {"barycentric", {h.point->bary.x(), h.point->bary.y(), h.point->bary.z()}}};
+    } else if (type == "colour") {
+      s.show_correction_field(j.value("field", std::string("moved (mm)")));
     } else if (type == "undo" || type == "redo") {
       type == "undo" ? s.undo() : s.redo();
       intersections_ = s.self_intersections();

@@ -343,3 +343,48 @@ TEST(AortaCorrection, TheThesisSpringsWithTheirDynamicModeAndImageStep) {
   EXPECT_LT(settled, 0.25);
   EXPECT_LT(10 * settled, rung);
 }
+
+// The editor's "image pull (mm)" after an image-guided correction is what the image did:
+// |the guided field - the same drag's field without the image|, both computed here
+// independently with correct_vessel; "moved (mm)" is the guided move itself.
+TEST(AortaCorrection, TheEditorsImagePullIsTheGuidedMinusTheUnguidedCorrection) {
+  Mesh mesh;
+  if (!load_vtp("aorta-closed-6k.vtp", mesh) || !test::have_data("aorta-mra.mha")) return;
+  const Volume mra = read_volume(test::data_dir() / "aorta-mra.mha");
+  const auto edges = std::make_shared<const Volume>(gradient_magnitude(mra, 1.0));
+  MeshData data;
+  data.V = mesh.positions();
+  data.F = mesh.triangles();
+  EditorSession s(data, edges, Space::RAS);
+  const Eigen::Vector3d normal = vertex_normals(mesh).row(kTrunk).transpose();
+  CorrectionParams p;
+  p.handles = {{kTrunk, 2.0 * normal}};
+  p.radius = 9;
+  p.laplacian = s.laplacian();
+  const CorrectionResult r = s.correct(p);
+  ASSERT_EQ(s.field_name(), "moved (mm)");
+  ASSERT_EQ(s.image_pull().size(), mesh.num_vertices());
+  CorrectionParams plain = p, guided = p;
+  guided.image.edges = edges;
+  guided.image.space = Space::RAS;
+  const CorrectionResult g = correct_vessel(mesh, guided), u = correct_vessel(mesh, plain);
+  ASSERT_EQ(r.applied_fraction, 1.0);
+  const Eigen::VectorXd expected = (g.displacement - u.displacement).rowwise().norm();
+  EXPECT_LT((s.image_pull() - expected).cwiseAbs().maxCoeff(), 1e-9);
+  EXPECT_GT(expected.maxCoeff(), 0.05) << "the image moved the wall measurably";
+  EXPECT_LT((s.field() - g.displacement.rowwise().norm()).cwiseAbs().maxCoeff(), 1e-9);
+  s.show_correction_field("image pull (mm)");
+  EXPECT_EQ(s.field_name(), "image pull (mm)");
+  EXPECT_EQ(s.field(), s.image_pull());
+  EXPECT_THROW(s.show_correction_field("paint"), InputError);
+  s.show_correction_field("moved (mm)");
+  EXPECT_EQ(s.field_name(), "moved (mm)");
+  // The next action ends both; a correction without the image has no pull to show.
+  s.undo();
+  EXPECT_EQ(s.field_name(), "");
+  EXPECT_THROW(s.show_correction_field("moved (mm)"), InputError);
+  p.image.weight = 0;
+  s.correct(p);
+  EXPECT_EQ(s.image_pull().size(), 0);
+  EXPECT_THROW(s.show_correction_field("image pull (mm)"), InputError);
+}

@@ -45,6 +45,9 @@ constexpr int kPreviewLimit = 20000;
 // The field a correction leaves on the wall until the next action: how far each
 // vertex moved (mm). Shown, never saved (a save can add the displacement itself).
 constexpr const char* kMovedField = "moved (mm)";
+// After an image-guided correction: how far the image moved each vertex beyond what the
+// drag alone would have (mm), the other colouring of the same correction.
+constexpr const char* kPullField = "image pull (mm)";
 }  // namespace
 
 void EditorSession::check_vertex(int v) const {
@@ -201,10 +204,22 @@ CorrectionResult EditorSession::correct(CorrectionParams params) {
     params.image.space = space_;
   }
   const auto t0 = std::chrono::steady_clock::now();
+  // What the image did: the same drag without it, from the same surface, scaled to the
+  // share of the drag that was applied (the field is linear in it without the image).
+  Field unguided;
+  if (params.image.edges && params.method == CorrectionMethod::Fem) {
+    CorrectionParams plain = params;
+    plain.image.edges = nullptr;
+    unguided = correct_vessel(mesh(), plain).displacement;
+  }
   CorrectionResult r = correction_.apply(params);
   // The wall coloured by how far it moved, until the next action.
   field_ = r.displacement.rowwise().norm();
   field_name_ = kMovedField;
+  moved_ = field_;
+  pull_.resize(0);
+  if (unguided.rows() == r.displacement.rows())
+    pull_ = (r.displacement - r.applied_fraction * unguided).rowwise().norm();
   last_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   geometry_.refresh();
   info_ = fmt::format("correct: {} vertices moved, {} new self-intersections, {}", r.moved_vertices,
@@ -213,9 +228,26 @@ CorrectionResult EditorSession::correct(CorrectionParams params) {
 }
 
 void EditorSession::clear_moved_field() {
-  if (field_name_ != kMovedField) return;
+  if (field_name_ != kMovedField && field_name_ != kPullField) return;
   field_.resize(0);
   field_name_.clear();
+  moved_.resize(0);
+  pull_.resize(0);
+}
+
+void EditorSession::show_correction_field(const std::string& name) {
+  if (field_name_ != kMovedField && field_name_ != kPullField)
+    throw InputError("no correction to colour by: make one first");
+  if (name == kMovedField) {
+    field_ = moved_;
+  } else if (name == kPullField) {
+    if (pull_.size() == 0)
+      throw InputError("the last correction had no image guidance: there is no image pull to show");
+    field_ = pull_;
+  } else {
+    throw InputError(fmt::format("unknown colouring '{}' ({} or {})", name, kMovedField, kPullField));
+  }
+  field_name_ = name;
 }
 
 void EditorSession::undo() {
@@ -383,7 +415,7 @@ int EditorSession::simulation_active_vertices() const {
 MeshData EditorSession::snapshot() const {
   MeshData d = data_;
   d.V = mesh().positions();
-  if (field_.size() == d.V.rows() && !field_name_.empty() && field_name_ != kMovedField)
+  if (field_.size() == d.V.rows() && !field_name_.empty() && field_name_ != kMovedField && field_name_ != kPullField)
     d.vertex_scalars[field_name_] = field_;
   if (vectors_.rows() == d.V.rows()) {
     d.vertex_scalars["paint_vector_x"] = vectors_.col(0);

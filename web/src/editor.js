@@ -416,6 +416,7 @@ ws.onmessage = (ev) => {
     imageView.onMeshMessage(m);
   } else if (m.type === 'field') {
     state.fieldName = m.name;
+    if (m.name !== 'moved (mm)' && m.name !== 'image pull (mm)') $('colour-by-label').hidden = true;  // the next action
     if (!m.name) { state.field = null; $('legend').hidden = true; paintColors(); return; }
     state.fieldRange = [m.min, m.max];
     $('legend').hidden = false;
@@ -436,6 +437,9 @@ ws.onmessage = (ev) => {
       $('stat-largest').textContent = m.max_displacement.toFixed(2);
       $('stat-region').textContent = m.region_vertices.toLocaleString();
       $('stat-time').textContent = m.time_ms.toFixed(0);
+      // An image-guided correction can also be shown by what the image did.
+      $('colour-by-label').hidden = m.image_pull_max === undefined;
+      $('colour-by').value = 'moved (mm)';
     }
     if (m.request === 'correct')
       status(`corrected: ${m.moved_vertices} vertices moved in ${m.time_ms.toFixed(1)} ms, ` +
@@ -443,7 +447,10 @@ ws.onmessage = (ev) => {
              (m.applied_fraction < 1
                ? `\nonly ${m.applied_fraction.toFixed(2)} of the drag was applied: all of it would make the wall ` +
                  'intersect itself' : '') +
-             (m.region_warning ? `\n${m.region_warning}` : ''));
+             (m.region_warning ? `\n${m.region_warning}` : '') +
+             (m.image_pull_max !== undefined
+               ? `\nthe image moved the wall up to ${m.image_pull_max.toFixed(2)} mm beyond the drag (colour by: image pull)`
+               : ''));
     if (m.request === 'save_segmentation') {
       state.lastSegmentationSave = m;
       status(`wrote ${m.file}: ${m.added} voxels added, ${m.removed} removed` +
@@ -743,6 +750,7 @@ renderer.domElement.addEventListener('dblclick', (ev) => {
 
 // ---------------------------------------------------------------- buttons, files
 $('load-generated').onclick = () => send({ type: 'generate', kind: $('generate').value });
+$('colour-by').onchange = () => send({ type: 'colour', field: $('colour-by').value });
 $('undo').onclick = () => send({ type: 'undo' });
 $('redo').onclick = () => send({ type: 'redo' });
 $('view-reset').onclick = () => { fitView(HOME_DIRECTION, HOME_UP); state.view = 'home'; };
@@ -835,6 +843,18 @@ $('save').onclick = async () => {
   status(`saved ${name}`);
   // The segmentation the server opened: the corrected one is written beside it.
   if (state.segmentation) send({ type: 'save_segmentation' });
+};
+
+// The largest difference between the normals as drawn (updated around moved vertices)
+// and the whole mesh's recomputed, which then replace them (tests).
+window.meshpde.normalsError = () => {
+  if (!geometry) return NaN;
+  const drawn = geometry.getAttribute('normal').array.slice();
+  geometry.computeVertexNormals();
+  const all = geometry.getAttribute('normal').array;
+  let worst = 0;
+  for (let i = 0; i < all.length; ++i) worst = Math.max(worst, Math.abs(all[i] - drawn[i]));
+  return worst;
 };
 
 // Which of the correct tool's marks are on show, and where the handle's dot is (tests).

@@ -599,6 +599,40 @@ async function imageChecks() {
       await page.selectOption('#drag-mode', 'screen');
     }
     await sessionChecks(page);
+    // An image-guided correction can be coloured by what the image did: "colour by:
+    // image pull", the field's largest value the reply's image_pull_max.
+    {
+      await page.check('#image');
+      await page.selectOption('#drag-mode', 'screen');
+      await page.click('#view-anterior');
+      await page.waitForTimeout(300);
+      const from = await page.evaluate(() => {
+        const c = document.querySelector('#viewport > canvas').getBoundingClientRect();
+        const mid = { x: c.left + c.width / 2, y: c.top + c.height / 2 };  // on the trunk, clear of the 2D view
+        let best = null, bestD = Infinity;
+        for (let i = 0; i < meshpde.vertexCount; ++i) {
+          const q = meshpde.screenOf(i), d = Math.hypot(q.x - mid.x, q.y - mid.y);
+          if (d < bestD) { bestD = d; best = q; }
+        }
+        return best;
+      });
+      await correctDragBy(page, from, 12, -10);
+      const reply = await page.evaluate(() => meshpde.lastCorrect);
+      const offered = await page.isVisible('#colour-by');
+      if (offered) await page.selectOption('#colour-by', 'image pull (mm)');
+      await page.waitForFunction(() => meshpde.fieldName === 'image pull (mm)' && meshpde.field, null, { timeout: 10000 })
+        .catch(() => {});
+      const r = await page.evaluate(() => ({ max: meshpde.field ? Math.max(...meshpde.field) : NaN,
+        legend: document.getElementById('legend-name').textContent, status: document.getElementById('status').textContent }));
+      check('after an image-guided correction the wall can be coloured by how far the image moved it',
+            offered && typeof reply.image_pull_max === 'number' && Math.abs(r.max - reply.image_pull_max) < 1e-3 + 1e-3 * r.max &&
+            r.legend === 'image pull (mm)' && /the image moved the wall up to/.test(r.status),
+            JSON.stringify({ offered, reply, ...r }));
+      const oksU = await page.evaluate(() => meshpde.oks);
+      await page.click('#undo');
+      await page.waitForFunction((n) => meshpde.oks > n && meshpde.lastOk === 'undo', oksU, { timeout: 20000 }).catch(() => {});
+      check('the next action ends the colouring and its choice', await page.isHidden('#colour-by'));
+    }
     // A slice along an axis that is not a patient axis is refused in words.
     const errs = await page.evaluate(() => meshpde.errors);
     await page.evaluate(() => meshpde.send({ type: 'slice', axis: 'oblique', position: 0 }));
@@ -1012,6 +1046,10 @@ try {
   check('the preview when the mouse stops equals the released correction', maxDiff(preview, corrected) < 1e-3,
         `preview vs release ${maxDiff(preview, corrected)}`);
   check('correct moves vertices', maxDiff(corrected, rest) > 0.5, `max move ${maxDiff(corrected, rest)}`);
+  {
+    const err = await page.evaluate(() => meshpde.normalsError());
+    check('the normals updated around the moved vertices equal the whole mesh\'s recomputed', err < 1e-5, String(err));
+  }
   check('the correction moved the region the rim showed before the press',
         !!rim && (await page.evaluate(() => meshpde.lastCorrect.region_vertices)) === rim.regionVertices,
         JSON.stringify({ rim: rim && rim.regionVertices, correction: await page.evaluate(() => meshpde.lastCorrect.region_vertices) }));

@@ -105,7 +105,16 @@ class EditorSession {
   // Correct.
   /// Image guidance is filled in when a volume was given, and the caps the mesh's face
   /// labels mark (mesh/caps.h, CapRule::Labels) are held unless params.held is set.
+  /// Afterwards, until the next action, the field on show is "moved (mm)" (each
+  /// vertex's move); an image-guided one also keeps "image pull (mm)": how far the image
+  /// moved each vertex beyond the same drag without it (one more solve, unguarded,
+  /// scaled to the applied share of the drag).
   CorrectionResult correct(CorrectionParams params);
+  /// Shows the last correction's "moved (mm)" or "image pull (mm)" (correct()).
+  /// \throw InputError without a correction on show, or without its image pull.
+  void show_correction_field(const std::string& name);
+  /// The last correction's image pull (#V, mm; empty without image guidance).
+  const Eigen::VectorXd& image_pull() const { return pull_; }
   /// The vertices of the mesh's labelled caps, which corrections and drags hold.
   const std::vector<int>& held_vertices() const { return held_; }
   bool can_undo() const { return correction_.can_undo(); }
@@ -184,6 +193,7 @@ class EditorSession {
   // Fields.
   Eigen::VectorXd field_;
   std::string field_name_;
+  Eigen::VectorXd moved_, pull_;  // the last correction's two colourings (until the next action)
   std::map<int, double> painted_;
   // Paint's kept factor and what it was built for (the surface's operators, g1, g2).
   std::shared_ptr<const MeshOperators> paint_geometry_;
