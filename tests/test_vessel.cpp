@@ -632,7 +632,7 @@ TEST(Vessel, ARestoredHistoryUndoesAndRedoesAsTheOriginal) {
   h[0](3, 1) += 1e-9;
   EXPECT_THROW(fresh.restore(h, 1), InputError);
   h = s.history();
-  h[1] = h[1].topRows(10);
+  h[1] = Positions(h[1].topRows(10));  // (a copy: the block reads the matrix being resized)
   EXPECT_THROW(fresh.restore(h, 1), InputError);
   h = s.history();
   h[1](0, 0) = NAN;
