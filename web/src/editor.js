@@ -238,7 +238,7 @@ function applyPageSettings(s) {
     $(id).dispatchEvent(new Event('input'));
     $(id).dispatchEvent(new Event('change'));
   }
-  const radio = document.querySelector(`input[name=tool][value="${s.tool}"]`);
+  const radio = [...document.querySelectorAll('input[name=tool]')].find((r) => r.value === s.tool);
   if (radio) { radio.checked = true; radio.dispatchEvent(new Event('change')); }
   const c = s.camera;
   if (c && [c.position, c.target, c.up].every((x) => Array.isArray(x) && x.length === 3 && x.every(Number.isFinite))) {
@@ -553,7 +553,7 @@ function segments(lines, xyz) {
   lines.geometry.computeBoundingSphere();
   lines.visible = xyz.length > 0;
 }
-// The handle's dot: a fixed size on screen (1 % of the distance from the camera).
+// The handle's dot: a fixed size on screen (its radius 0.6 % of its distance from the camera).
 function placeDot(p) {
   handleDot.position.copy(p);
   handleDot.scale.setScalar(0.006 * camera.position.distanceTo(p));

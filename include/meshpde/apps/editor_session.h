@@ -34,7 +34,7 @@ namespace meshpde {
 /// on the surface from the point (mesh/geodesic_distance.h), as the correction measures.
 struct RegionRim {
   std::vector<LevelSetSegment> rim;     ///< where the surface distance is the radius
-  std::vector<LevelSetSegment> handle;  ///< where it is the handle's radius (empty for a point handle)
+  std::vector<LevelSetSegment> handle;  ///< where it is the handle's radius
   int region_vertices = 0;              ///< vertices nearer than the radius
   double handle_radius = 0;             ///< mm: the default handle's size for this radius
 };
