@@ -807,39 +807,36 @@ viewport.addEventListener('drop', (ev) => {
   viewport.classList.remove('drop');
   if (ev.dataTransfer.files[0]) upload(ev.dataTransfer.files[0]);
 });
+// A file the server answers a save with, downloaded under the name it gives (else
+// `fallback`); null, with the reason on the status line, when the server refused.
+async function download(response, what, fallback) {
+  const r = await response;
+  if (!r.ok) {
+    const why = (await r.json().catch(() => ({}))).error;
+    status(`${what} failed: ${why || r.status}`, true);
+    return null;
+  }
+  const name = /filename="([^"]+)"/.exec(r.headers.get('Content-Disposition') || '')?.[1] || fallback;
+  const a = document.createElement('a');
+  a.href = URL.createObjectURL(await r.blob());
+  a.download = name;
+  document.body.appendChild(a);
+  a.click();
+  a.remove();
+  return name;
+}
 // The whole session as one file: the server writes the mesh, the corrections with
 // their history, the tissue and the image; the page adds its settings.
 $('save-session').onclick = async () => {
-  const r = await fetch(`/api/session?client=${state.client}`, { method: 'POST', body: JSON.stringify(pageSettings()) });
-  if (!r.ok) {
-    const why = (await r.json().catch(() => ({}))).error;
-    status(`saving the session failed: ${why || r.status}`, true);
-    return;
-  }
-  const name = /filename="([^"]+)"/.exec(r.headers.get('Content-Disposition') || '')?.[1] || 'session.meshpde';
-  const a = document.createElement('a');
-  a.href = URL.createObjectURL(await r.blob());
-  a.download = name;
-  document.body.appendChild(a);
-  a.click();
-  a.remove();
-  status(`saved the session as ${name}: open it again with file… (or meshpde serve ${name})`);
+  const name = await download(fetch(`/api/session?client=${state.client}`,
+    { method: 'POST', body: JSON.stringify(pageSettings()) }), 'saving the session', 'session.meshpde');
+  if (name) status(`saved the session as ${name}: open it again with file… (or meshpde serve ${name})`);
 };
 $('save').onclick = async () => {
   const format = $('save-format').value, displacement = $('save-displacement').checked ? 1 : 0;
-  const r = await fetch(`/api/save?client=${state.client}&format=${format}&displacement=${displacement}`);
-  if (!r.ok) {
-    const why = (await r.json().catch(() => ({}))).error;
-    status(`save failed: ${why || r.status}`, true);
-    return;
-  }
-  const name = /filename="([^"]+)"/.exec(r.headers.get('Content-Disposition') || '')?.[1] || 'mesh';
-  const a = document.createElement('a');
-  a.href = URL.createObjectURL(await r.blob());
-  a.download = name;
-  document.body.appendChild(a);
-  a.click();
-  a.remove();
+  const name = await download(fetch(`/api/save?client=${state.client}&format=${format}&displacement=${displacement}`),
+    'save', 'mesh');
+  if (!name) return;
   status(`saved ${name}`);
   // The segmentation the server opened: the corrected one is written beside it.
   if (state.segmentation) send({ type: 'save_segmentation' });
