@@ -21,8 +21,8 @@ struct EntryClose {
 
 }  // namespace
 
-std::map<std::string, std::string> read_zip_entries(const std::string& bytes, const std::string& name,
-                                                    std::size_t max_bytes) {
+void for_each_zip_entry(const std::string& bytes, const std::string& name, std::size_t max_bytes,
+                        const std::function<void(const std::string& entry, std::string data)>& visit) {
   zip_error_t error;
   zip_error_init(&error);
   zip_source_t* source = zip_source_buffer_create(bytes.data(), bytes.size(), 0, &error);
@@ -52,7 +52,6 @@ std::map<std::string, std::string> read_zip_entries(const std::string& bytes, co
     if (total > max_bytes)
       throw InputError(fmt::format("{}: unpacks to more than {} bytes, more than this reader takes", name, max_bytes));
   }
-  std::map<std::string, std::string> out;
   for (zip_int64_t k = 0; k < entries; ++k) {
     zip_stat_t st;
     zip_stat_index(archive.get(), static_cast<zip_uint64_t>(k), 0, &st);
@@ -67,12 +66,20 @@ std::map<std::string, std::string> read_zip_entries(const std::string& bytes, co
       if (n <= 0) break;
       got += static_cast<std::size_t>(n);
     }
-    // A declared size the data do not fill (or a failed checksum) is a broken archive.
+    // A declared size the data do not fill, more data than declared, or a failed
+    // checksum: a damaged archive.
     char extra = 0;
     if (got != data.size() || zip_fread(in.get(), &extra, 1) != 0)
       throw InputError(fmt::format("{}: {}: the entry is damaged ({})", name, entry, zip_file_strerror(in.get())));
-    out[entry] = std::move(data);
+    visit(entry, std::move(data));
   }
+}
+
+std::map<std::string, std::string> read_zip_entries(const std::string& bytes, const std::string& name,
+                                                    std::size_t max_bytes) {
+  std::map<std::string, std::string> out;
+  for_each_zip_entry(bytes, name, max_bytes,
+                     [&](const std::string& entry, std::string data) { out[entry] = std::move(data); });
   return out;
 }
 
