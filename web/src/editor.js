@@ -383,7 +383,7 @@ ws.onmessage = (ev) => {
     else if (tag === 'FLD ') applyField(ev.data);
     else if (tag === 'VEC ') applyVectors(ev.data);
     else if (tag === 'SLC ') imageView.onSlice(ev.data);
-    else if (tag === 'RIM ') applyRim(ev.data);
+    else if (tag === 'RIM ') { applyRim(ev.data); return; }  // not a surface update
     state.updates += 1;
     return;
   }
