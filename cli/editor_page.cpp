@@ -627,6 +627,11 @@ void EditorPage::handle(const std::string& payload, bool binary) {
                               ? s.drag_begin(surface_point_of(s.mesh(), j), radius, tissue_.stiffness, tissue_.tissue)
                               : s.drag_begin(vertex_of(j), radius, tissue_.stiffness, tissue_.tissue);
       reply["region_vertices"] = s.drag_region_vertices();
+      const std::vector<int>& moving = s.drag_moving_vertices();
+      std::string b = "REG ";
+      put<std::uint32_t>(b, static_cast<std::uint32_t>(moving.size()));
+      for (int v : moving) put<std::uint32_t>(b, static_cast<std::uint32_t>(v));
+      send_binary(std::move(b));
     } else if (type == "drag_move") {
       // Moves after a refused drag_begin (a region too large to preview) are dropped
       // quietly: the page already showed why, and releasing still corrects.

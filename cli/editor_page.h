@@ -16,6 +16,7 @@
 //   "RIM " u32 seq, u32 region vertices, f32 radius, f32 handle radius, u32 n, u32 m,
 //          f32 segments[6 (n + m)]   (what a drag at the hovered point would touch: n
 //          segments of the region's rim, then m of the handle's, each two points)
+//   "REG " u32 n, u32 ids[n]   (the vertices a drag can move; sent before drag_begin's reply)
 // Text frames are JSON objects with a "type" (see docs/editor.md).
 #pragma once
 

@@ -293,6 +293,22 @@ TEST(DragSession, EditorPreviewFollowsTheHandleAndCorrectReplacesIt) {
   release.radius = 0.6;
   const CorrectionResult expected = correct_vessel(mesh, release);
   EXPECT_LE((P - expected.V).cwiseAbs().maxCoeff(), 1e-9 * offset.norm());
+  // The vertices the drag can move (the page redraws only these and their neighbours):
+  // every vertex that moved is one, and they are a part of the sphere, not all of it.
+  {
+    std::vector<char> can_move(static_cast<std::size_t>(mesh.num_vertices()), 0);
+    for (int v : s.drag_moving_vertices()) can_move.at(static_cast<std::size_t>(v)) = 1;
+    int moved = 0, outside = 0;
+    for (int v = 0; v < mesh.num_vertices(); ++v)
+      if ((P.row(v) - rest.row(v)).norm() > 0) {
+        ++moved;
+        if (!can_move[static_cast<std::size_t>(v)]) ++outside;
+      }
+    EXPECT_GE(moved, s.drag_region_vertices() / 2);
+    EXPECT_EQ(outside, 0);
+    EXPECT_GE(static_cast<int>(s.drag_moving_vertices().size()), s.drag_region_vertices());
+    EXPECT_LT(static_cast<int>(s.drag_moving_vertices().size()), mesh.num_vertices() / 2);
+  }
   EXPECT_THROW(s.drag_move(Eigen::Vector3d(NAN, 0, 0)), InputError);
   EXPECT_THROW(s.drag_begin(handle, -1), InputError);
   EXPECT_TRUE(s.dragging());  // a refused request leaves the drag as it was
@@ -314,6 +330,7 @@ TEST(DragSession, EditorPreviewFollowsTheHandleAndCorrectReplacesIt) {
   s.drag_begin(handle, 0.6);
   EXPECT_EQ(s.field_name(), "");  // the next action ends the colouring
   s.drag_end();
+  EXPECT_TRUE(s.drag_moving_vertices().empty());
   EXPECT_LE((s.display_positions() - r.V).cwiseAbs().maxCoeff(), 0.0);
   EXPECT_THROW(s.drag_move(offset), InputError);
   // A region too large to factor while the user waits is refused in words.

@@ -138,6 +138,11 @@ int EditorSession::drag_region_vertices() const {
   return preview_ ? preview_->region_vertices() : 0;
 }
 
+const std::vector<int>& EditorSession::drag_moving_vertices() const {
+  static const std::vector<int> none;
+  return preview_ ? preview_->moving_vertices() : none;
+}
+
 void EditorSession::stop_poke() {
   if (haptic_) haptic_->stop();
   haptic_.reset();

@@ -1290,6 +1290,10 @@ int CorrectionPreview::region_vertices() const {
   return impl_->region_vertices;
 }
 
+const std::vector<int>& CorrectionPreview::moving_vertices() const {
+  return impl_->copy.to_mesh;
+}
+
 void CorrectionPreview::add_displacement(Positions& V, const Eigen::Vector3d& D) const {
   const Impl& m = *impl_;
   Field d;

@@ -4,6 +4,7 @@
 import * as THREE from 'three';
 import { OrbitControls } from 'three/addons/OrbitControls.js';
 import { createImageView } from './image-view.js';
+import { createStillDraw } from './still-draw.js';
 
 const $ = (id) => document.getElementById(id);
 const state = {
@@ -54,16 +55,20 @@ function makeControls() {
   controls = new OrbitControls(camera, renderer.domElement);
   controls.enableDamping = false;
   controls.target.copy(target);
-  controls.addEventListener('change', () => invalidate());
+  controls.addEventListener('change', () => { still.thaw(); invalidate(); });
 }
-makeControls();
 // The scene is drawn when something changed, not every animation frame: an idle page
 // then costs nothing, and a software-rendered page (no GPU) answers the server's
 // frames instead of queueing them behind its own drawing.
 let dirty = true;
 const invalidate = () => { dirty = true; };
-document.addEventListener('input', invalidate);
-document.addEventListener('change', invalidate);
+// A drag on a software rasterizer draws the still part of the surface once (see
+// still-draw.js); any other change to what is drawn ends that.
+const still = createStillDraw({ renderer, scene, camera });
+const redraw = () => { still.thaw(); invalidate(); };
+document.addEventListener('input', redraw);
+document.addEventListener('change', redraw);
+makeControls();
 
 // The surface is pushed back a little in depth so that the lines drawn on it (the rim
 // of what a drag would touch) are not lost in it.
@@ -106,6 +111,7 @@ dragArrow.cone.material.depthTest = false;
 
 // The 3D view fills the view, or its right half while the 2D view is docked beside it.
 function resize() {
+  still.thaw();
   const docked = viewport.classList.contains('docked');
   const w = docked ? Math.floor(viewport.clientWidth / 2) : viewport.clientWidth, h = viewport.clientHeight;
   renderer.setSize(w, h);
@@ -126,6 +132,7 @@ const BASE = [0.72, 0.78, 0.88], MOVING = [1.0, 0.55, 0.15];
 let baseColours = false;  // every vertex has the base colour (nothing to repaint while that holds)
 function paintColors() {
   if (!geometry) return;
+  still.thaw();
   const col = geometry.getAttribute('color');
   const n = state.vertexCount, P = state.positions, R = state.rest;
   const [lo, hi] = state.fieldRange;
@@ -191,6 +198,7 @@ function buildMesh(buf) {
   const nv = dv.getUint32(4, true), nf = dv.getUint32(8, true);
   const pos = new Float32Array(buf.slice(12, 12 + 12 * nv));
   const idx = new Uint32Array(buf.slice(12 + 12 * nv, 12 + 12 * nv + 12 * nf));
+  still.thaw();
   if (mesh) { scene.remove(mesh); scene.remove(wire); geometry.dispose(); }
   geometry = new THREE.BufferGeometry();
   geometry.setAttribute('position', new THREE.BufferAttribute(pos, 3).setUsage(THREE.DynamicDrawUsage));
@@ -314,6 +322,12 @@ function applyPositions(buf) {
   if (!state.poking) state.rest = P.slice();  // a correction, undo or redo: the new rest shape
   // The colours change with a field or a poke; a drag's preview leaves them at the base.
   if (state.field || state.poking || !baseColours) paintColors();
+  // A correct drag's preview without a GPU: the still part of the surface drawn once.
+  else if (drag && state.software && tool() === 'correct') {
+    if (still.holds(ids)) still.update();
+    else still.freeze({ geometry, surfaces: [mesh, wire], triangles: state.triangles, vertexFaces,
+      ids: state.dragVertices ? [...state.dragVertices, ...ids] : ids });
+  }
   imageView.onPositions();
   timed(state.timing.page, performance.now() - t0);
 }
@@ -384,6 +398,7 @@ ws.onmessage = (ev) => {
     else if (tag === 'VEC ') applyVectors(ev.data);
     else if (tag === 'SLC ') imageView.onSlice(ev.data);
     else if (tag === 'RIM ') { applyRim(ev.data); return; }  // not a surface update
+    else if (tag === 'REG ') { state.dragVertices = new Uint32Array(ev.data, 8); return; }
     state.updates += 1;
     return;
   }
@@ -650,9 +665,11 @@ renderer.domElement.addEventListener('pointerdown', (ev) => {
   if (t === 'poke') { state.poking = true; send({ type: 'poke_begin', vertex: hit.vertex, influence: +$('reach').value }); }
   // The correct tool previews live: the server factors the region once, then each
   // move is a product with its basis; releasing sends the real correction.
-  if (t === 'correct' && $('method').value === 'fem')
+  if (t === 'correct' && $('method').value === 'fem') {
+    state.dragVertices = null;  // the vertices it can move: the server sends them before its reply
     send({ type: 'drag_begin', vertex: hit.vertex, point: hit.point.toArray(), triangle: hit.triangle,
       radius: +$('radius').value });
+  }
 });
 // The drag vector as an arrow from the picked point, the handle's dot at its head.
 function showDragVector(offset) {
@@ -665,7 +682,6 @@ function showDragVector(offset) {
       Math.min(0.15 * length, 0.01 * camera.position.distanceTo(drag.start)));
   }
   if (tool() === 'correct') placeDot(drag.start.clone().add(offset));
-  invalidate();
 }
 function moveDrag(offset, force = false) {
   if (tool() === 'poke') {
@@ -678,10 +694,15 @@ function moveDrag(offset, force = false) {
   showDragVector(offset);
   if (tool() === 'correct' && $('method').value === 'fem') {
     const now = performance.now();
-    if (!force && now - lastMove < 8) return;
-    lastMove = now;
-    send({ type: 'drag_move', offset: offset.toArray() });
+    if (force || now - lastMove >= 8) {
+      lastMove = now;
+      send({ type: 'drag_move', offset: offset.toArray() });
+      // A running preview answers with the moved surface, drawn with the arrow in one
+      // frame (a frame of the arrow alone costs a software rasterizer as much).
+      if (state.dragVertices) return;
+    }
   }
+  invalidate();
 }
 // A hover picks at most every 40 ms (a pick tests every triangle: milliseconds on a large
 // mesh), the last position always.
@@ -732,6 +753,7 @@ function endDrag(ev) {
   state.poking = false;
   state.lastDrag = { start: drag.start.toArray(), offset: offset.toArray() };
   drag = null;
+  still.thaw();
   dragArrow.visible = false;
   handleDot.visible = false;
   interactive(false);
@@ -858,6 +880,24 @@ window.meshpde.normalsError = () => {
 window.meshpde.marks = () => ({ rim: rimLines.visible, handleRim: handleLines.visible, dot: handleDot.visible,
   arrow: dragArrow.visible, dotAt: handleDot.position.toArray() });
 
+// Whether a drag draws only its moving triangles over a kept image of the rest, and how
+// many (tests); and the view's pixels as drawn now and as a whole redraw draws them,
+// which ends that (tests: the two must be the same picture).
+window.meshpde.stillDraw = () => ({ active: still.active, movingTriangles: still.movingTriangles });
+window.meshpde.drawnAndWhole = () => {
+  const pixels = () => {
+    const gl = renderer.domElement, c = document.createElement('canvas');
+    c.width = gl.width; c.height = gl.height;
+    const ctx = c.getContext('2d');
+    ctx.drawImage(gl, 0, 0);
+    return ctx.getImageData(0, 0, c.width, c.height).data;
+  };
+  const drawn = pixels();
+  still.thaw();
+  renderer.render(scene, camera);
+  return { drawn, whole: pixels() };
+};
+
 // Screen position of a vertex (for tests and scripted demos).
 window.meshpde.screenOf = (i) => {
   const P = state.positions;
@@ -879,7 +919,8 @@ function loop() {
   dirty = false;
   controls.update();
   const t0 = performance.now();
-  renderer.render(scene, camera);
+  if (still.active) still.draw();
+  else renderer.render(scene, camera);
   timed(state.timing.draw, performance.now() - t0);
   fpsCount += 1;
   state.frames += 1;

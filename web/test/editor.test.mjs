@@ -619,9 +619,11 @@ async function imageChecks() {
       await correctDragBy(page, from, 12, -10);
       const reply = await page.evaluate(() => meshpde.lastCorrect);
       const offered = await page.isVisible('#colour-by');
+      // The choice is answered by the field's name, then its values (a frame of their own).
+      const updates = await page.evaluate(() => meshpde.updates);
       if (offered) await page.selectOption('#colour-by', 'image pull (mm)');
-      await page.waitForFunction(() => meshpde.fieldName === 'image pull (mm)' && meshpde.field, null, { timeout: 10000 })
-        .catch(() => {});
+      await page.waitForFunction((n) => meshpde.fieldName === 'image pull (mm)' && meshpde.field && meshpde.updates > n,
+        updates, { timeout: 10000 }).catch(() => {});
       const r = await page.evaluate(() => ({ max: meshpde.field ? Math.max(...meshpde.field) : NaN,
         legend: document.getElementById('legend-name').textContent, status: document.getElementById('status').textContent }));
       check('after an image-guided correction the wall can be coloured by how far the image moved it',
@@ -630,7 +632,9 @@ async function imageChecks() {
             JSON.stringify({ offered, reply, ...r }));
       const oksU = await page.evaluate(() => meshpde.oks);
       await page.click('#undo');
-      await page.waitForFunction((n) => meshpde.oks > n && meshpde.lastOk === 'undo', oksU, { timeout: 20000 }).catch(() => {});
+      // (the reply, then the field it leaves on show: none)
+      await page.waitForFunction((n) => meshpde.oks > n && meshpde.lastOk === 'undo' && meshpde.fieldName !== 'image pull (mm)',
+        oksU, { timeout: 20000 }).catch(() => {});
       check('the next action ends the colouring and its choice', await page.isHidden('#colour-by'));
     }
     // A slice along an axis that is not a patient axis is refused in words.
@@ -1034,6 +1038,28 @@ try {
     check('while dragging the rim is gone, the handle\'s dot rides on the previewed surface and the arrow shows the drag',
           !marks.rim && !marks.handleRim && marks.dot && marks.arrow && drag < 0.6,
           JSON.stringify({ ...marks, dot_to_nearest_vertex: drag }));
+  }
+  // Without a GPU a drag draws the still part of the surface once and then only the
+  // triangles it moves: the picture must be the one a whole redraw makes (rendered
+  // pixels: a stale or missing kept image differs where the surface moved or everywhere).
+  if (await page.evaluate(() => meshpde.software)) {
+    const split = await page.evaluate(() => ({ ...meshpde.stillDraw(), sent: meshpde.dragVertices?.length ?? 0 }));
+    const faces = await page.evaluate(() => meshpde.faceCount);
+    const cmp = await page.evaluate(() => {
+      const { drawn, whole } = meshpde.drawnAndWhole();
+      let differ = 0, surface = 0;
+      for (let i = 0; i < drawn.length; i += 4) {
+        const d = Math.abs(drawn[i] - whole[i]) + Math.abs(drawn[i + 1] - whole[i + 1]) + Math.abs(drawn[i + 2] - whole[i + 2]);
+        if (d > 12) differ += 1;
+        if (Math.abs(whole[i] - whole[0]) + Math.abs(whole[i + 1] - whole[1]) + Math.abs(whole[i + 2] - whole[2]) > 24) surface += 1;
+      }
+      return { differ, surface, pixels: drawn.length / 4 };
+    });
+    check('a drag without a GPU redraws only the triangles it moves, and draws the same picture as a whole redraw ' +
+          '(rendered pixels)', split.active && split.movingTriangles > 0 && split.movingTriangles < faces / 2 &&
+          !!rim && split.sent >= rim.regionVertices &&
+          cmp.surface > 0.05 * cmp.pixels && cmp.differ <= 0.002 * cmp.surface,
+          JSON.stringify({ ...split, region: rim && rim.regionVertices, faces, ...cmp }));
   }
   check('a correct drag previews the surface before release', maxDiff(preview, rest) > 0.3,
         `max move ${maxDiff(preview, rest)}`);

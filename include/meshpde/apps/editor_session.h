@@ -101,6 +101,9 @@ class EditorSession {
   void drag_end();  ///< drops the preview (correct() drops it too)
   bool dragging() const { return preview_ != nullptr; }
   int drag_region_vertices() const;
+  /// The vertices the running drag can move (empty without one): a page redraws only
+  /// these and their neighbours while the drag is on.
+  const std::vector<int>& drag_moving_vertices() const;
 
   // Correct.
   /// Image guidance is filled in when a volume was given, and the caps the mesh's face

@@ -336,6 +336,9 @@ class CorrectionPreview {
   CorrectionPreview(const CorrectionPreview&) = delete;
   CorrectionPreview& operator=(const CorrectionPreview&) = delete;
   int region_vertices() const;
+  /// The mesh's vertices a drag can move (the region's copy, in the mesh's numbering):
+  /// add_displacement changes no other row.
+  const std::vector<int>& moving_vertices() const;
   /// Adds the displacement of the handle dragged by D (mm) to V (the mesh's #V x 3).
   void add_displacement(Positions& V, const Eigen::Vector3d& D) const;
 
