@@ -296,6 +296,242 @@ async function unitsChecks() {
   }
 }
 
+// ------------------------------------------------------------------ a capped bifurcation in centimetres
+// The clinician's editor on a second kind of model, as SimVascular writes one: a
+// generated capped bifurcation in cm (Float32 points, ModelFaceID caps, a Normals
+// array), opened with --units cm and a volume in mm around it: units, image planes,
+// the rim, a smooth handle pulled out by the wheel, the colouring, the caps held,
+// status, keys, the save, and paint after a poke.
+async function bifurcationChecks() {
+  const dir = mkdtempSync(join(os.tmpdir(), 'meshpde-bifurcation-'));
+  const mm = join(dir, 'bifurcation-mm.vtp'), cm = join(dir, 'bifurcation-cm.vtp'), ct = join(dir, 'bifurcation-ct.mha');
+  const made = spawnSync(binary, ['generate', 'bifurcation', '--caps', '-o', mm], { encoding: 'utf8' });
+  const model = spawnSync('/usr/bin/python3', [join(here, 'simvascular_model.py'), mm, cm], { encoding: 'utf8' });
+  let caps = null;
+  try { caps = JSON.parse(model.stdout); } catch { /* reported below */ }
+  check('bifurcation (cm): generated and written as SimVascular would', made.status === 0 && !!caps && caps.caps.length > 50,
+        `${made.stderr} ${model.stderr}`);
+  if (!caps) return;
+  const inCm = await (async () => {
+    const r = spawnSync('/usr/bin/python3', ['-c', 'import sys, json\nfrom vtkmodules.vtkIOXML import vtkXMLPolyDataReader\n' +
+      'r = vtkXMLPolyDataReader(); r.SetFileName(sys.argv[1]); r.Update(); p = r.GetOutput().GetPoints()\n' +
+      'print(json.dumps([c for i in range(p.GetNumberOfPoints()) for c in p.GetPoint(i)]))', cm], { encoding: 'utf8' });
+    return JSON.parse(r.stdout);
+  })();
+  // A volume in mm around the model (as a scan is), its grey varying in every direction.
+  {
+    const lo = [0, 1, 2].map((c) => 10 * Math.min(...inCm.filter((_, i) => i % 3 === c)) - 4);
+    const hi = [0, 1, 2].map((c) => 10 * Math.max(...inCm.filter((_, i) => i % 3 === c)) + 4);
+    const h = 0.5, n = [0, 1, 2].map((c) => Math.ceil((hi[c] - lo[c]) / h) + 1);
+    const values = new Int16Array(n[0] * n[1] * n[2]);
+    for (let k = 0; k < n[2]; ++k)
+      for (let j = 0; j < n[1]; ++j)
+        for (let i = 0; i < n[0]; ++i) {
+          const x = lo[0] + h * i, y = lo[1] + h * j, z = lo[2] + h * k;
+          values[i + n[0] * (j + n[1] * k)] = Math.round(300 + 250 * Math.sin(x / 2) * Math.cos(z / 3) + 8 * y);
+        }
+    const header = ['ObjectType = Image', 'NDims = 3', `DimSize = ${n.join(' ')}`, `ElementSpacing = ${h} ${h} ${h}`,
+      `Offset = ${lo.join(' ')}`, 'TransformMatrix = 1 0 0 0 1 0 0 0 1', 'ElementType = MET_SHORT',
+      'ElementByteOrderMSB = False', 'ElementDataFile = LOCAL', ''].join('\n');
+    writeFileSync(ct, Buffer.concat([Buffer.from(header), Buffer.from(values.buffer)]));
+  }
+  const s = await startServer([cm, '--units', 'cm', '--image', ct, '--space', 'lps']);
+  const context = await browser.newContext({ viewport: { width: 1280, height: 800 }, acceptDownloads: true });
+  const label = 'bifurcation (cm): ';
+  try {
+    const page = await context.newPage();
+    page.on('pageerror', (e) => check(`${label}no page errors`, false, e.message));
+    await page.goto(s.url);
+    await page.waitForFunction(() => meshpde.ready && meshpde.imageView.shown >= 3, null, { timeout: 30000 });
+    // Units (item 2) and the caps: shown in mm, said so, the caps' vertices held.
+    const rest = await positions(page);
+    const line = await page.textContent('#status');
+    check(`${label}shown in mm, the status says cm and that the caps are held`,
+          maxDiff(rest, inCm.map((x) => 10 * x)) < 1e-4 && /is in cm: shown and edited in mm, saved in cm/.test(line) &&
+          new RegExp(`${caps.caps.length} vertices of flat caps are held`).test(line), `${line} ${maxDiff(rest, inCm.map((x) => 10 * x))}`);
+    // The image's planes (item 1, 5): through the middle of the mesh, in mm like the scan, drawn as sent.
+    const through = await page.evaluate(() => [2, 1, 0].map((c, k) => {
+      const P = meshpde.positions;
+      let lo = Infinity, hi = -Infinity;
+      for (let i = c; i < P.length; i += 3) { lo = Math.min(lo, P[i]); hi = Math.max(hi, P[i]); }
+      return Math.abs(meshpde.imageView.slices[k].position - (lo + hi) / 2) < 0.05 * (hi - lo) + 0.5;
+    }));
+    check(`${label}the image's planes start through the middle of the mesh`, through.every(Boolean), JSON.stringify(through));
+    await planeChecks(page, label);
+    await page.uncheck('#img-axial-show');
+    await page.uncheck('#img-coronal-show');
+    await page.uncheck('#img-sagittal-show');
+    await page.click('#view-anterior');
+    await page.waitForTimeout(300);
+
+    // The rim under the cursor (item 3), at 4 mm on the surface: every end nearer than
+    // 4 mm and no nearer than 0.85 of it (the trunk's radius is about 4 mm), in mm.
+    await page.check('input[name=tool][value=correct]');
+    await page.fill('#radius', '4');
+    await page.uncheck('#image');  // (this volume is a pattern, not a vessel: the pull alone)
+    const from = await page.evaluate(() => {
+      const P = meshpde.positions, cam = meshpde.cameraDirection();
+      let best = -1, facing = -Infinity;
+      for (let i = 0; i < meshpde.vertexCount; ++i) {
+        if (Math.abs(P[3 * i + 2] + 12) > 1) continue;
+        const d = [P[3 * i], P[3 * i + 1], 0], n = Math.hypot(...d);
+        const f = (d[0] * cam[0] + d[1] * cam[1]) / n;
+        if (f > facing) { facing = f; best = i; }
+      }
+      return { ...meshpde.screenOf(best), vertex: best };
+    });
+    await page.mouse.move(from.x - 4, from.y);
+    await page.mouse.move(from.x, from.y);
+    await page.waitForFunction(() => meshpde.rim && meshpde.rim.radius === 4, null, { timeout: 20000 }).catch(() => {});
+    await page.waitForTimeout(300);
+    const rim = await page.evaluate(() => {
+      const r = meshpde.rim;
+      if (!r) return null;
+      const d = [];
+      for (let i = 0; i < r.rim.length; i += 3)
+        d.push(Math.hypot(r.rim[i] - r.point[0], r.rim[i + 1] - r.point[1], r.rim[i + 2] - r.point[2]));
+      return { ends: d.length, nearest: Math.min(...d), farthest: Math.max(...d), regionVertices: r.regionVertices,
+        point: r.point, drawn: meshpde.marks().rim };
+    });
+    check(`${label}the rim under the cursor is at 4 mm on the wall`, !!rim && rim.drawn && rim.ends > 16 &&
+          rim.farthest < 4.02 && rim.nearest > 0.85 * 4, JSON.stringify(rim));
+
+    // A pull along the normal by the wheel (item 3, 4): six notches of 4/16 mm while the
+    // button is held; the picked point moves 1.5 mm out, nothing beyond 4 mm moves, and
+    // the handle makes a smooth bump: near the handle the triangles turn against each
+    // other at most twice as much as on the bump's flanks (the same pull by the command
+    // line: 1.6 times with the default handle, 2.7 times with a point handle's cusp).
+    const oks = await page.evaluate(() => meshpde.oks);
+    await page.mouse.move(from.x, from.y);
+    await page.mouse.down();
+    await page.waitForFunction(() => meshpde.lastOk === 'drag_begin', null, { timeout: 20000 }).catch(() => {});
+    for (let k = 0; k < 6; ++k) { await page.mouse.wheel(0, -100); await page.waitForTimeout(60); }
+    await page.waitForTimeout(400);
+    const during = await page.evaluate(() => meshpde.stillDraw());
+    await page.mouse.up();
+    await page.waitForFunction((n) => meshpde.oks > n && meshpde.lastOk === 'correct', oks, { timeout: 60000 }).catch(() => {});
+    await page.waitForTimeout(300);
+    const corrected = await positions(page);
+    const { reply, at, moved } = await handlePointMotion(page, rest, corrected);
+    const offset = await page.evaluate(() => meshpde.lastDrag.offset);
+    check(`${label}the wheel pulls the picked point 1.5 mm out along the wall's normal, drawn without redrawing the rest`,
+          Math.abs(Math.hypot(...offset) - 1.5) < 1e-6 && Math.hypot(...moved.map((m, c) => m - offset[c])) < 2e-3 &&
+          during.active && during.movingTriangles > 0,
+          JSON.stringify({ offset, moved, during }));
+    const T = await page.evaluate(() => Array.from(meshpde.triangles));
+    let far = 0;
+    for (let i = 0; i < rest.length / 3; ++i) {
+      const m = Math.hypot(corrected[3 * i] - rest[3 * i], corrected[3 * i + 1] - rest[3 * i + 1], corrected[3 * i + 2] - rest[3 * i + 2]);
+      if (m > 1e-4 && Math.hypot(rest[3 * i] - at[0], rest[3 * i + 1] - at[1], rest[3 * i + 2] - at[2]) > 4 + 1e-3) far += 1;
+    }
+    check(`${label}nothing beyond the 4 mm region moves`, far === 0 && reply.region_vertices > 50, `${far} moved beyond`);
+    {
+      // The turn between neighbouring triangles the pull added, near the handle and on the flanks.
+      const normal = (P, f) => {
+        const [a, b, c] = [T[3 * f], T[3 * f + 1], T[3 * f + 2]].map((v) => [P[3 * v], P[3 * v + 1], P[3 * v + 2]]);
+        const u = [0, 1, 2].map((k) => b[k] - a[k]), w = [0, 1, 2].map((k) => c[k] - a[k]);
+        const n = [u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]], l = Math.hypot(...n);
+        return n.map((x) => x / l);
+      };
+      const turn = (P, f, g) => { const a = normal(P, f), b = normal(P, g); return Math.acos(Math.min(1, a[0] * b[0] + a[1] * b[1] + a[2] * b[2])); };
+      const edges = new Map();
+      for (let f = 0; f < T.length / 3; ++f)
+        for (let k = 0; k < 3; ++k) {
+          const a = T[3 * f + k], b = T[3 * f + (k + 1) % 3], key = Math.min(a, b) * rest.length + Math.max(a, b);
+          edges.has(key) ? edges.get(key).push(f) : edges.set(key, [f]);
+        }
+      let near = 0, flank = 0;
+      const h = reply.handle_radius;
+      for (const [key, fs] of edges) {
+        if (fs.length !== 2) continue;
+        const a = Math.floor(key / rest.length), b = key % rest.length;
+        const d = Math.hypot(...[0, 1, 2].map((c) => (rest[3 * a + c] + rest[3 * b + c]) / 2 - at[c]));
+        if (d > 4) continue;
+        const added = Math.abs(turn(corrected, fs[0], fs[1]) - turn(rest, fs[0], fs[1])) * 180 / Math.PI;
+        if (d < h) near = Math.max(near, added); else flank = Math.max(flank, added);
+      }
+      const figures = `largest turn added within the handle (${h} mm) ${near.toFixed(2)} deg, on the flanks ${flank.toFixed(2)} deg`;
+      console.log(`${label}${figures}`);
+      check(`${label}the handle makes a smooth bump, no cusp`, h > 0 && near > 0 && near <= 2 * flank, figures);
+    }
+    // The wall coloured by how far it moved (item 3), in mm; the status line (item 6).
+    await page.waitForFunction(() => meshpde.fieldName === 'moved (mm)' && meshpde.field, null, { timeout: 10000 }).catch(() => {});
+    const shown = await page.evaluate(() => ({ max: meshpde.field ? Math.max(...meshpde.field) : NaN,
+      legend: document.getElementById('legend-name').textContent, status: document.getElementById('status').textContent,
+      error: document.getElementById('status').className === 'error' }));
+    check(`${label}coloured by the move in mm, one neutral status line`, Math.abs(shown.max - reply.max_displacement) < 1e-3 &&
+          Math.abs(shown.max - 1.5) < 0.01 && shown.legend === 'moved (mm)' && /^corrected: /.test(shown.status) && !shown.error,
+          JSON.stringify(shown));
+    await page.screenshot({ path: join(shots, 'editor-bifurcation-cm.png') });
+    // Undo and redo by the keys (item 7).
+    await page.evaluate(() => document.activeElement?.blur());
+    let n = await page.evaluate(() => meshpde.oks);
+    await page.keyboard.press('Control+Z');
+    await page.waitForFunction((k) => meshpde.oks > k && meshpde.lastOk === 'undo', n, { timeout: 20000 }).catch(() => {});
+    await page.waitForTimeout(300);
+    const undone = maxDiff(await positions(page), rest);
+    n = await page.evaluate(() => meshpde.oks);
+    await page.keyboard.press('Control+Shift+Z');
+    await page.waitForFunction((k) => meshpde.oks > k && meshpde.lastOk === 'redo', n, { timeout: 20000 }).catch(() => {});
+    await page.waitForTimeout(300);
+    const redone = maxDiff(await positions(page), corrected);
+    check(`${label}Ctrl+Z undoes and Ctrl+Shift+Z redoes`, undone < 1e-5 && redone < 1e-5, `${undone} ${redone}`);
+
+    // The caps hold: a 2 mm push at the wall vertex nearest each cap's centre, 6 mm
+    // around, leaves every cap vertex where it was while the wall moves.
+    for (const v of caps.wall_near_cap) {
+      const before = await positions(page);
+      n = await page.evaluate(() => meshpde.oks);
+      await page.evaluate((w) => meshpde.send({ type: 'correct', vertex: w, move: [0, 0, 2], radius: 6, image: false }), v);
+      await page.waitForFunction((k) => meshpde.oks > k && meshpde.lastOk === 'correct', n, { timeout: 60000 }).catch(() => {});
+      await page.waitForTimeout(300);
+      const after = await positions(page);
+      const capMoved = Math.max(...caps.caps.map((c) => Math.hypot(after[3 * c] - before[3 * c], after[3 * c + 1] - before[3 * c + 1],
+        after[3 * c + 2] - before[3 * c + 2])));
+      check(`${label}the caps hold when the wall beside them is pushed (vertex ${v})`, capMoved === 0 && maxDiff(after, before) > 0.5,
+            `cap moved ${capMoved}, wall moved ${maxDiff(after, before)}`);
+    }
+
+    // The save (item 8): read back with VTK, in cm, Float32, the caps' labels and the
+    // frame kept, the normals the moved surface's (the input's are stale, and made by
+    // another rule).
+    const saved = await positions(page);
+    await page.selectOption('#save-format', 'vtp');
+    const [download] = await Promise.all([page.waitForEvent('download'), page.click('#save')]);
+    const savedVtp = join(dir, 'saved.vtp');
+    await download.saveAs(savedVtp);
+    const read = spawnSync('/usr/bin/python3', [join(here, 'vtp_report.py'), savedVtp, cm], { encoding: 'utf8' });
+    let report = null;
+    try { report = JSON.parse(read.stdout); } catch { /* reported below */ }
+    const bounds = saved.length && [0, 1, 2].map((c) => Math.max(...saved.filter((_, i) => i % 3 === c)) / 10);
+    check(`${label}saved in cm with Float32 points, ModelFaceID, the LPS tag and the moved surface's normals`, !!report &&
+          report.points_type === 'float' && report.space === 'LPS' && report.cell_arrays.ModelFaceID?.type === 'int' &&
+          report.normals.Normals?.p999_deg < 0.5 && report.bounds && [0, 1, 2].every((c) => Math.abs(report.bounds.max[c] - bounds[c]) < 1e-5),
+          JSON.stringify({ report, bounds, stderr: read.stderr }));
+
+    // Paint right after a poke (item 9): the value shows, the surface at rest.
+    const atRest = await positions(page);
+    await page.check('input[name=tool][value=poke]');
+    await dragBy(page, from, 0, -30);
+    await page.waitForTimeout(300);
+    await page.mouse.up();
+    await page.check('input[name=tool][value=paint]');
+    await page.fill('#paint-value', '3');
+    n = await page.evaluate(() => meshpde.oks);
+    await page.mouse.click(from.x, from.y);
+    await page.waitForFunction(() => meshpde.fieldName === 'paint' && meshpde.field && Math.max(...meshpde.field) > 2.5,
+                               null, { timeout: 30000 }).catch(() => {});
+    await page.waitForTimeout(300);
+    check(`${label}paint right after a poke: the value shows and the surface is at rest`,
+          (await page.evaluate(() => meshpde.fieldName === 'paint' && Math.max(...meshpde.field) > 2.5)) &&
+          maxDiff(await positions(page), atRest) < 1e-4, String(maxDiff(await positions(page), atRest)));
+  } finally {
+    await context.close();
+    await stopServer(s);
+    rmSync(dir, { recursive: true, force: true });
+  }
+}
+
 // ------------------------------------------------------------------ a DICOM series uploaded as a .zip
 async function dicomZipChecks(page) {
   const dir = mkdtempSync(join(os.tmpdir(), 'meshpde-dicom-'));
@@ -355,7 +591,7 @@ const quantile = (xs, q) => { const s = [...xs].sort((a, b) => a - b); return s[
 // texture format WebGL 2 cannot store). With the surface hidden and one plane shown at
 // a time, the rendered colour at 81 pixel centres of each slice is grey and equals the
 // sent grey over the background at the plane's opacity.
-async function planeChecks(page) {
+async function planeChecks(page, prefix = '') {
   const axes = ['axial', 'coronal', 'sagittal'];
   let shown = await page.evaluate(() => meshpde.imageView.shown);
   await setRange(page, 'img-window', await page.evaluate(() => +document.getElementById('img-window').max));
@@ -384,13 +620,13 @@ async function planeChecks(page) {
     const colour = samples.map((s) => Math.abs(s.rgb[0] - s.rgb[1]) + Math.abs(s.rgb[1] - s.rgb[2]));
     const spread = Math.max(...samples.map((s) => s.sent)) - Math.min(...samples.map((s) => s.sent));
     // The volume reaches beyond the view: some of the grid's points are off screen.
-    check(`${axis} plane in 3D: enough of its points on screen to compare`, samples.length >= 12, String(samples.length));
+    check(`${prefix}${axis} plane in 3D: enough of its points on screen to compare`, samples.length >= 12, String(samples.length));
     const figures = `|rendered - sent| median ${quantile(err, 0.5)?.toFixed(1)}, 90th percentile ` +
       `${quantile(err, 0.9)?.toFixed(1)} grey levels over ${samples.length} points (the slice spans ${spread})`;
-    console.log(`${axis} plane in 3D: ${figures}`);
-    check(`${axis} plane in 3D: the rendered grey is the server's slice`, quantile(err, 0.5) <= 6 && quantile(err, 0.9) <= 24 && spread > 40,
+    console.log(`${prefix}${axis} plane in 3D: ${figures}`);
+    check(`${prefix}${axis} plane in 3D: the rendered grey is the server's slice`, quantile(err, 0.5) <= 6 && quantile(err, 0.9) <= 24 && spread > 40,
           figures);
-    check(`${axis} plane in 3D: grey, not tinted`, quantile(colour, 0.5) <= 3, `median |r-g|+|g-b| ${quantile(colour, 0.5)}`);
+    check(`${prefix}${axis} plane in 3D: grey, not tinted`, quantile(colour, 0.5) <= 3, `median |r-g|+|g-b| ${quantile(colour, 0.5)}`);
   }
   for (const other of axes) await page.check(`#img-${other}-show`);
   await page.check('#surface');
@@ -1433,6 +1669,7 @@ try {
   await imageChecks();
   await segmentationChecks();
   await unitsChecks();
+  await bifurcationChecks();
 } catch (e) {
   check('test script ran to the end', false, e.stack || String(e));
 } finally {

@@ -2,7 +2,7 @@
 
 Usage: /usr/bin/python3 vtp_report.py SAVED.vtp [ORIGINAL.vtp]
 
-Prints the points' type, the SPACE field-data tag, every point and cell array (type,
+Prints the points' type and bounds, the SPACE field-data tag, every point and cell array (type,
 components), and for each 3-component point array whose name says normals, the largest
 angle (degrees) between it and the area-weighted normals of the saved surface (sign
 matched), over all vertices and over the 99.9 % best; with ORIGINAL, the largest angle
@@ -43,6 +43,7 @@ def main():
     P = vtk_to_numpy(pd.GetPoints().GetData()).astype(np.float64)
     F = vtk_to_numpy(pd.GetPolys().GetConnectivityArray()).reshape(-1, 3)
     out = {"points": pd.GetNumberOfPoints(), "points_type": pd.GetPoints().GetData().GetDataTypeAsString(),
+           "bounds": {"min": P.min(axis=0).tolist(), "max": P.max(axis=0).tolist()},
            "space": None, "point_arrays": {}, "cell_arrays": {}, "normals": {}}
     fd = pd.GetFieldData()
     for i in range(fd.GetNumberOfArrays()):
