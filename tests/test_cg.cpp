@@ -41,11 +41,11 @@ TEST(Cg, SolvesSpdWithSeveralRightHandSides) {
   const int n = 50;
   Eigen::MatrixXd A = Eigen::MatrixXd::Random(n, n);
   A = A * A.transpose() + n * Eigen::MatrixXd::Identity(n, n);
-  const Block b = Block::Random(n, 3);
-  Block x = Block::Zero(n, 3);
+  const Field b = Field::Random(n, 3);
+  Field x = Field::Zero(n, 3);
   CgWorkspace w;
   const Eigen::VectorXd inv = A.diagonal().cwiseInverse();
-  const CgResult r = pcg([&](const Block& p, Block& y) { y = A * p; }, inv, b, x, CgOptions{.tolerance = 1e-12}, w);
+  const CgResult r = pcg([&](const Field& p, Field& y) { y = A * p; }, inv, b, x, CgOptions{.tolerance = 1e-12}, w);
   EXPECT_TRUE(r.converged());
   EXPECT_LE((A * x - b).norm() / b.norm(), 1e-11);
 }
@@ -54,17 +54,17 @@ TEST(Cg, ReportsBreakdownAndIterationCapInWords) {
   const int n = 10;
   Eigen::MatrixXd A = Eigen::MatrixXd::Identity(n, n);
   A(3, 3) = -1;  // indefinite
-  const Block b = Block::Ones(n, 1);
-  Block x = Block::Zero(n, 1);
+  const Field b = Field::Ones(n, 1);
+  Field x = Field::Zero(n, 1);
   CgWorkspace w;
-  const CgResult r = pcg([&](const Block& p, Block& y) { y = A * p; }, Eigen::VectorXd::Ones(n), b, x, CgOptions{}, w);
+  const CgResult r = pcg([&](const Field& p, Field& y) { y = A * p; }, Eigen::VectorXd::Ones(n), b, x, CgOptions{}, w);
   EXPECT_EQ(r.status, CgStatus::Breakdown);
   EXPECT_NE(r.message.find("not positive definite"), std::string::npos);
 
   Eigen::MatrixXd B = Eigen::MatrixXd::Random(n, n);
   B = B * B.transpose() + 1e-3 * Eigen::MatrixXd::Identity(n, n);
   x.setZero();
-  const CgResult c = pcg([&](const Block& p, Block& y) { y = B * p; }, Eigen::VectorXd::Ones(n), b, x,
+  const CgResult c = pcg([&](const Field& p, Field& y) { y = B * p; }, Eigen::VectorXd::Ones(n), b, x,
                          CgOptions{.max_iterations = 2}, w);
   EXPECT_EQ(c.status, CgStatus::MaxIterations);
   EXPECT_NE(c.message.find("no convergence in 2 iterations"), std::string::npos);

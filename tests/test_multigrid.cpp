@@ -67,7 +67,7 @@ TEST(Multigrid, CycleIsSymmetricPositiveDefiniteAndApplyIsTheBilaplacian) {
     for (std::size_t l = 1; l < levels.size(); ++l) EXPECT_LT(levels[l], levels[l - 1] / 2);
     std::mt19937 rng(7);
     std::uniform_real_distribution<double> uni(-1, 1);
-    Block x(n, 3), y(n, 3), Bx, By, Ax;
+    Field x(n, 3), y(n, 3), Bx, By, Ax;
     for (int i = 0; i < n; ++i)
       for (int c = 0; c < 3; ++c) x(i, c) = uni(rng), y(i, c) = uni(rng);
     mg.precondition(x, Bx);
@@ -205,11 +205,11 @@ TEST(Multigrid, BadRequestsAreRefusedInWords) {
   EXPECT_THROW(BilaplacianMultigrid(m, ops, std::vector<int>{1, 2}, 0, 0), InputError);
   // No free vertex: nothing to solve, empty blocks out.
   const BilaplacianMultigrid none(m, ops, std::vector<int>{}, 0, 1);
-  Block z;
-  none.precondition(Block(0, 3), z);
+  Field z;
+  none.precondition(Field(0, 3), z);
   EXPECT_EQ(z.rows(), 0);
-  Block x0;
-  EXPECT_TRUE(none.solve(Block(0, 3), x0, 1e-8).converged);
+  Field x0;
+  EXPECT_TRUE(none.solve(Field(0, 3), x0, 1e-8).converged);
   // Every vertex free and no Laplacian term: constants cost no energy, nothing to hold
   // them. Refused whether the coarsest level is the whole problem (CHOLMOD's factor)
   // or a small level of a hierarchy (Eigen's LDL^T below 700 unknowns, whose tiny

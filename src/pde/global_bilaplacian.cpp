@@ -140,7 +140,7 @@ struct GlobalBilaplacianSolver::Impl {
       // iterations are left out of the rate because CG's residual can rise in them, and
       // the window follows a stall on a badly shaped mesh, where the rate is good at
       // first and then slows.
-      Block xb = x;
+      Field xb = x;
       std::function<bool(int, double)> keep_going;
       // Relative residual at the start (1 from zero, less from a warm start) and after
       // each iteration, as the multigrid's solve reports them.
@@ -153,7 +153,7 @@ struct GlobalBilaplacianSolver::Impl {
           res.multigrid_predicted_iterations = rho < 1 ? k + std::log(p.tolerance / r) / std::log(rho) : HUGE_VAL;
           return res.multigrid_predicted_iterations <= p.max_multigrid_iterations;
         };
-      const MultigridSolveResult r = mg.solve(Block(b), xb, p.tolerance, p.max_iterations, keep_going);
+      const MultigridSolveResult r = mg.solve(Field(b), xb, p.tolerance, p.max_iterations, keep_going);
       x = xb;
       res.iterations = res.multigrid_iterations = r.iterations;
       res.relative_residual = r.relative_residual;

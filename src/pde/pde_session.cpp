@@ -329,8 +329,8 @@ StepResult PdeSession::solve(Mode mode, double dt, const Field* f) {
     else
       u_.row(i) = cons_target_.row(k);
   }
-  Block& b = rhs_;
-  Block& x = sol_;
+  Field& b = rhs_;
+  Field& x = sol_;
   b.resize(n, m_);
   x.resize(n, m_);
   apply_Kt_free(u_.data(), b.data());
@@ -369,7 +369,7 @@ StepResult PdeSession::solve(Mode mode, double dt, const Field* f) {
       inv_diag[k] = d > 0 ? 1.0 / d : 1.0;
     }
     build_local_system();
-    auto apply = [&](const Block& P, Block& Y) { apply_local(P.data(), Y.data(), cM, cK); };
+    auto apply = [&](const Field& P, Field& Y) { apply_local(P.data(), Y.data(), cM, cK); };
     r.cg = pcg(apply, inv_diag, b, x, cg_options, ws_);
   }
 

@@ -64,7 +64,7 @@ void spmm_fixed(const RowSparse& S, const double* x, double* y, Eigen::Index m) 
   }
 }
 
-void spmm(const RowSparse& S, const Block& X, Block& Y) {
+void spmm(const RowSparse& S, const Field& X, Field& Y) {
   Y.resize(S.rows(), X.cols());
   switch (X.cols()) {
     case 1:
@@ -351,14 +351,14 @@ struct BilaplacianMultigrid::Impl {
     Eigen::VectorXd inv_diag;  // 1 / A_ii
     double lambda_max = 0;     // of D_A^-1 A, with a 10 % margin
     RowSparse P, Pt;           // to the next coarser level (n x n_next) and back
-    mutable Block b, x, r, t, d, t2, e;
+    mutable Field b, x, r, t, d, t2, e;
   };
   SurfaceMultigridParams params;
   double g1 = 0, g2 = 1;
   int nF = 0, nR = 0;
   RowSparse KRF, KFR;  // K restricted to (free and ring) x free, and its transpose
   Eigen::VectorXd dR;  // g2 D on the free vertices and their ring
-  mutable Block kx, g1x;
+  mutable Field kx, g1x;
   std::vector<Level> levels;
   SparseCholesky coarse;  // of the coarsest level
 
@@ -372,7 +372,7 @@ struct BilaplacianMultigrid::Impl {
     return A;
   }
 
-  void apply(std::size_t l, const Block& X, Block& Y) const {
+  void apply(std::size_t l, const Field& X, Field& Y) const {
     if (l > 0 || levels[0].A.rows() > 0) return spmm(levels[l].A, X, Y);
     spmm(KRF, X, kx);
     if (g1 > 0) g1x = g1 * kx.topRows(nF);
@@ -397,7 +397,7 @@ struct BilaplacianMultigrid::Impl {
     // the finest level's estimate (25 ms of it, against 8 applies of about 1.2 ms).
     const Eigen::VectorXd s = L.inv_diag.cwiseSqrt();
     Eigen::VectorXd v(n), v_prev = Eigen::VectorXd::Zero(n), w(n);
-    Block x(n, 1), y;
+    Field x(n, 1), y;
     for (Eigen::Index i = 0; i < n; ++i) v[i] = std::sin(12.9898 * static_cast<double>(i) + 78.233) + 0.1;
     v /= v.norm();
     Eigen::VectorXd alpha(steps), beta(steps);
@@ -436,7 +436,7 @@ struct BilaplacianMultigrid::Impl {
   }
 
   // r = b - t, rows split over threads on large levels.
-  static void difference(const Block& b, const Block& t, Block& r) {
+  static void difference(const Field& b, const Field& t, Field& r) {
     r.resize(b.rows(), b.cols());
     for_row_ranges(b.rows(), [&](Eigen::Index begin, Eigen::Index end, int) {
       r.middleRows(begin, end - begin) = b.middleRows(begin, end - begin) - t.middleRows(begin, end - begin);
@@ -445,7 +445,7 @@ struct BilaplacianMultigrid::Impl {
 
   // Chebyshev smoothing of A x = b in D_A^-1 A on [lambda_max / range, lambda_max]
   // (Saad's three-term recurrence); from x = 0 when `zero_start`.
-  void smooth(std::size_t l, const Block& b, Block& x, bool zero_start) const {
+  void smooth(std::size_t l, const Field& b, Field& x, bool zero_start) const {
     const Level& L = levels[l];
     const double hi = L.lambda_max, lo = hi / params.smoothing_range;
     const double theta = (hi + lo) / 2, delta = (hi - lo) / 2, sigma = theta / delta;
@@ -490,10 +490,10 @@ struct BilaplacianMultigrid::Impl {
 
   // Gauss-Seidel sweeps on A x = b in place, rows in order (forward) or reversed; from
   // x = 0 when `zero_start`.
-  void gauss_seidel(std::size_t l, const Block& b, Block& x, bool forward, bool zero_start) const {
+  void gauss_seidel(std::size_t l, const Field& b, Field& x, bool forward, bool zero_start) const {
     const RowSparse& A = levels[l].A;
     const Eigen::Index n = b.rows(), m = b.cols();
-    if (zero_start) x = Block::Zero(n, m);
+    if (zero_start) x = Field::Zero(n, m);
     const int* outer = A.outerIndexPtr();
     const int* inner = A.innerIndexPtr();
     const double* val = A.valuePtr();
@@ -515,20 +515,20 @@ struct BilaplacianMultigrid::Impl {
       }
   }
 
-  void pre_smooth(std::size_t l, const Block& b, Block& x) const {
+  void pre_smooth(std::size_t l, const Field& b, Field& x) const {
     if (params.smoother == SurfaceMultigridParams::Smoother::GaussSeidel)
       gauss_seidel(l, b, x, true, true);
     else
       smooth(l, b, x, true);
   }
-  void post_smooth(std::size_t l, const Block& b, Block& x) const {
+  void post_smooth(std::size_t l, const Field& b, Field& x) const {
     if (params.smoother == SurfaceMultigridParams::Smoother::GaussSeidel)
       gauss_seidel(l, b, x, false, false);
     else
       smooth(l, b, x, false);
   }
 
-  void cycle(std::size_t l, const Block& b, Block& x) const {
+  void cycle(std::size_t l, const Field& b, Field& x) const {
     if (l + 1 == levels.size()) {
       const Eigen::MatrixXd rhs = b;
       x = coarse.solve(rhs);
@@ -752,11 +752,11 @@ int BilaplacianMultigrid::unknowns() const {
   return impl_->nF;
 }
 
-void BilaplacianMultigrid::apply(const Block& X, Block& Y) const {
+void BilaplacianMultigrid::apply(const Field& X, Field& Y) const {
   impl_->apply(0, X, Y);
 }
 
-void BilaplacianMultigrid::precondition(const Block& R, Block& Z) const {
+void BilaplacianMultigrid::precondition(const Field& R, Field& Z) const {
   if (impl_->nF > 0)
     impl_->cycle(0, R, Z);
   else
@@ -778,13 +778,13 @@ double BilaplacianMultigrid::bytes(int columns) const {
   return b;
 }
 
-MultigridSolveResult BilaplacianMultigrid::solve(const Block& B, Block& X, double tolerance, int max_iterations,
+MultigridSolveResult BilaplacianMultigrid::solve(const Field& B, Field& X, double tolerance, int max_iterations,
                                                  const std::function<bool(int, double)>& keep_going) const {
   const Eigen::Index n = B.rows(), m = B.cols();
   if (n != impl_->nF) throw InputError(fmt::format("right-hand side has {} rows for {} unknowns", n, impl_->nF));
-  if (X.rows() != n || X.cols() != m) X = Block::Zero(n, m);
+  if (X.rows() != n || X.cols() != m) X = Field::Zero(n, m);
   MultigridSolveResult res;
-  Block r, z, p, q;
+  Field r, z, p, q;
   apply(X, q);
   r = B - q;
   // Per-column sums over row-major blocks in one pass, each thread's range summed
@@ -795,7 +795,7 @@ MultigridSolveResult BilaplacianMultigrid::solve(const Block& B, Block& X, doubl
     for (int t = 0; t < parts; ++t) s += partial[static_cast<std::size_t>(t)];
     return s;
   };
-  auto column_dots = [&](const Block& a, const Block& b) {
+  auto column_dots = [&](const Field& a, const Field& b) {
     const double *A = a.data(), *Bp = b.data();
     return add_parts(for_row_ranges(n, [&](Eigen::Index begin, Eigen::Index end, int t) {
       Eigen::VectorXd s = Eigen::VectorXd::Zero(m);

@@ -189,7 +189,7 @@ class PdeSession {
   std::vector<int> ring_rows_;  // A followed by A+1, rebuilt per solve
   CgWorkspace ws_;
   LocalSystem local_;
-  Block rhs_, sol_;  // per-solve right-hand side and iterate, kept to avoid allocations
+  Field rhs_, sol_;  // per-solve right-hand side and iterate, kept to avoid allocations
   Eigen::VectorXd inv_diag_;
   std::vector<unsigned> visit_mark_;  // activate_rings' visit stamps, one per vertex
   unsigned visit_stamp_ = 0;

@@ -19,9 +19,9 @@
 #include <type_traits>
 #include <vector>
 
-namespace meshpde {
+#include "meshpde/mesh/field.h"
 
-using Block = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+namespace meshpde {
 
 struct CgOptions {
   double tolerance = 1e-8;     ///< relative residual |b - A x| / |b| per column
@@ -52,7 +52,7 @@ const char* to_string(CgStatus s);
 
 /// Work buffers kept between solves so repeated small solves allocate nothing.
 struct CgWorkspace {
-  Block r, z, p, q;
+  Field r, z, p, q;
 };
 
 namespace detail {
@@ -60,7 +60,7 @@ namespace detail {
 /// CG on n x M blocks; M > 0 fixes the column count at compile time so the per-column
 /// accumulators live in registers (M = 0: any count, read from b).
 template <int M, class Apply>
-CgResult pcg_impl(Apply&& apply, const Eigen::VectorXd& inv_diag, const Block& b, Block& x, const CgOptions& opt,
+CgResult pcg_impl(Apply&& apply, const Eigen::VectorXd& inv_diag, const Field& b, Field& x, const CgOptions& opt,
                   CgWorkspace& w) {
   // Flat loops over the row-major n x m blocks: the solves are small and frequent
   // (haptic steps), so per-iteration overhead matters more than vectorized width.
@@ -189,7 +189,7 @@ CgResult pcg_impl(Apply&& apply, const Eigen::VectorXd& inv_diag, const Block& b
 /// Solves A x = b. `apply(P, Q)` must write Q = A P for n x m blocks; `inv_diag`
 /// (length n) is the Jacobi preconditioner 1 / A_ii. `x` holds the initial guess.
 template <class Apply>
-CgResult pcg(Apply&& apply, const Eigen::VectorXd& inv_diag, const Block& b, Block& x, const CgOptions& opt,
+CgResult pcg(Apply&& apply, const Eigen::VectorXd& inv_diag, const Field& b, Field& x, const CgOptions& opt,
              CgWorkspace& w) {
   switch (b.cols()) {
     case 1:

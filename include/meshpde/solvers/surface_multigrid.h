@@ -129,15 +129,15 @@ class BilaplacianMultigrid {
   /// Number of free vertices (rows of A); blocks are indexed in the order of `free`.
   int unknowns() const;
   /// Y = A X for an unknowns() x m block (row-major).
-  void apply(const Block& X, Block& Y) const;
+  void apply(const Field& X, Field& Y) const;
   /// Z = B R, one cycle (W by default; B approximates A^-1, symmetric positive definite).
-  void precondition(const Block& R, Block& Z) const;
+  void precondition(const Field& R, Field& Z) const;
   /// Conjugate gradient on A X = B preconditioned by the cycle, from the given X
   /// (every column its own step lengths, one apply and one cycle for all columns).
   /// `keep_going(iterations, relative_residual)`, when given, is called with the
   /// starting residual (iterations 0) and after every iteration that has not converged;
   /// returning false stops the solve there (X holds the iterate, `converged` is false).
-  MultigridSolveResult solve(const Block& B, Block& X, double tolerance, int max_iterations = 500,
+  MultigridSolveResult solve(const Field& B, Field& X, double tolerance, int max_iterations = 500,
                              const std::function<bool(int, double)>& keep_going = {}) const;
 
   /// Free unknowns on each level, finest first.
