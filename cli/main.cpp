@@ -8,6 +8,7 @@
 #include "commands.h"
 #include "meshpde/core/errors.h"
 #include "meshpde/mesh/topology.h"
+#include "usage.h"
 #ifdef MESHPDE_HAVE_MEDICAL
 #include "meshpde/io/medical_io.h"
 #endif
@@ -93,7 +94,7 @@ int main(int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    return app.exit(e);
+    return meshpde::cli::usage_error(app, e, "meshpde", argc, argv);
   } catch (const meshpde::Error& e) {
     fmt::print(stderr, "meshpde: error: {}\n", e.what());
     return 1;

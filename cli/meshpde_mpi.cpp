@@ -22,6 +22,7 @@
 #include "meshpde/distributed/distributed_solve.h"
 #include "meshpde/distributed/partition.h"
 #include "meshpde/io/mesh_io.h"
+#include "usage.h"
 #ifdef MESHPDE_HAVE_MEDICAL
 #include "meshpde/io/medical_io.h"
 #endif
@@ -388,9 +389,9 @@ int main(int argc, char** argv) {
     try {
       app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {
-      code = rank == 0 ? app.exit(e) : (e.get_exit_code() == 0 ? 0 : 2);
-      if (code != 0) code = 2;
-      return code;
+      // (rank 0 speaks for all)
+      if (rank == 0) return meshpde::cli::usage_error(app, e, "meshpde-mpi", argc, argv);
+      return e.get_exit_code() == 0 ? 0 : 2;
     }
     code = a.command == "partition" ? run_partition(a) : a.command == "join" ? run_join(a) : run(a, MPI_COMM_WORLD);
   } catch (const std::exception& e) {

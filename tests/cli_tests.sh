@@ -143,7 +143,30 @@ if [ -f "$DATA/aorta-open-6k.stl" ]; then
   check "badly shaped warning" grep -q "badly shaped" "$T/err"
 fi
 
+# usage errors: exit 2 with "meshpde: error:" naming what was wrong; help and version exit 0
+usage() {  # usage WHAT PATTERN ARGS...: exits 2, says PATTERN after the prefix
+  local what="$1" pattern="$2"; shift 2
+  "$M" "$@" >/dev/null 2>"$T/usage"
+  check "usage error exits 2: $what" [ $? -eq 2 ]
+  check "usage error says why: $what" grep -q "^meshpde: error: .*$pattern" "$T/usage"
+}
+usage "no command" "a command is required"
+usage "unknown command" "unknown command 'bogus'" bogus
+usage "unknown option" "--bogus" info "$T/ll.off" --bogus
+usage "missing option" "--move is required" correct "$T/ll.off" -o "$T/never.ply" --vertex 0
+usage "value not a number" "--radius = abc" correct "$T/ll.off" -o "$T/never.ply" --vertex 0 --move 1,0,0 --radius abc
+usage "value not allowed" "inch" correct "$T/ll.off" -o "$T/never.ply" --vertex 0 --move 1,0,0 --units inch
+check "no output after usage errors" [ ! -e "$T/never.ply" ]
+"$M" --version >/dev/null 2>&1
+check "--version exits 0" [ $? -eq 0 ]
+"$M" info --help >/dev/null 2>&1
+check "--help exits 0" [ $? -eq 0 ]
+
 # bad input: clear message naming the file and line, non-zero exit, nothing written
+mkdir -p "$T/folder.ply"
+"$M" convert "$T/ll.off" "$T/folder.ply" 2>"$T/err" >/dev/null
+check "writing over a directory exits 1" [ $? -eq 1 ]
+check "writing over a directory says so" grep -q "folder.ply: is a directory" "$T/err"
 printf 'OFF\n3 1 0\n0 0 0\n1 0 nan\n0 1 0\n3 0 1 2\n' >"$T/nan.off"
 "$M" info "$T/nan.off" 2>"$T/err" >/dev/null
 check "NaN input exits 1" [ $? -eq 1 ]
