@@ -12,9 +12,10 @@ Conventions (docs/mathematics.md):
 - ``mass(V, F)`` is the lumped mass M, M_ii = one third of the area around vertex i.
 - The bi-Laplacian is K M^-1 K.
 
-Errors: ``meshpde.InputError`` (a ``ValueError``) for unusable input, naming the
-argument, file, line or element; ``IndexError`` for an index out of range;
-``meshpde.SolverError`` (a ``RuntimeError``) when a solve cannot proceed. Long calls
+Errors: every one a ``meshpde.Error``. ``meshpde.InputError`` (also a ``ValueError``)
+for unusable input, naming the argument, file, line or element;
+``meshpde.OutOfRangeError`` (an ``InputError`` and an ``IndexError``) for an index out
+of range; ``meshpde.SolverError`` (a ``RuntimeError``) when a solve cannot proceed. Long calls
 release the GIL; ``heat`` and ``wave`` stop on Ctrl-C with ``KeyboardInterrupt``.
 
 ``meshpde.batch`` (imported on its own: ``import meshpde.batch``) runs one of these
@@ -28,6 +29,7 @@ from ._meshpde import (  # noqa: F401  (re-exported)
     CorrectionResult,
     DragSession,
     Error,
+    OutOfRangeError,
     GlobalBilaplacianSolver,
     HapticSession,
     InputError,

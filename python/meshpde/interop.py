@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ._meshpde import InputError, OutOfRangeError
+
 
 def _vtk():
     try:
@@ -41,7 +43,7 @@ def from_vtk(polydata):
     tri.Update()
     out = tri.GetOutput()
     if out.GetNumberOfPoints() == 0:
-        raise ValueError("from_vtk: the polydata has no points")
+        raise InputError("from_vtk: the polydata has no points")
     V = ns.vtk_to_numpy(out.GetPoints().GetData()).astype(np.float64)
     conn = ns.vtk_to_numpy(out.GetPolys().GetConnectivityArray())
     F = conn.reshape(-1, 3).astype(np.int32)
@@ -84,11 +86,11 @@ def to_vtk(V, F, fields=None, cells=None):
     V = np.ascontiguousarray(V, dtype=np.float64)
     F = np.ascontiguousarray(F, dtype=np.int64)
     if V.ndim != 2 or V.shape[1] != 3:
-        raise ValueError(f"V: expected an (n, 3) array, got shape {V.shape}")
+        raise InputError(f"V: expected an (n, 3) array, got shape {V.shape}")
     if F.ndim != 2 or F.shape[1] != 3:
-        raise ValueError(f"F: expected an (m, 3) array, got shape {F.shape}")
+        raise InputError(f"F: expected an (m, 3) array, got shape {F.shape}")
     if F.size and (F.min() < 0 or F.max() >= len(V)):
-        raise IndexError(f"F: vertex index out of range for {len(V)} vertices")
+        raise OutOfRangeError(f"F: vertex index out of range for {len(V)} vertices")
     points = vtk.vtkPoints()
     points.SetData(ns.numpy_to_vtk(V, deep=True))
     polys = vtk.vtkCellArray()
@@ -107,7 +109,7 @@ def to_vtk(V, F, fields=None, cells=None):
             values = values.astype(np.float64)
         values = np.ascontiguousarray(values)
         if values.shape[:1] != (rows,):
-            raise ValueError(f"{what}['{name}']: expected {rows} rows, got {values.shape[:1]}")
+            raise InputError(f"{what}['{name}']: expected {rows} rows, got {values.shape[:1]}")
         a = ns.numpy_to_vtk(values, deep=True)
         a.SetName(name)
         return a

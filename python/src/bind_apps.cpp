@@ -36,9 +36,9 @@ std::vector<std::pair<int, double>> vertex_values_arg(const py::handle& obj, con
       vertex = k.cast<long long>();
       value = v.cast<double>();
     } catch (const py::cast_error&) {
-      throw py::value_error(fmt::format("{}: expected vertex -> number pairs", name));
+      throw InputError(fmt::format("{}: expected vertex -> number pairs", name));
     }
-    if (!std::isfinite(value)) throw py::value_error(fmt::format("{}: value at vertex {} is not finite", name, vertex));
+    if (!std::isfinite(value)) throw InputError(fmt::format("{}: value at vertex {} is not finite", name, vertex));
     out.emplace_back(vertex_arg(vertex, name, nv), value);
   };
   if (py::isinstance<py::dict>(obj)) {
@@ -48,7 +48,7 @@ std::vector<std::pair<int, double>> vertex_values_arg(const py::handle& obj, con
   for (const auto& item : obj) {
     const py::sequence pair = py::reinterpret_borrow<py::sequence>(item);
     if (!py::isinstance<py::sequence>(item) || pair.size() != 2)
-      throw py::value_error(fmt::format("{}: expected a dict or a list of (vertex, value) pairs", name));
+      throw InputError(fmt::format("{}: expected a dict or a list of (vertex, value) pairs", name));
     add(pair[0], pair[1]);
   }
   return out;
@@ -59,15 +59,11 @@ FieldKind field_kind_arg(const std::string& kind) {
   if (kind == "scalar") return FieldKind::Scalar;
   if (kind == "displacement") return FieldKind::Displacement;
   if (kind == "tangent") return FieldKind::Tangent;
-  throw py::value_error(fmt::format("kind: expected 'scalar', 'displacement' or 'tangent', got '{}'", kind));
+  throw InputError(fmt::format("kind: expected 'scalar', 'displacement' or 'tangent', got '{}'", kind));
 }
 
 SteadySolver solver_arg(const std::string& name) {
-  try {
-    return parse_steady_solver(name);
-  } catch (const InputError& e) {
-    throw py::value_error(e.what());  // a bad argument, as Python reports one
-  }
+  return parse_steady_solver(name);  // (a bad name: InputError, a ValueError)
 }
 
 // Vertex indices, or selection specs as `meshpde fair --fixed` takes them ("boundary",
@@ -140,16 +136,16 @@ struct CorrectionOptions {
 Volume volume_arg(const py::handle& image) {
   if (py::isinstance<py::tuple>(image)) {
     const py::tuple t = image.cast<py::tuple>();
-    if (t.size() != 2) throw py::value_error("image: expected a path or a (values, affine) tuple");
+    if (t.size() != 2) throw InputError("image: expected a path or a (values, affine) tuple");
     const py::array_t<float, py::array::f_style | py::array::forcecast> a =
         py::array_t<float, py::array::f_style | py::array::forcecast>::ensure(t[0]);
-    if (!a || a.ndim() != 3) throw py::value_error("image: values must be a 3-D array indexed [i, j, k]");
+    if (!a || a.ndim() != 3) throw InputError("image: values must be a 3-D array indexed [i, j, k]");
     const Field A = field_arg(t[1], "image affine", 4, 4);
     Volume v;
     v.dims = {static_cast<int>(a.shape(0)), static_cast<int>(a.shape(1)), static_cast<int>(a.shape(2))};
     const Eigen::Matrix3d L = A.topLeftCorner(3, 3);
     for (int c = 0; c < 3; ++c) v.spacing[c] = L.col(c).norm();
-    if (!(v.spacing.minCoeff() > 0)) throw py::value_error("image affine: a voxel axis has zero length");
+    if (!(v.spacing.minCoeff() > 0)) throw InputError("image affine: a voxel axis has zero length");
     v.direction = L * v.spacing.cwiseInverse().asDiagonal();
     v.origin = A.topRightCorner(3, 1);
     v.values.assign(a.data(), a.data() + a.size());
@@ -160,7 +156,7 @@ Volume volume_arg(const py::handle& image) {
 #ifdef MESHPDE_HAVE_MEDICAL
   return read_volume(image.cast<std::filesystem::path>());
 #else
-  throw py::value_error("image: reading a volume file needs meshpde built with meshpde::medical (VTK)");
+  throw InputError("image: reading a volume file needs meshpde built with meshpde::medical (VTK)");
 #endif
 }
 
@@ -194,12 +190,12 @@ CorrectionOptions correction_options(const Mesh& mesh, const py::handle& vertice
     const Field P = field_arg(v, "points", -1, 3);
     for (Eigen::Index i = 0; i < P.rows(); ++i) points.emplace_back(P.row(i).transpose());
   }
-  if (handles.empty() && points.empty()) throw py::value_error("give handles: vertices, points, or both");
+  if (handles.empty() && points.empty()) throw InputError("give handles: vertices, points, or both");
   if (moves.is_none() || !py::isinstance<py::sequence>(moves) || py::isinstance<py::str>(moves))
-    throw py::value_error("moves: expected one move per handle: (dx, dy, dz) or 'normal:D'");
+    throw InputError("moves: expected one move per handle: (dx, dy, dz) or 'normal:D'");
   const py::sequence seq = py::reinterpret_borrow<py::sequence>(moves);
   if (seq.size() != handles.size() + points.size())
-    throw py::value_error(
+    throw InputError(
         fmt::format("moves: {} moves for {} vertices and {} points: give one move per handle "
                     "(the vertices' first, then the points')",
                     seq.size(), handles.size(), points.size()));
@@ -230,8 +226,8 @@ CorrectionOptions correction_options(const Mesh& mesh, const py::handle& vertice
   c.units_warning = units_warning(mesh, p.units, "V", "units=");
   num("radius", p.radius);
   integer("rings", p.rings);
-  if (p.radius <= 0 && p.rings <= 0) throw py::value_error("give radius (mm) or rings (a count) > 0");
-  if (p.radius > 0 && p.rings > 0) throw py::value_error("give radius or rings, not both");
+  if (p.radius <= 0 && p.rings <= 0) throw InputError("give radius (mm) or rings (a count) > 0");
+  if (p.radius > 0 && p.rings > 0) throw InputError("give radius or rings, not both");
   if (const py::object v = get("method"); !v.is_none()) c.method = v.cast<std::string>();
   p.method = parse_correction_method(c.method);
   if (const py::object v = get("boundary"); !v.is_none()) p.boundary = parse_region_boundary(v.cast<std::string>());
@@ -258,7 +254,7 @@ CorrectionOptions correction_options(const Mesh& mesh, const py::handle& vertice
   Eigen::VectorXi labels;
   if (const py::object v = get("face_labels"); !v.is_none()) {
     const Eigen::VectorXd x = vector_arg(v, "face_labels", mesh.num_faces());
-    if (!(x.array() == x.array().round()).all()) throw py::value_error("face_labels: expected whole numbers");
+    if (!(x.array() == x.array().round()).all()) throw InputError("face_labels: expected whole numbers");
     labels = x.cast<int>();
   }
   p.held = cap_vertices(find_caps(mesh, labels, parse_cap_rule(c.caps)));
@@ -477,7 +473,7 @@ void bind_apps(py::module_& m) {
         const Field x =
             field_arg(values, "values", static_cast<Eigen::Index>(at.size()), k == FieldKind::Scalar ? 1 : 3);
         if (method != "componentwise" && method != "connection")
-          throw py::value_error(fmt::format("method: expected 'componentwise' or 'connection', got '{}'", method));
+          throw InputError(fmt::format("method: expected 'componentwise' or 'connection', got '{}'", method));
         std::vector<InterpolationConstraint> cons;
         for (std::size_t c = 0; c < at.size(); ++c)
           cons.push_back({at[c], x.row(static_cast<Eigen::Index>(c)).transpose()});
@@ -525,7 +521,7 @@ them). Answers equal interpolate(..., solver="direct") to rounding.)doc")
           "set_value",
           [](InterpolationSolver& s, int vertex, const py::handle& value) {
             const py::array_t<double> a = py::array_t<double, py::array::forcecast>::ensure(value);
-            if (!a) throw py::value_error("value: expected a number or 3 numbers");
+            if (!a) throw InputError("value: expected a number or 3 numbers");
             Eigen::VectorXd x(a.size());
             for (py::ssize_t k = 0; k < a.size(); ++k) x[k] = a.data()[k];
             s.set_value(vertex, x);

@@ -295,14 +295,14 @@ py::dict dicom_info_to_python(const std::filesystem::path& path) {
 Colormap parse_colormap(const std::string& name) {
   if (name == "viridis") return Colormap::Viridis;
   if (name == "coolwarm") return Colormap::Coolwarm;
-  throw py::value_error(fmt::format("colormap: expected 'viridis' or 'coolwarm', got '{}'", name));
+  throw InputError(fmt::format("colormap: expected 'viridis' or 'coolwarm', got '{}'", name));
 }
 
 int parse_up(const std::string& up) {
   if (up == "x") return 0;
   if (up == "y") return 1;
   if (up == "z") return 2;
-  throw py::value_error(fmt::format("up: expected 'x', 'y' or 'z', got '{}'", up));
+  throw InputError(fmt::format("up: expected 'x', 'y' or 'z', got '{}'", up));
 }
 
 py::tuple generated(const GeneratedMesh& g) {
@@ -468,7 +468,7 @@ closed mesh whatever its triangles' orientation. Zero rows for vertices without 
       [](const py::handle& V, const py::handle& F, long long vertex, double radius) {
         const Mesh mesh = mesh_arg(V, F);
         if (!(radius > 0) || !std::isfinite(radius))
-          throw py::value_error(fmt::format("radius: expected a length > 0, got {}", radius));
+          throw InputError(fmt::format("radius: expected a length > 0, got {}", radius));
         return to_numpy(geodesic_ball(mesh, vertex_arg(vertex, "vertex", mesh.num_vertices()), radius));
       },
       R"doc(geodesic_ball(V, F, vertex, radius) -> indices
@@ -479,7 +479,7 @@ Vertices whose edge-path distance from `vertex` is below `radius` (mesh units), 
       "ring_ball",
       [](const py::handle& V, const py::handle& F, long long vertex, int rings) {
         const Mesh mesh = mesh_arg(V, F);
-        if (rings < 0) throw py::value_error(fmt::format("rings: expected >= 0, got {}", rings));
+        if (rings < 0) throw InputError(fmt::format("rings: expected >= 0, got {}", rings));
         return to_numpy(ring_ball(mesh, vertex_arg(vertex, "vertex", mesh.num_vertices()), rings));
       },
       R"doc(ring_ball(V, F, vertex, rings) -> indices
@@ -568,8 +568,8 @@ A field on the vertices at those points is ``(bary[:, :, None] * field[F[faces]]
         } else {
           s.vertices = vertices_arg(sources, "sources", mesh.num_vertices());
         }
-        if (s.vertices.empty() && s.points.empty()) throw py::value_error("sources: give at least one vertex or point");
-        if (std::isnan(radius) || !(radius > 0)) throw py::value_error("radius: expected a length > 0");
+        if (s.vertices.empty() && s.points.empty()) throw InputError("sources: give at least one vertex or point");
+        if (std::isnan(radius) || !(radius > 0)) throw InputError("radius: expected a length > 0");
         Eigen::VectorXd d;
         {
           py::gil_scoped_release release;
@@ -595,7 +595,7 @@ Units of V.)doc",
          const std::string& title, const std::string& field_name) -> py::object {
         const Mesh mesh = mesh_arg(V, F);
         if (width < 16 || height < 16 || width > 8192 || height > 8192)
-          throw py::value_error(fmt::format("width, height: expected 16..8192 pixels, got {} x {}", width, height));
+          throw InputError(fmt::format("width, height: expected 16..8192 pixels, got {} x {}", width, height));
         RenderOptions o;
         o.width = width;
         o.height = height;
@@ -694,7 +694,7 @@ raises InputError listing them.)doc",
       [](const std::string& base, int frequency, double radius) {
         GeneratorParams p;
         if (base != "icosahedron" && base != "tetrahedron")
-          throw py::value_error(fmt::format("base: expected 'icosahedron' or 'tetrahedron', got '{}'", base));
+          throw InputError(fmt::format("base: expected 'icosahedron' or 'tetrahedron', got '{}'", base));
         p.base = base == "tetrahedron" ? BaseSolid::Tetrahedron : BaseSolid::Icosahedron;
         p.frequency = frequency;
         p.radius = radius;

@@ -78,7 +78,7 @@ Lumped mass M: M_ii = a third of the area of the triangles at i (length^2).)doc"
       [](const py::handle& V, const py::handle& F, double mollify_epsilon) {
         const Mesh mesh = mesh_arg(V, F);
         if (!(mollify_epsilon >= 0) || !std::isfinite(mollify_epsilon))
-          throw py::value_error(fmt::format("mollify_epsilon: expected a finite value >= 0, got {}", mollify_epsilon));
+          throw InputError(fmt::format("mollify_epsilon: expected a finite value >= 0, got {}", mollify_epsilon));
         IntrinsicOperators o;
         {
           py::gil_scoped_release release;
@@ -102,7 +102,7 @@ K and M on the intrinsic Delaunay triangulation of the same surface (Sharp and C
       "curvature",
       [](const py::handle& V, const py::handle& F, const std::string& scale, const std::string& laplacian) {
         if (scale != "area" && scale != "valence")
-          throw py::value_error(fmt::format("scale: expected 'area' or 'valence', got '{}'", scale));
+          throw InputError(fmt::format("scale: expected 'area' or 'valence', got '{}'", scale));
         const LaplacianKind kind = parse_laplacian_kind(laplacian);
         const Mesh mesh = mesh_arg(V, F);
         Eigen::VectorXd H;

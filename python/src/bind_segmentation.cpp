@@ -30,12 +30,12 @@ void set_geometry(Volume& g, const py::handle& affine) {
   const Field A = field_arg(affine, "affine", 4, 4);
   for (int c = 0; c < 3; ++c) {
     const Eigen::Vector3d axis = A.block<3, 1>(0, c);
-    if (!(axis.norm() > 0)) throw py::value_error(fmt::format("affine: voxel axis {} has length 0", c));
+    if (!(axis.norm() > 0)) throw InputError(fmt::format("affine: voxel axis {} has length 0", c));
     g.spacing[c] = axis.norm();
     g.direction.col(c) = axis / axis.norm();
   }
   g.origin = A.block<3, 1>(0, 3);
-  if (std::abs(g.direction.determinant()) < 1e-6) throw py::value_error("affine: the voxel axes are not independent");
+  if (std::abs(g.direction.determinant()) < 1e-6) throw InputError("affine: the voxel axes are not independent");
 }
 
 py::dict segment_dict(const Segment& s) {
@@ -90,13 +90,13 @@ Segmentation segmentation_from(const py::array_t<std::int32_t, py::array::c_styl
   Segmentation seg;
   seg.name = "labels";
   for (int a = 0; a < 3; ++a)
-    if (dims[a] < 1) throw py::value_error(fmt::format("labels: dimension {} is {}", a, dims[a]));
-  if (layers < 1) throw py::value_error("labels: no layers");
+    if (dims[a] < 1) throw InputError(fmt::format("labels: dimension {} is {}", a, dims[a]));
+  if (layers < 1) throw InputError("labels: no layers");
   seg.geometry.dims = dims;
   seg.layers = layers;
   set_geometry(seg.geometry, affine);
   if (static_cast<std::size_t>(flat.size()) != seg.num_voxels() * static_cast<std::size_t>(layers))
-    throw py::value_error("labels: the array does not match its dimensions");
+    throw InputError("labels: the array does not match its dimensions");
   seg.labels.assign(flat.data(), flat.data() + flat.size());
   if (segments.is_none()) {
     std::set<std::int32_t> present(seg.labels.begin(), seg.labels.end());
@@ -115,7 +115,7 @@ Segmentation segmentation_from(const py::array_t<std::int32_t, py::array::c_styl
   }
   for (const auto& s : seg.segments)
     if (s.layer < 0 || s.layer >= layers)
-      throw py::value_error(fmt::format("segments: '{}' is in layer {} of {}", s.name, s.layer, layers));
+      throw InputError(fmt::format("segments: '{}' is in layer {} of {}", s.name, s.layer, layers));
   return seg;
 }
 

@@ -41,7 +41,7 @@ struct PyPdeSession {
   PyPdeSession(const py::handle& V, const py::handle& F, int components, const PdeCoefficients& c,
                const DomainOptions& d)
       : mesh(mesh_arg(V, F)), ops(build_operators(mesh)) {
-    if (components < 1) throw py::value_error(fmt::format("components: expected >= 1, got {}", components));
+    if (components < 1) throw InputError(fmt::format("components: expected >= 1, got {}", components));
     s = std::make_unique<PdeSession>(mesh, ops, components, c, d);
   }
   Field optional_field(const py::handle& f) const {
@@ -76,8 +76,7 @@ GlobalBilaplacianParams::Preconditioner preconditioner_arg(const std::string& na
   if (name == "auto") return P::Auto;
   if (name == "multigrid") return P::Multigrid;
   if (name == "laplacian_factor") return P::LaplacianFactor;
-  throw py::value_error(
-      fmt::format("preconditioner: expected 'auto', 'multigrid' or 'laplacian_factor', got '{}'", name));
+  throw InputError(fmt::format("preconditioner: expected 'auto', 'multigrid' or 'laplacian_factor', got '{}'", name));
 }
 
 }  // namespace
@@ -135,8 +134,8 @@ constrained vertex (the force the constraint applies to hold it).)doc")
                                           ? Eigen::VectorXd::Constant(1, value.cast<double>())
                                           : vector_arg(value, "value", p.s->components());
             if (x.size() != p.s->components())
-              throw py::value_error(fmt::format("value: expected {} components, got {}", p.s->components(), x.size()));
-            if (!std::isfinite(x[0])) throw py::value_error("value: not finite");
+              throw InputError(fmt::format("value: expected {} components, got {}", p.s->components(), x.size()));
+            if (!std::isfinite(x[0])) throw InputError("value: not finite");
             p.s->constrain(i, std::span<const double>(x.data(), static_cast<std::size_t>(x.size())));
           },
           py::arg("vertex"), py::arg("value"))
@@ -165,7 +164,7 @@ constrained vertex (the force the constraint applies to hold it).)doc")
       .def(
           "activate_rings",
           [](PyPdeSession& p, long long v, int k) {
-            if (k < 0) throw py::value_error("rings: expected >= 0");
+            if (k < 0) throw InputError("rings: expected >= 0");
             p.s->activate_rings(vertex_arg(v, "vertex", p.mesh.num_vertices()), k);
           },
           py::arg("vertex"), py::arg("rings"))
@@ -173,7 +172,7 @@ constrained vertex (the force the constraint applies to hold it).)doc")
       .def(
           "step",
           [](PyPdeSession& p, double dt, const py::handle& f) {
-            if (!(dt > 0) || !std::isfinite(dt)) throw py::value_error(fmt::format("dt: expected > 0, got {}", dt));
+            if (!(dt > 0) || !std::isfinite(dt)) throw InputError(fmt::format("dt: expected > 0, got {}", dt));
             const Field force = p.optional_field(f);
             StepResult r;
             {
@@ -221,7 +220,7 @@ or "intrinsic".)doc")
              else if (solver == "cg")
                p.solver = HapticSolver::Cg;
              else
-               throw py::value_error(fmt::format("solver: expected 'factored' or 'cg', got '{}'", solver));
+               throw InputError(fmt::format("solver: expected 'factored' or 'cg', got '{}'", solver));
              p.influence = influence;
              p.stiffness = stiffness;
              p.mass = mass;
@@ -252,7 +251,7 @@ or "intrinsic".)doc")
       .def(
           "step",
           [](PyHapticSession& p, double dt) {
-            if (!(dt > 0) || !std::isfinite(dt)) throw py::value_error(fmt::format("dt: expected > 0, got {}", dt));
+            if (!(dt > 0) || !std::isfinite(dt)) throw InputError(fmt::format("dt: expected > 0, got {}", dt));
             Eigen::Vector3d f;
             {
               py::gil_scoped_release release;
@@ -352,7 +351,7 @@ or `rings` rings of neighbours; held at zero outside.)doc")
       .def(
           "grow",
           [](PyDragSession& p, int rings) {
-            if (rings < 1) throw py::value_error("rings: expected >= 1");
+            if (rings < 1) throw InputError("rings: expected >= 1");
             py::gil_scoped_release release;
             p.s->grow(rings);
           },
@@ -360,7 +359,7 @@ or `rings` rings of neighbours; held at zero outside.)doc")
       .def(
           "shrink",
           [](PyDragSession& p, int rings) {
-            if (rings < 1) throw py::value_error("rings: expected >= 1");
+            if (rings < 1) throw InputError("rings: expected >= 1");
             py::gil_scoped_release release;
             p.s->shrink(rings);
           },

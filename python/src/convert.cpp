@@ -21,22 +21,21 @@ std::string dtype_text(const py::array& a) {
 
 // Any array-like as a numpy array, or ValueError naming the argument.
 py::array as_array(const py::handle& obj, const char* name) {
-  if (obj.is_none()) throw py::value_error(fmt::format("{}: expected an array, got None", name));
+  if (obj.is_none()) throw InputError(fmt::format("{}: expected an array, got None", name));
   py::array a;
   try {
     a = py::array::ensure(obj);
   } catch (const py::error_already_set&) {
   }
   if (!a)
-    throw py::value_error(
-        fmt::format("{}: expected an array, got {}", name, py::str(obj.get_type()).cast<std::string>()));
+    throw InputError(fmt::format("{}: expected an array, got {}", name, py::str(obj.get_type()).cast<std::string>()));
   return a;
 }
 
 void require_real(const py::array& a, const char* name) {
   const char k = a.dtype().kind();
   if (k != 'f' && k != 'i' && k != 'u')
-    throw py::value_error(fmt::format("{}: expected real numbers, got dtype {}", name, dtype_text(a)));
+    throw InputError(fmt::format("{}: expected real numbers, got dtype {}", name, dtype_text(a)));
 }
 
 using Doubles = py::array_t<double, py::array::c_style | py::array::forcecast>;
@@ -47,7 +46,7 @@ Positions positions_arg(const py::handle& obj, const char* name) {
   const py::array a = as_array(obj, name);
   require_real(a, name);
   if (a.ndim() != 2 || a.shape(1) != 3)
-    throw py::value_error(
+    throw InputError(
         fmt::format("{}: expected an (n, 3) array of vertex coordinates, got shape {}", name, shape_text(a)));
   const Doubles d = Doubles::ensure(a);
   const auto r = d.unchecked<2>();
@@ -56,7 +55,7 @@ Positions positions_arg(const py::handle& obj, const char* name) {
     for (int c = 0; c < 3; ++c) {
       const double x = r(i, c);
       if (!std::isfinite(x))
-        throw py::value_error(fmt::format("{}: vertex {} has a non-finite coordinate ({})", name, i, x));
+        throw InputError(fmt::format("{}: vertex {} has a non-finite coordinate ({})", name, i, x));
       V(i, c) = x;
     }
   return V;
@@ -66,10 +65,10 @@ Triangles triangles_arg(const py::handle& obj, Eigen::Index num_vertices, const 
   const py::array a = as_array(obj, name);
   const char kind = a.dtype().kind();
   if (kind != 'i' && kind != 'u')
-    throw py::value_error(fmt::format("{}: expected integer vertex indices, got dtype {} (convert with .astype(int))",
-                                      name, dtype_text(a)));
+    throw InputError(fmt::format("{}: expected integer vertex indices, got dtype {} (convert with .astype(int))", name,
+                                 dtype_text(a)));
   if (a.ndim() != 2 || a.shape(1) != 3)
-    throw py::value_error(fmt::format("{}: expected an (m, 3) array of triangles, got shape {}", name, shape_text(a)));
+    throw InputError(fmt::format("{}: expected an (m, 3) array of triangles, got shape {}", name, shape_text(a)));
   Triangles F(a.shape(0), 3);
   // Read in the array's own integer type when it is int32 (no converted copy).
   auto fill = [&](auto tag) {
@@ -80,7 +79,7 @@ Triangles triangles_arg(const py::handle& obj, Eigen::Index num_vertices, const 
     for (py::ssize_t k = 0; k < 3 * t.shape(0); ++k) {
       const auto v = static_cast<long long>(p[k]);
       if (v < 0 || v >= num_vertices)
-        throw py::index_error(
+        throw IndexOutOfRange(
             fmt::format("{}: face {} has vertex index {}, out of range for {} vertices", name, k / 3, v, num_vertices));
       F.data()[k] = static_cast<int>(v);
     }
@@ -102,14 +101,13 @@ Eigen::VectorXd vector_arg(const py::handle& obj, const char* name, Eigen::Index
   const py::array a = as_array(obj, name);
   require_real(a, name);
   if (a.ndim() != 1 || (length >= 0 && a.shape(0) != length))
-    throw py::value_error(fmt::format("{}: expected a 1-D array{}, got shape {}", name,
-                                      length >= 0 ? fmt::format(" of length {}", length) : std::string(),
-                                      shape_text(a)));
+    throw InputError(fmt::format("{}: expected a 1-D array{}, got shape {}", name,
+                                 length >= 0 ? fmt::format(" of length {}", length) : std::string(), shape_text(a)));
   const Doubles d = Doubles::ensure(a);
   const auto r = d.unchecked<1>();
   Eigen::VectorXd v(r.shape(0));
   for (py::ssize_t i = 0; i < r.shape(0); ++i) {
-    if (!std::isfinite(r(i))) throw py::value_error(fmt::format("{}: entry {} is not finite ({})", name, i, r(i)));
+    if (!std::isfinite(r(i))) throw InputError(fmt::format("{}: entry {} is not finite ({})", name, i, r(i)));
     v[i] = r(i);
   }
   return v;
@@ -119,18 +117,17 @@ Field field_arg(const py::handle& obj, const char* name, Eigen::Index rows, Eige
   const py::array a = as_array(obj, name);
   require_real(a, name);
   if (a.ndim() != 1 && a.ndim() != 2)
-    throw py::value_error(fmt::format("{}: expected a 1-D or 2-D array, got shape {}", name, shape_text(a)));
+    throw InputError(fmt::format("{}: expected a 1-D or 2-D array, got shape {}", name, shape_text(a)));
   const py::ssize_t n = a.shape(0), m = a.ndim() == 2 ? a.shape(1) : 1;
   if ((rows >= 0 && n != rows) || (cols >= 0 && m != cols))
-    throw py::value_error(fmt::format("{}: expected shape ({}, {}), got {}", name,
-                                      rows >= 0 ? std::to_string(rows) : "n", cols >= 0 ? std::to_string(cols) : "k",
-                                      shape_text(a)));
+    throw InputError(fmt::format("{}: expected shape ({}, {}), got {}", name, rows >= 0 ? std::to_string(rows) : "n",
+                                 cols >= 0 ? std::to_string(cols) : "k", shape_text(a)));
   const Doubles d = Doubles::ensure(a);
   Field out(n, m);
   const double* p = d.data();
   for (py::ssize_t i = 0; i < n * m; ++i) {
     if (!std::isfinite(p[i]))
-      throw py::value_error(
+      throw InputError(
           fmt::format("{}: row {} has a non-finite value ({})", name, i / std::max<py::ssize_t>(m, 1), p[i]));
     out.data()[i] = p[i];
   }
@@ -139,7 +136,7 @@ Field field_arg(const py::handle& obj, const char* name, Eigen::Index rows, Eige
 
 int vertex_arg(long long v, const char* name, Eigen::Index num_vertices) {
   if (v < 0 || v >= num_vertices)
-    throw py::index_error(fmt::format("{}: vertex {} is out of range for {} vertices", name, v, num_vertices));
+    throw IndexOutOfRange(fmt::format("{}: vertex {} is out of range for {} vertices", name, v, num_vertices));
   return static_cast<int>(v);
 }
 
@@ -148,9 +145,9 @@ std::vector<int> vertices_arg(const py::handle& obj, const char* name, Eigen::In
   const py::array a = as_array(obj, name);
   const char k = a.dtype().kind();
   if (a.size() > 0 && k != 'i' && k != 'u')
-    throw py::value_error(fmt::format("{}: expected integer vertex indices, got dtype {}", name, dtype_text(a)));
+    throw InputError(fmt::format("{}: expected integer vertex indices, got dtype {}", name, dtype_text(a)));
   if (a.ndim() != 1)
-    throw py::value_error(fmt::format("{}: expected a 1-D list of vertex indices, got shape {}", name, shape_text(a)));
+    throw InputError(fmt::format("{}: expected a 1-D list of vertex indices, got shape {}", name, shape_text(a)));
   using Longs = py::array_t<long long, py::array::c_style | py::array::forcecast>;
   const Longs l = Longs::ensure(a);
   std::vector<int> out;

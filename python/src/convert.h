@@ -2,8 +2,9 @@
 //
 // Every argument a user passes is checked here before it reaches the library, so
 // that a wrong shape, a NaN or an index out of range raises a Python exception that
-// names the argument (ValueError for shapes, types and values, IndexError for
-// indices) instead of reaching an Eigen assertion or a crash. float32, integer,
+// names the argument (meshpde.InputError, a ValueError, for shapes, types and values;
+// meshpde.OutOfRangeError, an InputError and an IndexError, for indices) instead of
+// reaching an Eigen assertion or a crash. float32, integer,
 // int64 and Fortran-ordered arrays are converted (copied) to the library's types.
 #pragma once
 
@@ -17,6 +18,7 @@
 #include <string>
 #include <vector>
 
+#include "meshpde/core/errors.h"
 #include "meshpde/mesh/mesh.h"
 #include "meshpde/operators/fem_operators.h"
 
@@ -24,11 +26,18 @@ namespace meshpde::python {
 
 namespace py = pybind11;
 
-/// (n, 3) finite coordinates. \throw ValueError naming `name`.
+/// An index out of range: Python's meshpde.OutOfRangeError (both a meshpde.InputError
+/// and an IndexError).
+class IndexOutOfRange : public InputError {
+ public:
+  using InputError::InputError;
+};
+
+/// (n, 3) finite coordinates. \throw InputError naming `name`.
 Positions positions_arg(const py::handle& obj, const char* name = "V");
 
-/// (m, 3) integer vertex indices in [0, num_vertices). \throw ValueError (shape,
-/// dtype, non-integral values), IndexError (an index out of range, naming the face).
+/// (m, 3) integer vertex indices in [0, num_vertices). \throw InputError (shape,
+/// dtype, non-integral values), IndexOutOfRange (an index out of range, naming the face).
 Triangles triangles_arg(const py::handle& obj, Eigen::Index num_vertices, const char* name = "F");
 
 /// Mesh from (V, F), both checked as above.

@@ -3,6 +3,7 @@
 #include <pybind11/pybind11.h>
 
 #include "bindings.h"
+#include "convert.h"
 #include "meshpde/core/errors.h"
 
 namespace py = pybind11;
@@ -22,9 +23,14 @@ PYBIND11_MODULE(_meshpde, m) {
   static py::exception<meshpde::InputError> input_error(m, "InputError",
                                                         py::make_tuple(error, py::handle(PyExc_ValueError)));
   static py::exception<meshpde::SolverError> solver_error(m, "SolverError", error);
+  // An index out of range: an InputError, and an IndexError as Python reports one.
+  static py::exception<meshpde::python::IndexOutOfRange> out_of_range(
+      m, "OutOfRangeError", py::make_tuple(input_error, py::handle(PyExc_IndexError)));
   py::register_exception_translator([](std::exception_ptr p) {
     try {
       if (p) std::rethrow_exception(p);
+    } catch (const meshpde::python::IndexOutOfRange& e) {
+      PyErr_SetString(out_of_range.ptr(), e.what());
     } catch (const meshpde::InputError& e) {
       PyErr_SetString(input_error.ptr(), e.what());
     } catch (const meshpde::SolverError& e) {

@@ -29,8 +29,11 @@ V0, F0 = meshpde.generate.icosphere(2)
 ])
 def test_bad_meshes_raise_naming_the_argument(V, F, exc, words):
     for call in (meshpde.stiffness, meshpde.mass, meshpde.curvature, meshpde.info, meshpde.self_intersections):
-        with pytest.raises(exc, match=words.replace("(", r"\(").replace(")", r"\)")):
+        with pytest.raises(exc, match=words.replace("(", r"\(").replace(")", r"\)")) as raised:
             call(V, F)
+        # Both the builtin class and meshpde's own: either `except` catches it.
+        assert isinstance(raised.value, meshpde.InputError)
+        assert isinstance(raised.value, meshpde.OutOfRangeError) == (exc is IndexError)
 
 
 def test_converted_dtypes_and_layouts_give_the_same_answer():
@@ -80,8 +83,11 @@ def test_converted_dtypes_and_layouts_give_the_same_answer():
     (lambda: meshpde.read_mesh("/no/such/mesh.obj"), FileNotFoundError, "such"),
 ])
 def test_bad_arguments_raise_clear_errors(call, exc, words):
-    with pytest.raises(exc, match=words):
+    with pytest.raises(exc, match=words) as raised:
         call()
+    # Every error but a missing file's and an argument of the wrong type is also a meshpde.Error.
+    assert isinstance(raised.value, meshpde.Error) == (exc not in (FileNotFoundError, TypeError)), \
+        type(raised.value).__mro__
 
 
 @pytest.mark.parametrize("name,content", [
