@@ -45,7 +45,6 @@ __all__ = ["Output", "BatchResult", "OPERATIONS", "run", "process", "main"]
 # Formats that hold vertex fields; an operation whose output has fields writes .ply
 # when the input's format (OBJ, OFF, STL) would drop them.
 _FIELD_FORMATS = {".ply", ".vtp", ".vtk"}
-_MESH_FORMATS = {".obj", ".off", ".ply", ".stl", ".vtp", ".vtk"}
 
 
 @dataclasses.dataclass
@@ -363,9 +362,9 @@ class BatchResult(list):
 def _check_inputs(files: Sequence, output_dir: pathlib.Path) -> list[pathlib.Path]:
     paths = [pathlib.Path(os.path.abspath(f)) for f in files]
     by_stem: dict[str, pathlib.Path] = {}
+    # (A file that is not a mesh, or a folder, is a failed row of its own, not a bad
+    # argument: the rest of the run goes on.)
     for p in paths:
-        if p.suffix.lower() not in _MESH_FORMATS:
-            raise meshpde.InputError(f"meshpde.batch: {p}: not a mesh file ({', '.join(sorted(_MESH_FORMATS))})")
         if p.stem in by_stem and by_stem[p.stem] != p:
             raise meshpde.InputError(f"meshpde.batch: {by_stem[p.stem]} and {p} would both write "
                                      f"{output_dir / p.stem}.*; give files with distinct names")

@@ -103,10 +103,16 @@ def test_a_malformed_or_missing_file_is_a_failed_row_and_the_others_complete(tmp
     bad = tmp_path / "in" / "truncated.off"
     bad.write_text("OFF\n4 2 0\n0 0 0\n1 0 0\n0 1 0\n")
     missing = tmp_path / "in" / "absent.ply"
-    table = batch.run("fair", paths[:3] + [bad, missing] + paths[3:], tmp_path / "out", options=FAIR)
-    assert len(table.ok) == 6 and len(table.failed) == 2
+    folder = tmp_path / "in" / "folder.ply"  # a folder, and a file of another kind: rows of their own
+    folder.mkdir()
+    notes = tmp_path / "in" / "notes.txt"
+    notes.write_text("not a mesh")
+    table = batch.run("fair", paths[:3] + [bad, missing, folder, notes] + paths[3:], tmp_path / "out", options=FAIR)
+    assert len(table.ok) == 6 and len(table.failed) == 4
     assert "truncated.off" in table[3]["error"] and "InputError" in table[3]["error"]
     assert "absent.ply" in table[4]["error"]
+    assert "folder.ply: is a directory" in table[5]["error"]
+    assert "notes.txt" in table[6]["error"] and "InputError" in table[6]["error"]
     assert json.loads((tmp_path / "out" / "truncated.json").read_text())["status"] == "failed"
     assert not list((tmp_path / "out").glob("truncated.off*")), "no output for a failed file"
     assert not list((tmp_path / "out").glob(".*.tmp")), "no temporary file left behind"
@@ -207,8 +213,6 @@ def test_bad_arguments_are_refused_before_any_work(tmp_path):
         batch.run("fair", [a, b], tmp_path / "out", options=FAIR)
     with pytest.raises(meshpde.InputError, match="unknown operation 'smoothen'"):
         batch.run("smoothen", [a], tmp_path / "out")
-    with pytest.raises(meshpde.InputError, match="not a mesh file"):
-        batch.run("fair", [tmp_path / "notes.txt"], tmp_path / "out")
     assert not (tmp_path / "out").exists()
 
 

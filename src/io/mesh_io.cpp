@@ -61,6 +61,8 @@ std::string read_file(const std::filesystem::path& path) {
 }
 
 MeshData read_mesh(const std::filesystem::path& path) {
+  if (std::error_code ec; std::filesystem::is_directory(path, ec))
+    throw InputError(fmt::format("{}: is a directory, not a mesh file", path.string()));
   const auto format = format_from_path(path);
   return read_mesh_from_memory(read_file(path), format, path.string());
 }
@@ -159,6 +161,8 @@ std::vector<std::string> refresh_normal_fields(MeshData& d) {
 void write_file_atomically(const std::filesystem::path& path, const std::string& contents) {
   namespace fs = std::filesystem;
   const fs::path dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
+  if (std::error_code ec; fs::is_directory(path, ec))
+    throw InputError(fmt::format("{}: is a directory, not a file to write", path.string()));
   std::random_device rd;
   const fs::path tmp = dir / fmt::format(".{}.tmp{:08x}", path.filename().string(), rd());
   {
@@ -172,11 +176,12 @@ void write_file_atomically(const std::filesystem::path& path, const std::string&
       throw Error(fmt::format("{}: write failed (disk full?)", path.string()));
     }
   }
-  std::error_code ec;
-  fs::rename(tmp, path, ec);
-  if (ec) {
-    fs::remove(tmp, ec);
-    throw Error(fmt::format("{}: cannot replace the file: {}", path.string(), ec.message()));
+  std::error_code renamed;
+  fs::rename(tmp, path, renamed);
+  if (renamed) {
+    std::error_code ignored;  // (the rename's error is the one to report)
+    fs::remove(tmp, ignored);
+    throw Error(fmt::format("{}: cannot replace the file: {}", path.string(), renamed.message()));
   }
 }
 

@@ -218,6 +218,8 @@ void require_mesh_extension(const std::filesystem::path& path) {
 }  // namespace
 
 MeshData read_any_mesh(const std::filesystem::path& path) {
+  if (std::error_code ec; std::filesystem::is_directory(path, ec))
+    throw InputError(fmt::format("{}: is a directory, not a mesh file", path.string()));
   require_mesh_extension(path);
   return is_vtk_mesh_path(path) ? read_vtk_mesh(path) : read_mesh(path);
 }
