@@ -61,6 +61,33 @@ TEST(Render, FieldColoursArrowsAndLegend) {
   EXPECT_THROW(render(g.V, g.F, bad), InputError);
 }
 
+// The legend's labels stay inside the image at any size: long ones ("-0.9608") in a
+// small image once ran off its right edge.
+TEST(Render, LegendLabelsFitInsideSmallImages) {
+  const GeneratedMesh g = icosphere(2);
+  const int sizes[3][2] = {{320, 240}, {200, 150}, {960, 720}};
+  for (const auto& size : sizes) {
+    const int w = size[0], h = size[1];
+    RenderOptions o{.width = w, .height = h};
+    o.field = g.V.col(1);
+    o.field_name = "curvature";
+    o.range = std::pair{-0.9608, 1.51};
+    const Image img = render(g.V, g.F, o);
+    // Text is drawn in dark ink (0.1): none in the last two columns, and some in the
+    // right third (the labels are drawn).
+    int edge = 0, right = 0;
+    for (int y = 0; y < h; ++y)
+      for (int x = 2 * w / 3; x < w; ++x) {
+        const std::uint8_t* p = &img.rgb[3 * (static_cast<std::size_t>(y) * w + x)];
+        const bool ink = p[0] < 40 && p[1] < 40 && p[2] < 40;
+        right += ink;
+        edge += ink && x >= w - 2;
+      }
+    EXPECT_EQ(edge, 0) << w << "x" << h;
+    EXPECT_GT(right, 40) << w << "x" << h;
+  }
+}
+
 TEST(Render, ColormapEndpoints) {
   EXPECT_NEAR(colormap(Colormap::Viridis, 0)[0], 0.267, 1e-9);
   EXPECT_NEAR(colormap(Colormap::Viridis, 1)[1], 0.906, 1e-9);

@@ -153,6 +153,17 @@ Image render(const Positions& V, const Triangles& F, const RenderOptions& o) {
     }
     if (!(fmax > fmin)) fmax = fmin + 1;
   }
+  // The legend's layout (output pixels): a bar at 80 % of the width with its labels to
+  // the right, smaller or with the bar moved left where they would run off the image.
+  const int ts = std::max(1, o.height / 360);
+  const std::string labels[3] = {label(fmax), label(0.5 * (fmin + fmax)), label(fmin)};
+  std::size_t label_chars = 0;
+  for (const std::string& s : labels) label_chars = std::max(label_chars, s.size());
+  const int bar_w = std::max(2, static_cast<int>(o.width * 0.035)), gap = std::max(2, o.width / 100);
+  const auto labels_w = [&](int k) { return static_cast<int>(label_chars) * 6 * k; };
+  int label_scale = ts + 1, bar_x = static_cast<int>(o.width * 0.80);
+  if (bar_x + bar_w + gap + labels_w(label_scale) > o.width - 2) label_scale = ts;
+  bar_x = std::max(0, std::min(bar_x, o.width - 2 - labels_w(label_scale) - gap - bar_w));
   const Eigen::Vector3d light = (eye + 0.35 * ys - 0.25 * xs).normalized();
   std::vector<Eigen::Vector3d> P(nv);
   for (Eigen::Index i = 0; i < nv; ++i) P[i] = project(V.row(i).transpose());
@@ -236,7 +247,7 @@ Image render(const Positions& V, const Triangles& F, const RenderOptions& o) {
   }
   // Legend colour bar, drawn at full resolution.
   if (legend) {
-    const int bx0 = static_cast<int>(W * 0.80), bx1 = static_cast<int>(W * 0.835);
+    const int bx0 = bar_x * ss, bx1 = (bar_x + bar_w) * ss;
     const int by0 = static_cast<int>(H * 0.2), by1 = static_cast<int>(H * 0.8);
     for (int y = by0; y <= by1; ++y) {
       const Eigen::Vector3d c = colormap(o.colormap, double(by1 - y) / (by1 - by0));
@@ -262,19 +273,18 @@ Image render(const Positions& V, const Triangles& F, const RenderOptions& o) {
         img.rgb[3 * (std::size_t(y) * o.width + x) + c] =
             static_cast<std::uint8_t>(std::lround(255 * std::clamp(acc / (ss * ss), 0.0, 1.0)));
       }
-  const int ts = std::max(1, o.height / 360);
   if (!o.title.empty()) draw_text(img, 12 * ts, 10 * ts, o.title, 2 * ts, Eigen::Vector3d(0.1, 0.1, 0.1));
   if (legend) {
     const int ly0 = static_cast<int>(o.height * 0.2), ly1 = static_cast<int>(o.height * 0.8);
     const Eigen::Vector3d ink(0.1, 0.1, 0.1);
     // Keep the legend title inside the image: right-align it when it is long.
     const int title_w = static_cast<int>(o.field_name.size()) * 6 * (ts + 1);
-    const int lx = std::min(static_cast<int>(o.width * 0.80), o.width - title_w - 8);
+    const int lx = std::min(bar_x, o.width - title_w - 8);
     draw_text(img, std::max(0, lx), ly0 - 22 * ts, o.field_name, ts + 1, ink);
-    const int tx = static_cast<int>(o.width * 0.845);
-    draw_text(img, tx, ly0 - 3 * ts, label(fmax), ts + 1, ink);
-    draw_text(img, tx, (ly0 + ly1) / 2 - 3 * ts, label(0.5 * (fmin + fmax)), ts + 1, ink);
-    draw_text(img, tx, ly1 - 3 * ts, label(fmin), ts + 1, ink);
+    const int tx = bar_x + bar_w + gap;
+    draw_text(img, tx, ly0 - 3 * ts, labels[0], label_scale, ink);
+    draw_text(img, tx, (ly0 + ly1) / 2 - 3 * ts, labels[1], label_scale, ink);
+    draw_text(img, tx, ly1 - 3 * ts, labels[2], label_scale, ink);
   }
   return img;
 }
