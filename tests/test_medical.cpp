@@ -29,9 +29,7 @@ namespace fs = std::filesystem;
 namespace {
 
 fs::path scratch(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() / "meshpde_test_medical";
-  fs::create_directories(dir);
-  return dir / name;
+  return test::scratch_path(name);
 }
 
 void write_bytes(const fs::path& p, const std::string& s) {

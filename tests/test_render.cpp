@@ -27,7 +27,7 @@ TEST(Render, ShadesTheSurfaceAndRoundTripsThroughPng) {
   // An orthographic sphere filling the height covers about pi/4 of a 150 x 150 square.
   EXPECT_GT(surface, 0.6 * 150 * 150 * M_PI / 4);
   EXPECT_LT(surface, 1.4 * 150 * 150 * M_PI / 4);
-  const auto path = std::filesystem::temp_directory_path() / "meshpde-render-test.png";
+  const auto path = test::scratch_path("render-test.png");
   write_png(path, img);
   const Image back = read_png(path);
   EXPECT_EQ(back.width, 200);

@@ -25,7 +25,7 @@ TEST(Selection, EveryKindAndClearErrors) {
   VertexFields fields{{"h", m.positions().col(1)}};
   EXPECT_EQ(select_vertices(m, "field:h>0.95", fields).size(), 11u);
   EXPECT_EQ(select_vertices(m, std::vector<std::string>{"field:h>0.95", "field:h<0.05"}, fields).size(), 22u);
-  const auto path = std::filesystem::temp_directory_path() / "meshpde-selection.txt";
+  const auto path = test::scratch_path("selection.txt");
   { std::ofstream(path) << "# two vertices\n3, 4\n4\n"; }
   EXPECT_EQ(select_vertices(m, "file:" + path.string()), (std::vector<int>{3, 4}));
   { std::ofstream(path) << "3\n999\n"; }

@@ -1,9 +1,13 @@
 // Mesh helpers shared by the test files.
 #pragma once
 
+#include <unistd.h>
+
+#include <filesystem>
 #include <functional>
 #include <random>
 #include <string>
+#include <system_error>
 
 #include "meshpde/core/errors.h"
 #include "meshpde/mesh/generators.h"
@@ -26,6 +30,26 @@ inline constexpr bool kSanitized = false;
 #else
 inline constexpr bool kSanitized = false;
 #endif
+
+/// A path for a test's scratch file: in a folder of this process's own (tests run in
+/// parallel processes; a fixed path would be shared), removed when the process ends.
+inline std::filesystem::path scratch_path(const std::string& name) {
+  struct Folder {
+    std::filesystem::path path;
+    Folder() {
+      std::random_device rd;
+      path = std::filesystem::temp_directory_path() /
+             ("meshpde-test-" + std::to_string(::getpid()) + "-" + std::to_string(rd()));
+      std::filesystem::create_directories(path);
+    }
+    ~Folder() {
+      std::error_code ec;
+      std::filesystem::remove_all(path, ec);
+    }
+  };
+  static const Folder folder;
+  return folder.path / name;
+}
 
 inline Mesh make(const GeneratedMesh& g) {
   return Mesh(g.V, g.F);
