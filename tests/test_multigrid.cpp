@@ -230,7 +230,7 @@ TEST(Multigrid, RealMeshesConvergeToTheFactorSolvesAnswer) {
   // the same answer as the Laplacian-factor preconditioner, with either smoother.
   for (const char* name : {"cow-3k.off", "camelhead-11k.off"}) {
     if (test::kSanitized && std::string(name) != "cow-3k.off") continue;  // test_support.h
-    if (!test::have_data(name)) continue;  // (every missing file reported)
+    if (!test::have_data(name)) continue;                                 // (every missing file reported)
     SCOPED_TRACE(name);
     const MeshData d = read_mesh(test::data_dir() / name);
     const Mesh m(d.V, d.F);
