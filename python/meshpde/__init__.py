@@ -202,10 +202,10 @@ def interpolate(V, F, vertices, values, *, kind=None, method="componentwise", g1
     return _meshpde._interpolate(V, F, vertices, values, kind, method, g1, g2, solver, laplacian)
 
 
-def _correction_options(radius, rings, method, g1, g2, laplacian, stiffness, dynamic, steps, mass, elasticity,
+def _correction_options(*, radius, rings, method, g1, g2, laplacian, stiffness, dynamic, steps, mass, elasticity,
                         viscosity, allow_intersections, max_substeps, image, space, image_weight, image_sigma,
-                        search_radius, cube, passes, solver, units, boundary="smooth", caps="labels", face_labels=None,
-                        points=None, handle_radius=-1.0):
+                        search_radius, cube, passes, solver, units, boundary, caps, face_labels, points, handle_radius):
+    """The options of ``correct`` and ``CorrectionSession.apply`` as the extension takes them (by name only)."""
     return dict(units=units, radius=radius, rings=rings, method=method, boundary=boundary, g1=g1, g2=g2,
                 points=points, handle_radius=handle_radius,
                 laplacian=laplacian,
@@ -274,9 +274,12 @@ def correct(V, F, vertices=None, moves=None, *, points=None, handle_radius=-1.0,
             search_radius=3.0, cube=0, passes=4, solver="auto", units="mm", boundary="smooth", caps="labels",
             face_labels=None):
     return _meshpde._correct(V, F, vertices, moves, _correction_options(
-        radius, rings, method, g1, g2, laplacian, stiffness, dynamic, steps, mass, elasticity, viscosity,
-        allow_intersections, max_substeps, image, space, image_weight, image_sigma, search_radius, cube, passes,
-        solver, units, boundary, caps, face_labels, points, handle_radius))
+        radius=radius, rings=rings, method=method, g1=g1, g2=g2, laplacian=laplacian, stiffness=stiffness,
+        dynamic=dynamic, steps=steps, mass=mass, elasticity=elasticity, viscosity=viscosity,
+        allow_intersections=allow_intersections, max_substeps=max_substeps, image=image, space=space,
+        image_weight=image_weight, image_sigma=image_sigma, search_radius=search_radius, cube=cube, passes=passes,
+        solver=solver, units=units, boundary=boundary, caps=caps, face_labels=face_labels, points=points,
+        handle_radius=handle_radius))
 
 
 correct.__doc__ = "Vessel-wall correction (seed 001), as ``meshpde correct``; the input is not modified.\n" + _CORRECT_DOC
@@ -294,9 +297,12 @@ class CorrectionSession(_meshpde._CorrectionSession):
               image_sigma=1.0, search_radius=3.0, cube=0, passes=4, solver="auto", units="mm", boundary="smooth",
               caps="labels", face_labels=None):
         return self._apply(vertices, moves, _correction_options(
-            radius, rings, method, g1, g2, laplacian, stiffness, dynamic, steps, mass, elasticity, viscosity,
-            allow_intersections, max_substeps, image, space, image_weight, image_sigma, search_radius, cube, passes,
-            solver, units, boundary, caps, face_labels, points, handle_radius))
+            radius=radius, rings=rings, method=method, g1=g1, g2=g2, laplacian=laplacian, stiffness=stiffness,
+            dynamic=dynamic, steps=steps, mass=mass, elasticity=elasticity, viscosity=viscosity,
+            allow_intersections=allow_intersections, max_substeps=max_substeps, image=image, space=space,
+            image_weight=image_weight, image_sigma=image_sigma, search_radius=search_radius, cube=cube,
+            passes=passes, solver=solver, units=units, boundary=boundary, caps=caps, face_labels=face_labels,
+            points=points, handle_radius=handle_radius))
 
     apply.__doc__ = "Applies a correction to the current positions; clears the redo history.\n" + _CORRECT_DOC
 
