@@ -617,6 +617,7 @@ void EditorPage::handle(const std::string& payload, bool binary) {
       s.poke_end();
     } else if (type == "brush") {
       const TissueProperty property = parse_tissue_property(j.value("property", std::string("stiffness")));
+      s.end_poke();  // a new tool ends the probe's relaxation at once
       paint_tissue(s.mesh(), tissue_, property, Brush{vertex_of(j), number(j, "radius", 3), number(j, "value", 5)});
       reply["brushed"] = to_string(property);
     } else if (type == "drag_begin") {

@@ -401,6 +401,13 @@ TEST(DragSession, ANewToolEndsThePokeAtOnce) {
   s.drag_begin(200, 0.5);
   EXPECT_EQ((s.display_positions() - rest).cwiseAbs().maxCoeff(), 0.0);
   s.drag_end();
+  poke();
+  s.add_source(300);  // a heat or wave source
+  EXPECT_EQ((s.display_positions() - rest).cwiseAbs().maxCoeff(), 0.0);
+  poke();
+  s.end_poke();  // the page's tissue brush
+  EXPECT_EQ((s.display_positions() - rest).cwiseAbs().maxCoeff(), 0.0);
+  EXPECT_EQ(s.poke_active_vertices(), 0);
 }
 
 TEST(DragSession, EditorPaintKeepsOneFactorAndEqualsAFreshInterpolation) {

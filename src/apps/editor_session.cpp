@@ -353,6 +353,7 @@ void EditorSession::clear_paint() {
 
 void EditorSession::add_source(int vertex) {
   check_vertex(vertex);
+  stop_poke();  // a new tool ends the probe's relaxation at once
   if (std::find(sources_.begin(), sources_.end(), vertex) == sources_.end()) sources_.push_back(vertex);
 }
 

@@ -66,6 +66,10 @@ class EditorSession {
   void poke_begin(int vertex, double influence = 0);
   void poke_move(const Eigen::Vector3d& offset);
   void poke_end();
+  /// Ends a poke and its relaxation at once, the surface back at rest (poke_end only
+  /// lets go): every other tool's action does this first, so that the next tool starts
+  /// on a still surface (the page's tissue brush calls it).
+  void end_poke() { stop_poke(); }
   bool poking() const;
   Eigen::Vector3d poke_force() const;
   int poke_contact() const;
