@@ -35,7 +35,7 @@ EditorSession::EditorSession(MeshData data, std::shared_ptr<const Volume> edges,
 }
 
 EditorSession::~EditorSession() {
-  stop_poke();
+  end_poke();
 }
 
 namespace {
@@ -90,7 +90,7 @@ double EditorSession::begin_preview(CorrectionHandle handle, double radius, cons
   // Built before the running drag is dropped: a refused request leaves it as it was.
   auto preview = std::make_unique<CorrectionPreview>(mesh(), p, kPreviewLimit);
   drag_end();
-  stop_poke();  // a new tool ends the probe's relaxation at once
+  end_poke();  // a new tool ends the probe's relaxation at once
   clear_moved_field();
   preview_ = std::move(preview);
   drag_offset_.setZero();
@@ -143,7 +143,7 @@ const std::vector<int>& EditorSession::drag_moving_vertices() const {
   return preview_ ? preview_->moving_vertices() : none;
 }
 
-void EditorSession::stop_poke() {
+void EditorSession::end_poke() {
   if (haptic_) haptic_->stop();
   haptic_.reset();
   poke_geometry_.reset();
@@ -158,7 +158,7 @@ void EditorSession::poke_begin(int vertex, double influence) {
   // badly shaped meshes, so the servo's CG stays well conditioned).
   const std::shared_ptr<const MeshOperators> geometry = geometry_.operators(mesh());
   if (!haptic_ || poke_geometry_ != geometry || influence != poke_influence_) {
-    stop_poke();
+    end_poke();
     poke_geometry_ = geometry;
     HapticParams hp;
     hp.influence = influence;
@@ -199,7 +199,7 @@ double EditorSession::poke_p99_us() const {
 }
 
 CorrectionResult EditorSession::correct(CorrectionParams params) {
-  stop_poke();
+  end_poke();
   pause();
   drag_end();  // the correction replaces the preview
   params.laplacian = laplacian_;
@@ -258,7 +258,7 @@ void EditorSession::show_correction_field(const std::string& name) {
 void EditorSession::undo() {
   clear_moved_field();
   drag_end();
-  stop_poke();
+  end_poke();
   correction_.undo();
   geometry_.refresh();
 }
@@ -266,7 +266,7 @@ void EditorSession::undo() {
 void EditorSession::restore_history(std::vector<Positions> history, std::size_t current) {
   clear_moved_field();
   drag_end();
-  stop_poke();
+  end_poke();
   correction_.restore(std::move(history), current);
   geometry_.refresh();
 }
@@ -274,7 +274,7 @@ void EditorSession::restore_history(std::vector<Positions> history, std::size_t 
 void EditorSession::redo() {
   clear_moved_field();
   drag_end();
-  stop_poke();
+  end_poke();
   correction_.redo();
   geometry_.refresh();
 }
@@ -283,7 +283,7 @@ void EditorSession::paint(int vertex, double value, double g1, double g2) {
   check_vertex(vertex);
   if (!std::isfinite(value)) throw InputError("painted value is not finite");
   if (!(g1 >= 0 && g2 >= 0) || g1 + g2 <= 0) throw InputError("g1 and g2 must be >= 0 and not both 0");
-  stop_poke();
+  end_poke();
   pause();
   painted_[vertex] = value;
   const auto t0 = std::chrono::steady_clock::now();
@@ -314,7 +314,7 @@ void EditorSession::paint_vector(int vertex, const Eigen::Vector3d& vector, doub
   check_vertex(vertex);
   if (!vector.allFinite()) throw InputError("painted vector is not finite");
   if (!(g1 >= 0 && g2 >= 0) || g1 + g2 <= 0) throw InputError("g1 and g2 must be >= 0 and not both 0");
-  stop_poke();
+  end_poke();
   pause();
   painted_vectors_[vertex] = vector;
   std::vector<InterpolationConstraint> c;
@@ -353,7 +353,7 @@ void EditorSession::clear_paint() {
 
 void EditorSession::add_source(int vertex) {
   check_vertex(vertex);
-  stop_poke();  // a new tool ends the probe's relaxation at once
+  end_poke();  // a new tool ends the probe's relaxation at once
   if (std::find(sources_.begin(), sources_.end(), vertex) == sources_.end()) sources_.push_back(vertex);
 }
 
@@ -366,7 +366,7 @@ void EditorSession::clear_sources() {
 void EditorSession::play(const std::string& kind) {
   if (kind != "heat" && kind != "wave") throw InputError(fmt::format("unknown simulation '{}' (heat or wave)", kind));
   if (sources_.empty()) throw InputError("click a source vertex first");
-  stop_poke();
+  end_poke();
   const std::shared_ptr<const MeshOperators> geometry = geometry_.operators(mesh());
   if (!pde_ || pde_kind_ != kind || pde_geometry_ != geometry) {  // a new kind, or the surface changed
     pde_.reset();

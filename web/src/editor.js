@@ -883,19 +883,25 @@ window.meshpde.marks = () => ({ rim: rimLines.visible, handleRim: handleLines.vi
 // Whether a drag draws only its moving triangles over a kept image of the rest, and how
 // many (tests); and the view's pixels as drawn now and as a whole redraw draws them,
 // which ends that (tests: the two must be the same picture).
-window.meshpde.stillDraw = () => ({ active: still.active, movingTriangles: still.movingTriangles });
+window.meshpde.stillDraw = () => ({ active: still.active, movingTriangles: still.movingTriangles,
+  movingVertices: still.movingVertices });
 window.meshpde.drawnAndWhole = () => {
-  const pixels = () => {
-    const gl = renderer.domElement, c = document.createElement('canvas');
-    c.width = gl.width; c.height = gl.height;
-    const ctx = c.getContext('2d');
-    ctx.drawImage(gl, 0, 0);
-    return ctx.getImageData(0, 0, c.width, c.height).data;
-  };
-  const drawn = pixels();
+  const drawn = window.meshpde.canvasPixels().data;
   still.thaw();
   renderer.render(scene, camera);
-  return { drawn, whole: pixels() };
+  return { drawn, whole: window.meshpde.canvasPixels().data };
+};
+// The 3D view's pixels as drawn (device pixels, origin top left; tests read them): data
+// is RGBA row by row, rgb(x, y) one pixel's colour (black outside the view).
+window.meshpde.canvasPixels = () => {
+  const gl = renderer.domElement, c = document.createElement('canvas');
+  c.width = gl.width; c.height = gl.height;
+  const ctx = c.getContext('2d');
+  ctx.drawImage(gl, 0, 0);
+  const { width, height } = c, data = ctx.getImageData(0, 0, width, height).data;
+  const rgb = (x, y) => (x < 0 || y < 0 || x >= width || y >= height ? [0, 0, 0]
+    : Array.from(data.subarray(4 * (y * width + x), 4 * (y * width + x) + 3)));
+  return { data, width, height, rgb };
 };
 
 // Screen position of a vertex (for tests and scripted demos).

@@ -87,7 +87,7 @@ export function createStillDraw({ renderer, scene, camera }) {
     target.depthTexture = new THREE.DepthTexture(size.x, size.y);
     frozen = { target, moving: part(movingIndex, own), still: part(stillIndex, geometry.attributes), surfaces,
       geometry, covered, used: Uint32Array.from(used), movingTriangles: count, size };
-    update();
+    copyAttributes(Object.keys(own));
 
     // The still part alone (the background included), as the whole scene would draw it.
     const hidden = [];
@@ -103,11 +103,10 @@ export function createStillDraw({ renderer, scene, camera }) {
     copyMaterial.uniforms.depth.value = target.depthTexture;
   }
 
-  // Copies the moving corners' attributes from the whole mesh's (after each update).
-  function update() {
-    if (!frozen) return;
+  // Copies the moving corners' attributes `names` from the whole mesh's.
+  function copyAttributes(names) {
     const { used, moving, geometry } = frozen;
-    for (const name of Object.keys(moving.attributes)) {
+    for (const name of names) {
       const from = geometry.getAttribute(name).array, to = moving.getAttribute(name);
       for (let k = 0; k < used.length; ++k) {
         const v = 3 * used[k];
@@ -115,6 +114,11 @@ export function createStillDraw({ renderer, scene, camera }) {
       }
       to.needsUpdate = true;
     }
+  }
+  // After each update: the moved positions and their normals (the colours stay: new
+  // ones end the split).
+  function update() {
+    if (frozen) copyAttributes(['position', 'normal']);
   }
 
   // Whether the kept image still holds: the same view size and no vertex moved outside
@@ -155,5 +159,6 @@ export function createStillDraw({ renderer, scene, camera }) {
     freeze, holds, update, thaw, draw,
     get active() { return frozen !== null; },
     get movingTriangles() { return frozen ? frozen.movingTriangles : 0; },
+    get movingVertices() { return frozen ? frozen.used.length : 0; },
   };
 }

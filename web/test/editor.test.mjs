@@ -159,12 +159,7 @@ const maxDiffNorm = (a, b) => {
 // Rendered pixels of the 3D view that are not its background (the corner pixel's colour),
 // as a fraction: the surface is drawn, not just sent.
 const drawnFraction = (page) => page.evaluate(() => {
-  const gl = document.querySelector('#viewport > canvas');
-  const c = document.createElement('canvas');
-  c.width = gl.width; c.height = gl.height;
-  const ctx = c.getContext('2d');
-  ctx.drawImage(gl, 0, 0);
-  const d = ctx.getImageData(0, 0, c.width, c.height).data;
+  const d = meshpde.canvasPixels().data;
   let other = 0;
   for (let i = 0; i < d.length; i += 4)
     if (Math.abs(d[i] - d[0]) + Math.abs(d[i + 1] - d[1]) + Math.abs(d[i + 2] - d[2]) > 24) other += 1;
@@ -312,12 +307,7 @@ async function bifurcationChecks() {
   check('bifurcation (cm): generated and written as SimVascular would', made.status === 0 && !!caps && caps.caps.length > 50,
         `${made.stderr} ${model.stderr}`);
   if (!caps) return;
-  const inCm = await (async () => {
-    const r = spawnSync('/usr/bin/python3', ['-c', 'import sys, json\nfrom vtkmodules.vtkIOXML import vtkXMLPolyDataReader\n' +
-      'r = vtkXMLPolyDataReader(); r.SetFileName(sys.argv[1]); r.Update(); p = r.GetOutput().GetPoints()\n' +
-      'print(json.dumps([c for i in range(p.GetNumberOfPoints()) for c in p.GetPoint(i)]))', cm], { encoding: 'utf8' });
-    return JSON.parse(r.stdout);
-  })();
+  const inCm = caps.points;  // as written: Float32 centimetres
   // A volume in mm around the model (as a scan is), its grey varying in every direction.
   {
     const lo = [0, 1, 2].map((c) => 10 * Math.min(...inCm.filter((_, i) => i % 3 === c)) - 4);
@@ -601,17 +591,11 @@ async function planeChecks(page, prefix = '') {
     for (const [j, other] of axes.entries()) await page.setChecked(`#img-${other}-show`, j === k);
     await page.waitForTimeout(300);
     const samples = await page.evaluate((kk) => {
-      const gl = document.querySelector('#viewport > canvas');
-      const c = document.createElement('canvas');
-      c.width = gl.width; c.height = gl.height;
-      const ctx = c.getContext('2d');
-      ctx.drawImage(gl, 0, 0);
-      const d = ctx.getImageData(0, 0, c.width, c.height).data, out = [];
+      const c = meshpde.canvasPixels(), out = [];
       for (const s of meshpde.imageView.planeSamples3d(kk, 9)) {
         const q = meshpde.canvasPixelOf(s.p);
         if (!q.inside) continue;
-        const i = 4 * (Math.min(Math.floor(q.y), c.height - 1) * c.width + Math.min(Math.floor(q.x), c.width - 1));
-        out.push({ sent: s.grey, rgb: [d[i], d[i + 1], d[i + 2]] });
+        out.push({ sent: s.grey, rgb: c.rgb(Math.min(Math.floor(q.x), c.width - 1), Math.min(Math.floor(q.y), c.height - 1)) });
       }
       return out;
     }, k);
@@ -1216,16 +1200,12 @@ try {
     };
     // Rendered: the rim's orange within a pixel of each of its ends on the camera's side,
     // the handle's blue dot at the point.
-    const gl = document.querySelector('#viewport > canvas');
-    const cv = document.createElement('canvas');
-    cv.width = gl.width; cv.height = gl.height;
-    const ctx = cv.getContext('2d');
-    ctx.drawImage(gl, 0, 0);
+    const pixels = meshpde.canvasPixels();
     const cam = meshpde.cameraDirection();
-    const near = (p, test) => {
-      const q = meshpde.canvasPixelOf(p);
-      const d = ctx.getImageData(Math.round(q.x) - 1, Math.round(q.y) - 1, 3, 3).data;
-      for (let i = 0; i < d.length; i += 4) if (test(d[i], d[i + 1], d[i + 2])) return true;
+    const near = (p, test) => {  // within a pixel of p
+      const q = meshpde.canvasPixelOf(p), x = Math.round(q.x), y = Math.round(q.y);
+      for (let dy = -1; dy <= 1; ++dy)
+        for (let dx = -1; dx <= 1; ++dx) if (test(...pixels.rgb(x + dx, y + dy))) return true;
       return false;
     };
     const orange = (R, G, B) => R > 190 && G > 80 && G < 170 && B < 90;
@@ -1324,11 +1304,7 @@ try {
     const colours = await page.evaluate(() => {
       const P = meshpde.positions, f = meshpde.field, cam = meshpde.cameraDirection();
       if (!f) return null;
-      const gl = document.querySelector('#viewport > canvas');
-      const c = document.createElement('canvas');
-      c.width = gl.width; c.height = gl.height;
-      const ctx = c.getContext('2d');
-      ctx.drawImage(gl, 0, 0);
+      const pixels = meshpde.canvasPixels();
       let top = -1, zero = -1, best = -Infinity;
       for (let i = 0; i < f.length; ++i) {
         const p = [P[3 * i], P[3 * i + 1], P[3 * i + 2]], n = Math.hypot(...p);
@@ -1339,7 +1315,7 @@ try {
       }
       const at = (i) => {
         const q = meshpde.canvasPixelOf([P[3 * i], P[3 * i + 1], P[3 * i + 2]]);
-        return Array.from(ctx.getImageData(Math.round(q.x), Math.round(q.y), 1, 1).data.slice(0, 3));
+        return pixels.rgb(Math.round(q.x), Math.round(q.y));
       };
       return { top: top >= 0 ? at(top) : null, zero: zero >= 0 ? at(zero) : null, max: Math.max(...f),
                legend: !document.getElementById('legend').hidden && document.getElementById('legend-name').textContent };

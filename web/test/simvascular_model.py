@@ -4,8 +4,9 @@ the face labels as ModelFaceID (wall 1, caps 2, 3, ...) and a Normals point arra
 Usage: /usr/bin/python3 simvascular_model.py IN_MM.vtp OUT_CM.vtp
 
 IN_MM.vtp: a capped surface in millimetres with CellEntityIds (meshpde generate
-bifurcation --caps). Prints JSON: the cap vertices (on a face labelled 2 or more) and,
-for each cap, the wall vertex nearest its centre (where a drag tests the cap's hold).
+bifurcation --caps). Prints JSON: the points as written (cm, flat x y z), the cap
+vertices (on a face labelled 2 or more) and, for each cap, the wall vertex nearest its
+centre (where a drag tests the cap's hold).
 """
 import json
 import sys
@@ -25,8 +26,9 @@ def main():
     P = vtk_to_numpy(pd.GetPoints().GetData()).astype(np.float64)
     F = vtk_to_numpy(pd.GetPolys().GetConnectivityArray()).reshape(-1, 3)
     labels = vtk_to_numpy(pd.GetCellData().GetArray("CellEntityIds")).astype(np.int32)
+    in_cm = np.ascontiguousarray(P / 10.0, dtype=np.float32)
     points = vtkPoints()
-    points.SetData(numpy_to_vtk(np.ascontiguousarray(P / 10.0, dtype=np.float32), deep=True))
+    points.SetData(numpy_to_vtk(in_cm, deep=True))
     pd.SetPoints(points)
     ids = numpy_to_vtk(labels, deep=True)
     ids.SetName("ModelFaceID")
@@ -50,7 +52,7 @@ def main():
     for label in sorted(set(labels.tolist()) - {1}):
         centre = P[np.unique(F[labels == label].ravel())].mean(axis=0)
         near.append(int(wall[np.argmin(np.linalg.norm(P[wall] - centre, axis=1))]))
-    print(json.dumps({"caps": caps, "wall_near_cap": near, "vertices": len(P)}))
+    print(json.dumps({"points": in_cm.astype(np.float64).ravel().tolist(), "caps": caps, "wall_near_cap": near}))
 
 
 if __name__ == "__main__":

@@ -124,13 +124,17 @@ async function dragInTheBrowser(port, query) {
     const stats = moved.frame;
     const elapsed = (Date.now() - t0) / 1000;
     const after = await page.evaluate(() => ({ updates: meshpde.updates, frames: meshpde.frames,
-      page: meshpde.timing.page, draw: meshpde.timing.draw, vertices: meshpde.vertexCount }));
+      page: meshpde.timing.page, draw: meshpde.timing.draw, vertices: meshpde.vertexCount,
+      triangles: meshpde.faceCount, split: meshpde.stillDraw() }));
     await page.mouse.up();
     const tail = (list, n) => list.slice(Math.max(0, list.length - n));
     const pct = (a, q) => { const x = [...a].sort((u, v) => u - v); return x.length ? +x[Math.min(x.length - 1, Math.floor(q * x.length))].toFixed(1) : 0; };
     const pageMs = tail(after.page, after.page.length - before.page), drawMs = tail(after.draw, after.draw.length - before.draw);
     return {
       vertices: after.vertices, seconds: +elapsed.toFixed(2), drag_set_up: region,
+      // Drawn each frame while the still part is kept (0: the whole mesh is drawn).
+      moving_triangles: after.split.movingTriangles, moving_vertices: after.split.movingVertices,
+      triangles: after.triangles,
       software_renderer_detected: await page.evaluate(() => meshpde.software),
       mouse_moves_per_second: +(moved.moves / elapsed).toFixed(1),
       updates_per_second: +((after.updates - before.updates) / elapsed).toFixed(1),

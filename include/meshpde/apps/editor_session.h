@@ -69,7 +69,7 @@ class EditorSession {
   /// Ends a poke and its relaxation at once, the surface back at rest (poke_end only
   /// lets go): every other tool's action does this first, so that the next tool starts
   /// on a still surface (the page's tissue brush calls it).
-  void end_poke() { stop_poke(); }
+  void end_poke();
   bool poking() const;
   Eigen::Vector3d poke_force() const;
   int poke_contact() const;
@@ -174,7 +174,6 @@ class EditorSession {
   double last_solve_ms() const { return last_ms_; }
 
  private:
-  void stop_poke();
   void check_vertex(int v) const;
   void clear_moved_field();  // ends a correction's colouring (the next action)
   double begin_preview(CorrectionHandle handle, double radius, const Eigen::VectorXd& stiffness,
