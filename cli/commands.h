@@ -68,7 +68,9 @@ Space mesh_space(const std::string& option, const MeshData& data);
 /// Prints JSON to stdout (2-space indent).
 void print_json(const nlohmann::json& j);
 
-/// Directory holding ../shared/data (env MESHPDE_DATA_DIR overrides).
-std::filesystem::path data_dir();
+/// The bench's folder of real meshes: `option` (--data-dir) when given, else the
+/// environment variable MESHPDE_DATA_DIR, else none (a warning; real-mesh figures are
+/// skipped). A path that is not a folder is an InputError.
+std::filesystem::path bench_data_dir(const std::string& option);
 
 }  // namespace meshpde::cli

@@ -217,7 +217,7 @@ void add_fair_command(CLI::App& app) {
   cmd->add_option("--order", a->p.order, "1: Laplacian (membrane), 2: bi-Laplacian (thin plate)")
       ->check(CLI::IsMember({1, 2}))
       ->capture_default_str();
-  cmd->add_flag("--regularize", a->p.regularize, "Re-assemble area-weighted stiffness every step (seed 000 Fig. 7)");
+  cmd->add_flag("--regularize", a->p.regularize, "Re-assemble area-weighted stiffness every step (Kim and Rossignac 2004, Fig. 7)");
   cmd->add_option("--solver", a->solver,
                   fmt::format("Static solve: auto (--order 2: the multigrid on meshes of {} free vertices or more "
                               "without angles under {} degrees, kept where it converges; else direct) | "

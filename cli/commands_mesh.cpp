@@ -389,7 +389,7 @@ void add_mesh_commands(CLI::App& app) {
     });
   }
   {
-    auto* cmd = app.add_subcommand("curvature", "Per-vertex mean curvature H = 1/2 c |row(K x)| (seed 000, Table 1)");
+    auto* cmd = app.add_subcommand("curvature", "Per-vertex mean curvature H = 1/2 c |row(K x)| (Kim and Rossignac 2004, Table 1)");
     auto path = std::make_shared<std::string>();
     auto scale = std::make_shared<std::string>("area");
     auto out = std::make_shared<std::string>();

@@ -67,10 +67,19 @@ void print_json(const nlohmann::json& j) {
   std::cout << j.dump(2) << std::endl;
 }
 
-std::filesystem::path data_dir() {
-  if (const char* env = std::getenv("MESHPDE_DATA_DIR")) return env;
-  if (std::filesystem::exists("../shared/data")) return "../shared/data";
-  return MESHPDE_DEFAULT_DATA_DIR;
+std::filesystem::path bench_data_dir(const std::string& option) {
+  std::filesystem::path dir = option;
+  if (dir.empty()) {
+    const char* env = std::getenv("MESHPDE_DATA_DIR");
+    if (!env || !*env) {
+      fmt::print(stderr,
+                 "warning: no data folder (--data-dir or MESHPDE_DATA_DIR): the figures on real meshes are skipped\n");
+      return {};
+    }
+    dir = env;
+  }
+  if (!std::filesystem::is_directory(dir)) throw InputError(fmt::format("{}: not a folder", dir.string()));
+  return dir;
 }
 
 }  // namespace meshpde::cli

@@ -157,6 +157,9 @@ usage "missing option" "--move is required" correct "$T/ll.off" -o "$T/never.ply
 usage "value not a number" "--radius = abc" correct "$T/ll.off" -o "$T/never.ply" --vertex 0 --move 1,0,0 --radius abc
 usage "value not allowed" "inch" correct "$T/ll.off" -o "$T/never.ply" --vertex 0 --move 1,0,0 --units inch
 check "no output after usage errors" [ ! -e "$T/never.ply" ]
+"$M" bench --data-dir "$T/no-such-folder" >/dev/null 2>"$T/err"
+check "bench --data-dir that is not a folder exits 1" [ $? -eq 1 ]
+check "bench --data-dir message names the folder" grep -q "no-such-folder: not a folder" "$T/err"
 "$M" --version >/dev/null 2>&1
 check "--version exits 0" [ $? -eq 0 ]
 "$M" info --help >/dev/null 2>&1

@@ -136,7 +136,7 @@ inline Field extended_precision_solve(const Mesh& m, const FemOperators& ops, co
   return out;
 }
 
-// Issue 22's check on a real mesh: the global solver's answer (Auto, and the Laplacian
+// The global solver on a real mesh: the global solver's answer (Auto, and the Laplacian
 // factor forced; relative residual 1e-12) equals the direct solve's to 1e-8 relative,
 // on one thread and on two, and on meshes of up to 15k vertices both equal the
 // extended-precision answer above to 1e-8. The operators are the ones the commands

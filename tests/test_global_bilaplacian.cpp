@@ -381,7 +381,7 @@ TEST(GlobalBilaplacian, AutoKeepsTheMultigridWhereItConvergesAndSolvesDirectlyEl
 }
 
 TEST(GlobalBilaplacian, EveryRealMeshInTheCoreFormatsMatchesTheDirectSolve) {
-  // Issue 22: the answers equal the direct solve's to 1e-8 relative on every mesh of
+  // The answers equal the direct solve's to 1e-8 relative on every mesh of
   // ../shared/data, on one thread and two (the .vtp meshes: test_medical.cpp).
   for (const char* name : {"bunny-3k.off", "bunny-36k.obj", "armadillo-43k.obj", "fertility-4k.off",
                            "decimated-knight.off", "camelhead-11k.off", "cow-3k.off", "aorta-open-6k.stl",

@@ -785,7 +785,7 @@ TEST(Volume, NrrdEncodingsDetachedDataAndSpacesByMeshpdesOwnReader) {
 }
 
 TEST(Vtp, EveryRealVtpMeshGetsTheDirectSolversAnswerFromTheGlobalSolver) {
-  // Issue 22's check (tests/solver_problems.h) on the .vtp meshes of ../shared/data; the
+  // The global-solver check (tests/solver_problems.h) on the .vtp meshes of ../shared/data; the
   // subdivided aorta-103k is the bench's (global_bilap_*_aorta-103k).
   for (const char* name : {"aorta-closed-6k.vtp", "carotid-ica-4k.vtp", "vessel-boolean-nonmanifold.vtp"}) {
     if (!test::have_data(name)) continue;

@@ -226,7 +226,7 @@ TEST(Multigrid, BadRequestsAreRefusedInWords) {
 
 TEST(Multigrid, RealMeshesConvergeToTheFactorSolvesAnswer) {
   // Real meshes with obtuse triangles and, for the camel head, an open boundary: the
-  // multigrid needs many more iterations than on a sphere (docs/solvers.md) but reaches
+  // multigrid needs many more iterations than on a sphere (docs/solvers-measurements.md) but reaches
   // the same answer as the Laplacian-factor preconditioner, with either smoother.
   for (const char* name : {"cow-3k.off", "camelhead-11k.off"}) {
     if (test::kSanitized && std::string(name) != "cow-3k.off") continue;  // test_support.h

@@ -268,7 +268,7 @@ TEST(SelfIntersectionsCgal, FoldsCoplanarOverlapsAndCornerOverlapsAreCounted) {
   EXPECT_EQ(with_segment.count_new(V, std::vector<int>{0, 1, 2}), 0);
 }
 
-// 300 seeded random drags (issue 21 part 3): a random handle, direction and region
+// 300 seeded random drags: a random handle, direction and region
 // radius of 2 to 10 mean edges, dragged 1 to 3 region radii, on a real aorta, the
 // generated bifurcation and a non-manifold vessel; every result, and every step of a
 // CorrectionSession going on from one drag to the next, has no pair that CGAL counts

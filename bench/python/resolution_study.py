@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""Does a correction converge with the mesh? (issue 20, part 1)
+"""Does a correction converge with the mesh?
 
 The same correction on three resolutions of the same surface: a mesh (level 0), its
 1-to-4 midpoint subdivision (level 1, half the edge) and its 1-to-16 (level 2). The
@@ -344,7 +344,7 @@ def main():
     for name, L, handles, image, space in cases(a.data, a.quick):
         for method, boundary in (("fem", "clamp"), ("fem", "fade"), ("springs", "")):
             if image and method == "springs":
-                continue  # the springs' image step is its own (issue 20 part 4)
+                continue  # the springs' image step is its own, not the FEM's
             for R in (5, 10, 20):
                 r = run_case(name, L, handles, image, space, R, method, boundary)
                 rows.append(r)

@@ -379,7 +379,7 @@ void haptic_figures(const BenchOptions& options, nlohmann::json& j) {
   }
 }
 
-// Issue 22's figures on real meshes: the handle at the top moved by 0.01 mean edge
+// The global solvers on real meshes: the handle at the top moved by 0.01 mean edge
 // x (1, 2, 10), the lowest 2 % (by height) of each part held (real_mesh_problem.h), as
 // on the million-vertex row. Each problem: the default global solve (Auto, the
 // operators the commands build), CHOLMOD's direct solve, what `--solver global` and

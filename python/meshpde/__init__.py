@@ -166,7 +166,7 @@ def fair(V, F, fixed, *, order=2, regularize=False, dt=1.0, steps=15, damping=0.
 
     fixed: vertex indices, or selection specs as ``--fixed`` takes them ("boundary",
     "rings:V:K", "radius:V:R", "halfspace:NX,NY,NZ:D", "all", ...).
-    regularize: seed 000's area-weighted membrane flow (``steps`` steps of ``dt``).
+    regularize: Kim and Rossignac's area-weighted membrane flow (``steps`` steps of ``dt``).
     solver: "auto" (default: with order 2, the multigrid on meshes of 50,000 free
     vertices or more without angles under 20 degrees, kept where it converges; else
     "direct"), "direct" (sparse Cholesky), "global" (multigrid-CG, order 2) or
@@ -282,7 +282,7 @@ def correct(V, F, vertices=None, moves=None, *, points=None, handle_radius=-1.0,
         handle_radius=handle_radius))
 
 
-correct.__doc__ = "Vessel-wall correction (seed 001), as ``meshpde correct``; the input is not modified.\n" + _CORRECT_DOC
+correct.__doc__ = "Vessel-wall correction (Schoenmaker's thesis), as ``meshpde correct``; the input is not modified.\n" + _CORRECT_DOC
 
 
 class CorrectionSession(_meshpde._CorrectionSession):

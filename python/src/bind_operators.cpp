@@ -115,7 +115,7 @@ K and M on the intrinsic Delaunay triangulation of the same surface (Sharp and C
       R"doc(curvature(V, F, scale="area", laplacian="auto") -> (n,)
 
 Mean curvature H_i = |row_i(K V)| c_i / 2 (1 / length): 1/R on a sphere of radius R.
-scale: "area" (c_i = 3 / area around i) or "valence" (seed 000's flat-umbrella fit).
+scale: "area" (c_i = 3 / area around i) or "valence" (Kim and Rossignac's flat-umbrella fit).
 laplacian: "auto" (intrinsic Delaunay on badly shaped or non-manifold meshes), "cotan"
 or "intrinsic", as ``meshpde curvature --laplacian``.)doc",
       py::arg("V"), py::arg("F"), py::arg("scale") = "area", py::arg("laplacian") = "auto");

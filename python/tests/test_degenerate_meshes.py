@@ -1,4 +1,4 @@
-"""Never a NaN (issue 21, part 4): seeded random meshes with zero-area triangles,
+"""Never a NaN: seeded random meshes with zero-area triangles,
 repeated vertices, needles and caps, through every command of the tool. Each run either
 succeeds with finite output (the written mesh, its fields and the JSON report) or exits
 1 with a message that names the offending element; never a crash, a hang or a NaN."""

@@ -89,7 +89,7 @@ def test_curvature_of_a_sphere_is_one_over_the_radius():
     V, F = meshpde.generate.icosphere(4, radius=2.5)
     H = meshpde.curvature(V, F)
     # within 1 % at the regular (valence 6) vertices; the 12 of valence 5 are off by
-    # 15 % with the area scale (seed 000's Table 1), and the valence scale corrects them
+    # 15 % with the area scale (Kim and Rossignac 2004, Table 1), and the valence scale corrects them
     assert np.median(np.abs(H * 2.5 - 1)) < 0.01
     Hv = meshpde.curvature(V, F, scale="valence")
     assert np.abs(Hv * 2.5 - 1).max() < np.abs(H * 2.5 - 1).max()

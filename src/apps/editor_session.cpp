@@ -375,7 +375,7 @@ void EditorSession::play(const std::string& kind) {
     // and released, lightly damped.
     const PdeCoefficients c = kind == "heat" ? PdeCoefficients{.alpha = 0, .b1 = 1, .g1 = 1}
                                              : PdeCoefficients{.alpha = 1, .b1 = 0.05, .g1 = 1};
-    // Heat is localized, as in seed 000: the active domain starts at the sources and
+    // Heat is localized, as in Kim and Rossignac 2004: the active domain starts at the sources and
     // grows with the heat, so a frame costs what is warming, not the mesh. A wave
     // reaches everything within a few frames, so it runs on the whole mesh (its
     // self-adjusting bookkeeping would only add cost).

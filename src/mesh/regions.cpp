@@ -24,7 +24,7 @@ namespace {
 // in the bucket of the highest bit where its key differs from the last key taken out.
 // Pushing is an append; taking out empties the lowest bucket by redistributing the next
 // non-empty one around its minimum. On a 10k-vertex ball this took 1.35-1.7 ms where
-// std::priority_queue took 2.0 ms (set-up of a drag region, docs/solvers.md).
+// std::priority_queue took 2.0 ms (set-up of a drag region, docs/solvers-measurements.md).
 class MonotoneQueue {
  public:
   void push(double key, int value) {

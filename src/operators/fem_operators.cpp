@@ -15,7 +15,7 @@ namespace meshpde {
 
 namespace {
 // Below this many rows an apply stays on the calling thread: waking a second one
-// costs more than half of a small apply (measured in meshpde bench, docs/solvers.md).
+// costs more than half of a small apply (measured in meshpde bench, docs/solvers-measurements.md).
 constexpr std::ptrdiff_t kParallelRows = 20000;
 }  // namespace
 

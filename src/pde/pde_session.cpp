@@ -166,7 +166,7 @@ void PdeSession::apply_Kt_free(const double* w, double* y) {
   const double* mass = ops_.mass.data();
   const double g0 = coef_.g0, g1 = coef_.g1, g2 = coef_.g2;
   if (g2 != 0) {
-    // K w on A and its ring, then D, then K again on A (seed 000 Fig. 4).
+    // K w on A and its ring, then D, then K again on A (Kim and Rossignac 2004, Fig. 4).
     double* T = t_full_.data();
     double* KT = kt_full_.data();
     apply_stiffness_rows(mesh_, ops_, w, K, m_, ring_rows_);

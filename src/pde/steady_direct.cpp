@@ -425,7 +425,7 @@ std::optional<SteadySolveResult> try_multigrid_solve(const Mesh& mesh, const Fem
   // The multigrid's probe decides: kept where it converges (well-shaped meshes, where it
   // is several times faster than a factorization), given up where its rate predicts more
   // than max_multigrid_iterations (real meshes with slivers, where neither it nor the
-  // Laplacian factor beats the direct solve: docs/solvers.md).
+  // Laplacian factor beats the direct solve: docs/solvers-measurements.md).
   GlobalBilaplacianParams gp{.g1 = coefficients.g1, .g2 = coefficients.g2, .tolerance = 1e-10};
   gp.hand_on_to_factor = false;
   gp.multigrid = multigrid;

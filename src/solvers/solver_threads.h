@@ -9,7 +9,7 @@
 
 namespace meshpde::detail {
 
-/// Measured on the 2-core development machine (docs/solvers.md), bi-Laplacian drag
+/// Measured on the 2-core development machine (docs/solvers-measurements.md), bi-Laplacian drag
 /// regions: below about 700 unknowns Eigen's simplicial factorization beats CHOLMOD's
 /// supernodal one (504: 0.79 against 0.88 ms; 1,140: 2.8 against 2.2 ms).
 constexpr Eigen::Index kSimplicialBelow = 700;
@@ -27,7 +27,7 @@ int blas_threads_for(Eigen::Index n);
 /// CHOLMOD is compiled (CHOLMOD_OMP_NUM_THREADS, 4 in Debian's build), whatever the
 /// machine has. On two cores that is four threads forking and joining once per
 /// supernode: measured on the 10k-vertex drag region's K D K (126 Mflop), 48 ms with
-/// them and 13 ms without (docs/solvers.md). The parallel work that pays is the BLAS's
+/// them and 13 ms without (docs/solvers-measurements.md). The parallel work that pays is the BLAS's
 /// (its own threads, blas_threads_for), so CHOLMOD's regions run on the calling thread:
 /// with no active parallel level allowed (OpenMpActiveLevels(0)), every OpenMP region is
 /// one thread. Restored on leaving, so meshpde's own loops are not affected. Does

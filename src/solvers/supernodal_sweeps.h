@@ -8,7 +8,7 @@
 // each supernode's diagonal block is solved in place, and the rows below it are summed
 // densely column by column and scattered once (gathered once going back). 164k-vertex
 // Laplacian factor (9.9M nonzeros), three columns: 24 ms against 52 ms for
-// cholmod_solve; K D K factor (27M): 66 against 90 ms (docs/solvers.md). From five
+// cholmod_solve; K D K factor (27M): 66 against 90 ms (docs/solvers-measurements.md). From five
 // columns on cholmod_solve's BLAS-3 calls are as fast, and SparseCholesky uses them.
 //
 // Both cores: after the supernodes are postordered, every subtree of the elimination

@@ -1,9 +1,9 @@
-// Fairing and membranes (seed 000 section 5.2, Figs. 6-7): solve the Laplacian
+// Fairing and membranes (Kim and Rossignac 2004 section 5.2, Figs. 6-7): solve the Laplacian
 // (order 1, membrane, g1) or bi-Laplacian (order 2, thin plate, g2) equation on the
 // vertex coordinates with a selection held fixed.
 //
 // Static (default): one steady solve Kt x = 0 on the free vertices.
-// Regularized (seed's membrane regularization): `steps` backward Euler steps of
+// Regularized (Kim and Rossignac's membrane regularization): `steps` backward Euler steps of
 // (b1 M + dt Kt) x^{n+1} = b1 M x^n where K is re-assembled every step from the
 // current geometry with each element stiffness weighted by its triangle's area
 // (divided by the mean area, so the weights are unit-free): large stiff triangles
@@ -38,7 +38,7 @@ struct FairParams {
   int steps = 15;           ///< regularization steps
   /// b1 of the regularization steps, relative to the mean triangle area. 0 (default) is
   /// quasi-static: each step re-solves the area-weighted membrane at the current
-  /// geometry, which is what the seed's b1 = 0.01 amounts to at its scale (b1 M is
+  /// geometry, which is what Kim and Rossignac's b1 = 0.01 amounts to at its scale (b1 M is
   /// negligible next to dt K there).
   double damping = 0.0;
   /// The static solve's: Auto (default: for order 2 the multigrid on large, well-shaped

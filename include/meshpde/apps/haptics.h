@@ -1,4 +1,4 @@
-// Haptic poking (seed 000 section 5.4, Fig. 12): a probe holds a surface vertex and
+// Haptic poking (Kim and Rossignac 2004 section 5.4, Fig. 12): a probe holds a surface vertex and
 // moves; the surface yields on a self-adjusting active domain and pushes back.
 //
 // The displacement field d (#V x 3) follows PdeSession's dynamics with the contact

@@ -1,4 +1,4 @@
-// Heat and wave propagation on a surface (seed 000 section 5.1, Fig. 5).
+// Heat and wave propagation on a surface (Kim and Rossignac 2004 section 5.1, Fig. 5).
 //
 //   heat:  u_t = k lap(u) + f           (b1 = 1, g1 = k)
 //   wave:  u_tt + b u_t = c^2 lap(u) + f  (alpha = 1, b1 = b, g1 = c^2)

@@ -1,8 +1,8 @@
-// Scattered-data interpolation over a surface (seed 000 section 5.3, Figs. 8-11):
+// Scattered-data interpolation over a surface (Kim and Rossignac 2004 section 5.3, Figs. 8-11):
 // values given at a few vertices spread smoothly by solving
 //     (g1 K + g2 K D K) u = 0   on the other vertices, u = value at the constraints.
 // g2 > 0 gives smooth bumps and reproduces linear fields exactly; g1 alone gives
-// spikes at the constraints (the seed's Fig. 8). Any mix is allowed.
+// spikes at the constraints (Kim and Rossignac's Fig. 8). Any mix is allowed.
 //
 // Tangent vector fields, two ways:
 //  - Componentwise (the seed): x, y, z interpolated separately, then each vertex's

@@ -1,6 +1,6 @@
 // Local drag: move one vertex by a displacement and let the surface around it
-// follow smoothly (seed 000 section 5.3 displacement interpolation; the correction
-// of seed 001 in its static form).
+// follow smoothly (Kim and Rossignac 2004 section 5.3 displacement interpolation; the correction
+// of Schoenmaker's thesis in its static form).
 //
 // The displacement field d (#V x 3) solves the steady problem
 //     (g1 K + g2 K D K) d = 0   on the region of influence,
@@ -92,7 +92,7 @@ struct DragSessionParams {
   /// no new factor. Costs set-up time: the ring's rows fill in against the region's top
   /// separators, and the factor is one piece, not the two-thread split (10k-vertex
   /// region: set-up 33 ms instead of 20 ms, then growth 3.8 ms instead of 28 ms;
-  /// docs/solvers.md).
+  /// docs/solvers-measurements.md).
   bool margin = false;
   /// Order the region's own outermost ring last, so that shrink(1) needs no new factor
   /// (10k-vertex region: set-up 35 ms, then shrinking 4.1 ms instead of 25 ms; both

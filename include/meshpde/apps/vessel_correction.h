@@ -1,4 +1,4 @@
-// Vessel-wall correction (seed 001; DESIGN section 3): move handle vertices of a
+// Vessel-wall correction (Schoenmaker, 3D Interactive Mesh Deformation): move handle vertices of a
 // segmented vessel surface by displacements in mm and let the wall around them
 // follow like tissue, within a region of influence, without self-intersections,
 // optionally pulled onto the edges of the patient's image.

@@ -19,7 +19,7 @@ struct GeneratedMesh {
 };
 
 /// Latitude-longitude sphere: two poles and n-1 rings of 2n vertices
-/// (n = 2, 3, 4, 5, 15 give 6, 14, 26, 42, 422 vertices, seed 000 Table 1).
+/// (n = 2, 3, 4, 5, 15 give 6, 14, 26, 42, 422 vertices, Kim and Rossignac 2004, Table 1).
 /// Ring k sits at polar angle k*pi/n; each band of quads is split along one diagonal.
 /// \pre n >= 2
 GeneratedMesh latlong_sphere(int n, double radius = 1.0);

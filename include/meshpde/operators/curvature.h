@@ -1,9 +1,9 @@
-// Mean curvature from the stiffness matrix (seed 000 section 3.4.1 and Appendix,
+// Mean curvature from the stiffness matrix (Kim and Rossignac 2004 section 3.4.1 and Appendix,
 // Table 1): H_i = 1/2 c_i |row_i(K x)|, x the vertex positions. Units: length^-1.
 // On a sphere of radius R, H = 1/R, so the radius estimate is rho_i = 1/H_i.
 //
 // Two scalings c_i:
-//   Area    c_i = 3 / A~_i                     (seed 000's choice; equals Meyer et al. 2003)
+//   Area    c_i = 3 / A~_i                     (Kim and Rossignac's choice; equals Meyer et al. 2003)
 //   Valence c_i = 4 cos^2(pi / n_i) / A~_i     (n_i = number of edges at i; the
 //                                               flat-umbrella fit of the Appendix)
 // At vertices with zero incident area H is reported as 0.

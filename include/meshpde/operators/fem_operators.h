@@ -1,5 +1,4 @@
-// Linear-element FEM operators on a triangle mesh (seed 000 sections 3.2-3.4,
-// DESIGN section 2):
+// Linear-element FEM operators on a triangle mesh (Kim and Rossignac 2004 sections 3.2-3.4):
 //
 //   K   stiffness, #V x #V, symmetric positive semi-definite, K 1 = 0.
 //       K = -L where L is the cotangent Laplacian (libigl's cotmatrix convention,
@@ -14,7 +13,7 @@
 // adjacency (each edge's value appears in both of its rows, so an apply streams
 // through memory without gathering edge values).
 //
-// Degenerate geometry (DESIGN section 2; tested): a triangle with a repeated index
+// Degenerate geometry (tested): a triangle with a repeated index
 // or an area <= 1e-14 * (longest edge)^2 contributes nothing to K or M and is
 // counted in `degenerate_faces`. A vertex whose incident area is zero (unreferenced,
 // or touching only degenerate triangles) has M_ii = 0 and D_ii = 0 (not infinity);
@@ -33,7 +32,7 @@ namespace meshpde {
 
 struct OperatorOptions {
   /// Optional per-triangle multiplier of the element stiffness (length #F), for
-  /// example face_areas() for seed 000's area-weighted membrane regularization, or
+  /// example face_areas() for Kim and Rossignac's area-weighted membrane regularization, or
   /// vertex_to_face_average(stiffness field). Empty: weight 1 everywhere.
   Eigen::VectorXd face_weights;
 };

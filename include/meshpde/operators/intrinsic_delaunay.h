@@ -1,5 +1,5 @@
 // Intrinsic Delaunay operators: accurate K and M on badly shaped and non-manifold
-// meshes without changing the mesh (DESIGN section 2; Bobenko and Springborn 2007;
+// meshes without changing the mesh (Bobenko and Springborn 2007;
 // Sharp and Crane 2020, "A Laplacian for Nonmanifold Triangle Meshes").
 //
 // The surface is kept exactly: the same vertices at the same positions, the same

@@ -1,4 +1,4 @@
-// The active domain of a localized solve (seed 000 section 4.2, DESIGN section 2).
+// The active domain of a localized solve (Kim and Rossignac 2004 section 4.2).
 //
 // Every vertex is Free (in A, solved), Constrained (prescribed value) or Frozen
 // (held at its current value). The domain keeps the free list A and the ring

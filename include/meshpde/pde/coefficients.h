@@ -1,4 +1,4 @@
-// The coefficients of meshpde's PDE (seed 000 section 4, DESIGN section 2):
+// The coefficients of meshpde's PDE (Kim and Rossignac 2004 section 4):
 //
 //     alpha M u'' + C u' + Kt u = f,   Kt = g0 M + g1 K + g2 K D K,   C = b1 M + b2 Kt
 //

@@ -2,7 +2,7 @@
 //
 //     (g1 K + g2 K D K)_FF u_F = -(Kt u_held)_F
 //
-// Two preconditioners, and a rule to choose between them (docs/solvers.md has the
+// Two preconditioners, and a rule to choose between them (docs/solvers-measurements.md has the
 // measured tables):
 //  - Auto (the default): the multigrid first; from `probe_iterations` on, its recent
 //    rate predicts the iterations it needs, and once that is more than
@@ -50,7 +50,7 @@ struct GlobalBilaplacianParams {
   /// Auto: multigrid iterations before its rate is first judged.
   int probe_iterations = 6;
   /// Auto: hand the solve on to the Laplacian factor once the multigrid's rate predicts
-  /// more iterations in all than this (docs/solvers.md: icospheres need 15-26, real
+  /// more iterations in all than this (docs/solvers-measurements.md: icospheres need 15-26, real
   /// meshes with slivers 80-900, where the factor needs 7-38 iterations at 3-4x the cost).
   double max_multigrid_iterations = 50;
   /// Auto: once the probe judges the multigrid too slow, go on with the Laplacian factor
@@ -91,7 +91,7 @@ struct GlobalBilaplacianResult {
 /// multigrid hierarchy or the Cholesky factor of K_FF) is built by the first solve() and
 /// reused by the next ones, whose held values (a new handle position, new constraint
 /// values on the same vertices) and column count may differ. A later solve costs its
-/// right-hand side and its iterations only (docs/solvers.md: at 164k 0.43-0.46 s
+/// right-hand side and its iterations only (docs/solvers-measurements.md: at 164k 0.43-0.46 s
 /// against 0.71-0.74 s for the first). Auto decides once: after it has handed a solve on to
 /// the factor, the next solves start with the factor; while the multigrid converges,
 /// each solve is judged as the first was. The mesh and operators are referenced and

@@ -2,11 +2,11 @@
 //
 //     alpha u_tt - g1 lap(u) + g2 bilap(u) = f
 //
-// on the active domain of a mesh (seed 000 section 4, DESIGN section 2):
+// on the active domain of a mesh (Kim and Rossignac 2004 section 4):
 //
 //     alpha M u'' + C u' + Kt u = f,   Kt = g0 M + g1 K + g2 K D K,   C = b1 M + b2 Kt
 //
-// g0 (an elastic foundation, 0 by default) is our addition to seed 000's PDE: with
+// g0 (an elastic foundation, 0 by default) is our addition to Kim and Rossignac's PDE: with
 // only K and K D K nothing holds a displacement in place (K 1 = 0), so a poke
 // spreads without bound and a released surface settles at a rigid offset. g0 M u
 // ties every vertex to its rest state, like tissue under a vessel wall, and makes a
@@ -47,7 +47,7 @@
 
 namespace meshpde {
 
-/// How the active domain adjusts itself after each step (seed 000 section 4.2).
+/// How the active domain adjusts itself after each step (Kim and Rossignac 2004 section 4.2).
 /// Growth is relative to the current activity, so it does not depend on units;
 /// rest is absolute, in the field's units: set it to the precision you care about.
 struct DomainOptions {

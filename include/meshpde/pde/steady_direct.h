@@ -4,7 +4,7 @@
 // is assembled from the stored K (K D K never appears whole) and factored once; solve()
 // then costs two triangular sweeps per right-hand side, for any held values and any
 // forcing. This is the path for interpolation, fairing and static drags, where
-// Jacobi-CG's iteration count grows like h^-4 (see docs/solvers.md).
+// Jacobi-CG's iteration count grows like h^-4 (see docs/solvers-measurements.md).
 #pragma once
 
 #include <cstddef>
@@ -28,7 +28,7 @@ namespace meshpde {
 ///    kAutoMultigridMinAngleDeg around them, the global solver with the surface
 ///    multigrid, kept where its own rate of convergence says it converges (well-shaped
 ///    meshes: about three times faster than a factorization) and given up for Direct
-///    where it does not; Direct on everything else. The measured rule: docs/solvers.md,
+///    where it does not; Direct on everything else. The measured rule: docs/solvers-measurements.md,
 ///    "Auto: which steady solver, by size and by mesh";
 ///  - Direct: SteadyDirectSolver, a sparse Cholesky factor of Kt_FF;
 ///  - Iterative: Jacobi-CG through PdeSession::solve_steady, no factorization memory,
@@ -45,7 +45,7 @@ SteadySolver parse_steady_solver(const std::string& name);
 const char* to_string(SteadySolver solver);
 
 /// Auto's size rule: from this many free vertices on, Auto may try the multigrid on a
-/// bi-Laplacian problem without g0 (issue 22's figure: below it the direct solve takes
+/// bi-Laplacian problem without g0 (measured: below it the direct solve takes
 /// under 0.35 s on the 2-core development machine, little for a try to win back).
 inline constexpr int kAutoGlobalFromFreeVertices = 50000;
 /// Auto's shape rule: it tries the multigrid only where every triangle touching a free
@@ -188,7 +188,7 @@ class SteadyDirectSolver {
   // the size eps |K|^T D |K| in its entries, which on meshes with slivers (D = 1/mass
   // large) is far above the products' rounding of K D K x for a smooth x; measured
   // against the residual of the assembled matrix, refinement cannot remove it
-  // (docs/solvers.md, "Accuracy").
+  // (docs/solvers-measurements.md, "Accuracy").
   Eigen::SparseMatrix<double, Eigen::RowMajor> K_SF_;
   Eigen::VectorXd g2_D_S_;    // g2 D on S
   Eigen::VectorXd diagonal_;  // g0 M_FF (+ the extra diagonal) on F

@@ -35,7 +35,7 @@ class SparseCholesky {
   /// over the supernodes, the right-hand sides interleaved, two subtrees of the
   /// elimination tree on two threads for large factors, one to four
   /// columns (more go to cholmod_solve); 1.5-2x faster than cholmod_solve on surface
-  /// meshes (docs/solvers.md). Cholmod: cholmod_solve, the
+  /// meshes (docs/solvers-measurements.md). Cholmod: cholmod_solve, the
   /// baseline the bench compares with. Both give the same answer to rounding; the
   /// Eigen backend ignores this.
   enum class Sweeps { WrittenOut, Cholmod };
@@ -106,7 +106,7 @@ class LeadingBlockCholesky {
 /// (about 2 sqrt(n) rows for a disc of K D K) factored by Eigen. A solve sweeps the two
 /// parts' factors at the same time and joins them through the separator. Each part
 /// repeats the separator's rows, so the gain is short of 2x: on the 10k-vertex drag
-/// region 11-13 ms against 15 ms for one CHOLMOD factor of all of A (docs/solvers.md).
+/// region 11-13 ms against 15 ms for one CHOLMOD factor of all of A (docs/solvers-measurements.md).
 /// Needs CHOLMOD (available()).
 class SplitCholesky {
  public:

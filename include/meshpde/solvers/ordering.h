@@ -7,7 +7,7 @@
 // order is known before its matrix is assembled, and the matrix is assembled once, in
 // that order. On the bench's 10k-vertex disc of K D K it gives a factor with 5 % less
 // fill and 23 % fewer flops than AMD and costs about 2 ms, where AMD on the assembled
-// matrix costs 4 ms and METIS (through CHOLMOD) 50 ms (docs/solvers.md).
+// matrix costs 4 ms and METIS (through CHOLMOD) 50 ms (docs/solvers-measurements.md).
 //
 // Separators: row i of K couples i with its neighbours; row i of K D K couples i with
 // every vertex two edges away (through any vertex, held or free). A separator must cut

@@ -47,7 +47,7 @@
 //     coarsest level of 2,000 (five levels) needed 19 of about 24 ms; at 655k 20
 //     iterations against 22. A problem of at most that size is one factorization.
 //
-// Limits, measured (docs/solvers.md): on well-shaped meshes (icospheres, also with a
+// Limits, measured (docs/solvers-measurements.md): on well-shaped meshes (icospheres, also with a
 // coarsening that is not the nested one) the iteration count is flat and the solve
 // is 2-4x faster than with the Laplacian factor. On real scanned and modelled meshes
 // (angles from 1-5 to 167-177 degrees) it is not: with a coarsest level of 2,000,
@@ -93,7 +93,7 @@ struct SurfaceMultigridParams {
   int coarsest_unknowns = 0;
   /// 12,000 when meshpde has CHOLMOD (a factor of that size costs about as much as one
   /// more level's set-up and solves faster than cycling through three more levels;
-  /// docs/solvers.md), else 2,000 (Eigen's simplicial factor is several times slower).
+  /// docs/solvers-measurements.md), else 2,000 (Eigen's simplicial factor is several times slower).
   static int default_coarsest_unknowns();
   int max_levels = 20;              ///< at most this many levels (the finest included)
   int smoothing_degree = 2;         ///< Chebyshev degree of each pre- and post-smoothing (coarse levels)
