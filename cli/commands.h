@@ -45,11 +45,6 @@ Eigen::MatrixX3d vector_field(const MeshData& d, const std::string& name, const 
 /// meshpde serve (the browser editor), when built with websocketpp.
 void add_serve_command(CLI::App& app);
 
-/// Reads any supported mesh format (.obj .off .ply .stl, and .vtp .vtk when built
-/// with meshpde::medical); writes likewise, returning the writer's warnings.
-MeshData read_mesh_file(const std::filesystem::path& path);
-std::vector<std::string> write_mesh_file(const std::filesystem::path& path, const MeshData& data);
-
 /// Reads a mesh, prints reader warnings to stderr, builds connectivity.
 Mesh load_mesh(const std::filesystem::path& path, MeshData* data = nullptr);
 

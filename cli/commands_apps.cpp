@@ -217,7 +217,8 @@ void add_fair_command(CLI::App& app) {
   cmd->add_option("--order", a->p.order, "1: Laplacian (membrane), 2: bi-Laplacian (thin plate)")
       ->check(CLI::IsMember({1, 2}))
       ->capture_default_str();
-  cmd->add_flag("--regularize", a->p.regularize, "Re-assemble area-weighted stiffness every step (Kim and Rossignac 2004, Fig. 7)");
+  cmd->add_flag("--regularize", a->p.regularize,
+                "Re-assemble area-weighted stiffness every step (Kim and Rossignac 2004, Fig. 7)");
   cmd->add_option("--solver", a->solver,
                   fmt::format("Static solve: auto (--order 2: the multigrid on meshes of {} free vertices or more "
                               "without angles under {} degrees, kept where it converges; else direct) | "
@@ -258,7 +259,7 @@ void add_fair_command(CLI::App& app) {
     std::string ext = std::filesystem::path(a->out).extension().string();
     for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
     if (ext == ".ply" || ext == ".vtp" || ext == ".vtk") d.vertex_scalars["free"] = free_mask;
-    for (const auto& w : write_mesh_file(a->out, d)) fmt::print(stderr, "warning: {}\n", w);
+    for (const auto& w : write_mesh(a->out, d)) fmt::print(stderr, "warning: {}\n", w);
     if (!a->png.empty()) {
       RenderOptions ro = a->r;
       apply_view_options(ro, a->view, a->up, a->size);

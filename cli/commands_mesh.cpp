@@ -271,10 +271,10 @@ void add_mesh_commands(CLI::App& app) {
     cmd->add_option("IN", *in, "Input mesh (.obj .off .ply .stl .vtp .vtk)")->required();
     cmd->add_option("OUT", *out, "Output mesh; the format follows the extension")->required();
     cmd->callback([=] {
-      MeshData d = read_mesh_file(*in);
+      MeshData d = read_mesh(*in);
       for (const auto& w : d.warnings) fmt::print(stderr, "warning: {}\n", w);
       Mesh(d.V, d.F);  // validates indices and coordinates before anything is written
-      for (const auto& w : write_mesh_file(*out, d)) fmt::print(stderr, "warning: {}\n", w);
+      for (const auto& w : write_mesh(*out, d)) fmt::print(stderr, "warning: {}\n", w);
       fmt::print("{}: {} vertices, {} triangles, {} vertex fields\n", *out, d.V.rows(), d.F.rows(),
                  d.vertex_scalars.size() + d.point_arrays.size());
     });
@@ -329,7 +329,7 @@ void add_mesh_commands(CLI::App& app) {
       if (inside) mean_abs /= inside;
       if (!a->out.empty()) {
         d.vertex_scalars[a->field] = values;
-        for (const auto& w : write_mesh_file(a->out, d)) fmt::print(stderr, "warning: {}\n", w);
+        for (const auto& w : write_mesh(a->out, d)) fmt::print(stderr, "warning: {}\n", w);
       }
       nlohmann::json j = {{"vertices", mesh.num_vertices()}, {"outside", outside},       {"space", to_string(space)},
                           {"min", inside ? lo : 0.0},        {"max", inside ? hi : 0.0}, {"mean_abs", mean_abs}};
@@ -384,12 +384,13 @@ void add_mesh_commands(CLI::App& app) {
       d.V = g.V;
       d.F = g.F;
       if (g.face_labels.size() > 0) d.cell_arrays["CellEntityIds"] = DataArray{g.face_labels.cast<double>(), "Int32"};
-      for (const auto& w : write_mesh_file(a->out, d)) fmt::print(stderr, "warning: {}\n", w);
+      for (const auto& w : write_mesh(a->out, d)) fmt::print(stderr, "warning: {}\n", w);
       fmt::print("wrote {}: {} vertices, {} triangles\n", a->out, g.V.rows(), g.F.rows());
     });
   }
   {
-    auto* cmd = app.add_subcommand("curvature", "Per-vertex mean curvature H = 1/2 c |row(K x)| (Kim and Rossignac 2004, Table 1)");
+    auto* cmd = app.add_subcommand("curvature",
+                                   "Per-vertex mean curvature H = 1/2 c |row(K x)| (Kim and Rossignac 2004, Table 1)");
     auto path = std::make_shared<std::string>();
     auto scale = std::make_shared<std::string>("area");
     auto out = std::make_shared<std::string>();

@@ -41,7 +41,7 @@ void run_extract(const ExtractArgs& a) {
   surface.V /= millimetres_per(unit);
   std::size_t voxels = 0;
   for (std::size_t v = 0; v < seg.num_voxels(); ++v) voxels += seg.at(v, s.layer) == s.label;
-  for (const auto& w : write_mesh_file(a.out, surface)) fmt::print(stderr, "warning: {}\n", w);
+  for (const auto& w : write_mesh(a.out, surface)) fmt::print(stderr, "warning: {}\n", w);
   const Mesh mesh(surface.V, surface.F);
   const MeshReport r = analyze(mesh);
   const double mm3 = std::pow(millimetres_per(unit), 3);

@@ -284,7 +284,7 @@ void run_correct(const CorrectArgs& a) {
   const char* comp[3] = {"displacement_x", "displacement_y", "displacement_z"};
   for (int c = 0; c < 3; ++c) data.vertex_scalars[comp[c]] = disp.col(c);
   data.vertex_scalars["displacement_magnitude"] = disp.rowwise().norm();
-  for (const auto& w : write_mesh_file(a.out, data)) fmt::print(stderr, "warning: {}\n", w);
+  for (const auto& w : write_mesh(a.out, data)) fmt::print(stderr, "warning: {}\n", w);
   if (a.json) {
     print_json(j);
     return;

@@ -14,6 +14,7 @@
 #include "meshpde/apps/vessel_correction.h"
 #include "meshpde/core/errors.h"
 #include "meshpde/image/volume_slice.h"
+#include "meshpde/io/file_formats.h"
 #include "meshpde/io/mesh_io.h"
 #include "meshpde/mesh/generators.h"
 #include "meshpde/mesh/regions.h"
@@ -196,42 +197,20 @@ bool is_session_file(const std::string& name) {
 Loaded parse_mesh_bytes(const std::string& bytes, const std::string& name) {
   Loaded l;
   l.name = fs::path(name).filename().string();
-  const std::string ext = lower_ext(l.name);
-  if (ext == ".vtp" || ext == ".vtk") {
-#ifdef MESHPDE_HAVE_MEDICAL
-    l.data = read_vtk_mesh_from_memory(bytes, ext.substr(1), l.name);
-#else
-    throw InputError(fmt::format("{}: .vtp/.vtk need meshpde built with meshpde::medical", l.name));
-#endif
-  } else if (ext == ".obj" || ext == ".off" || ext == ".ply" || ext == ".stl") {
-    l.data = read_mesh_from_memory(bytes, format_from_path(l.name), l.name);
-  } else {
+  if (!find_mesh_format(l.name)) {
     // Everything the page opens, meshes and volumes: the upload is either.
-#ifdef MESHPDE_HAVE_MEDICAL
+    const std::string volumes = volume_extensions();
     throw InputError(
-        fmt::format("{}: the editor opens meshes (.obj .off .ply .stl .vtp .vtk), volumes (.mha "
-                    ".nii .nii.gz .nrrd, or a DICOM series zipped into one .zip) and sessions it saved (.meshpde)",
-                    l.name));
-#else
-    throw InputError(
-        fmt::format("{}: the editor opens meshes (.obj .off .ply .stl; .vtp and .vtk, and volumes, "
-                    "need meshpde built with meshpde::medical)",
-                    l.name));
-#endif
+        fmt::format("{}: the editor opens meshes ({}), {} and sessions it saved (.meshpde)", l.name, mesh_extensions(),
+                    volumes.empty() ? "volumes with meshpde built with meshpde::medical"
+                                    : "volumes (" + volumes + ", or a DICOM series zipped into one .zip)"));
   }
+  l.data = read_mesh_from_memory(bytes, l.name);
   return l;
 }
 
 std::string mesh_bytes(const MeshData& d, const std::string& name) {
-  const std::string ext = lower_ext(name);
-  if (ext == ".vtp" || ext == ".vtk") {
-#ifdef MESHPDE_HAVE_MEDICAL
-    return write_vtk_mesh_to_memory(d, ext.substr(1));
-#else
-    throw InputError("saving .vtp/.vtk needs meshpde::medical");
-#endif
-  }
-  return write_mesh_to_memory(d, format_from_path(name));
+  return write_mesh_to_memory(d, name);
 }
 
 Loaded generated(const std::string& requested) {

@@ -9,30 +9,11 @@
 #include "meshpde/core/errors.h"
 #include "meshpde/mesh/topology.h"
 #include "usage.h"
-#ifdef MESHPDE_HAVE_MEDICAL
-#include "meshpde/io/medical_io.h"
-#endif
 
 namespace meshpde::cli {
 
-MeshData read_mesh_file(const std::filesystem::path& path) {
-#ifdef MESHPDE_HAVE_MEDICAL
-  return read_any_mesh(path);
-#else
-  return read_mesh(path);
-#endif
-}
-
-std::vector<std::string> write_mesh_file(const std::filesystem::path& path, const MeshData& data) {
-#ifdef MESHPDE_HAVE_MEDICAL
-  return write_any_mesh(path, data);
-#else
-  return write_mesh(path, data);
-#endif
-}
-
 Mesh load_mesh(const std::filesystem::path& path, MeshData* out) {
-  MeshData d = read_mesh_file(path);
+  MeshData d = read_mesh(path);
   for (const auto& w : d.warnings) fmt::print(stderr, "warning: {}\n", w);
   try {
     Mesh m(d.V, d.F);
@@ -49,7 +30,7 @@ void save_mesh(const std::filesystem::path& path, const Positions& V, const Tria
   d.V = V;
   d.F = F;
   d.vertex_scalars = fields;
-  for (const auto& w : write_mesh_file(path, d)) fmt::print(stderr, "warning: {}\n", w);
+  for (const auto& w : write_mesh(path, d)) fmt::print(stderr, "warning: {}\n", w);
 }
 
 MeshReport warn_about_shape(const Mesh& mesh, const std::string& name) {

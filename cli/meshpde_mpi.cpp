@@ -23,9 +23,6 @@
 #include "meshpde/distributed/partition.h"
 #include "meshpde/io/mesh_io.h"
 #include "usage.h"
-#ifdef MESHPDE_HAVE_MEDICAL
-#include "meshpde/io/medical_io.h"
-#endif
 
 namespace {
 
@@ -90,11 +87,7 @@ struct Args {
 
 // meshpde partition MESH --parts N -o DIR: one process reads the whole mesh.
 int run_partition(const Args& a) {
-#ifdef MESHPDE_HAVE_MEDICAL
-  MeshData d = read_any_mesh(a.mesh);
-#else
   MeshData d = read_mesh(a.mesh);
-#endif
   for (const auto& w : d.warnings) fmt::print(stderr, "warning: {}\n", w);
   Mesh mesh;
   try {
@@ -187,11 +180,7 @@ int run_join(const Args& a) {
     d.vertex_scalars["u"] = values.col(0);
   else
     d.V = values;
-#ifdef MESHPDE_HAVE_MEDICAL
-  const auto warnings = write_any_mesh(a.out, d);
-#else
   const auto warnings = write_mesh(a.out, d);
-#endif
   for (const auto& w : warnings) fmt::print(stderr, "warning: {}\n", w);
   if (a.json)
     std::cout << nlohmann::json{{"vertices", d.V.rows()},

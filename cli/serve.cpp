@@ -239,7 +239,7 @@ class EditorServer {
       EditorPage check(PageSink{.text = [](std::string) {}, .binary = [](std::string) {}}, nullptr, Space::LPS);
       check.open_session(initial_session_, initial_session_name_);
     } else if (!a.mesh.empty()) {
-      initial_.data = read_mesh_file(a.mesh);
+      initial_.data = read_mesh(a.mesh);
       initial_.name = fs::path(a.mesh).filename().string();
       initial_.units = units_;
       // Warned here as well as on the page: the terminal is where the user typed it.

@@ -55,7 +55,7 @@ TEST(Caps, TheFlatLabelledPatchesAreCapsAndTheWallIsNot) {
 
 TEST(Caps, ARealSimVascularModelsCapsAreFoundByLabelAndByShape) {
   if (!test::have_data("simvascular-pipe-capped-5k.vtp")) return;
-  const MeshData d = read_any_mesh(test::data_dir() / "simvascular-pipe-capped-5k.vtp");
+  const MeshData d = read_mesh(test::data_dir() / "simvascular-pipe-capped-5k.vtp");
   const Mesh m(d.V, d.F);
   std::string name;
   const Eigen::VectorXi labels = face_labels(d, &name);
@@ -69,7 +69,7 @@ TEST(Caps, ARealSimVascularModelsCapsAreFoundByLabelAndByShape) {
   // No false caps on the real meshes without any (marching-cubes facets, subdivisions).
   for (const char* file : {"aorta-closed-6k.vtp", "aorta-103k.vtp", "carotid-ica-4k.vtp"}) {
     if (!test::have_data(file)) continue;
-    const MeshData r = read_any_mesh(test::data_dir() / file);
+    const MeshData r = read_mesh(test::data_dir() / file);
     EXPECT_TRUE(find_flat_caps(Mesh(r.V, r.F)).empty()) << file;
   }
 }
@@ -127,7 +127,7 @@ TEST(Caps, ACorrectionNearAnOpenEndLeavesTheCapWhereItIs) {
 
 TEST(Caps, TheRealPipesCapsStayFlatUnderAPushAtItsEnd) {
   if (!test::have_data("simvascular-pipe-capped-5k.vtp")) return;
-  const MeshData d = read_any_mesh(test::data_dir() / "simvascular-pipe-capped-5k.vtp");
+  const MeshData d = read_mesh(test::data_dir() / "simvascular-pipe-capped-5k.vtp");
   const Mesh m(d.V, d.F);
   const auto caps = find_caps(m, face_labels(d), CapRule::Labels);
   int handle = 0;  // on the wall, 0.3 cm from the cap at z = 0
@@ -164,7 +164,7 @@ TEST(Units, AModelInCentimetresIsRecognisedByItsSizesAndItsVessels) {
   for (const char* file : {"aorta-closed-6k.vtp", "aorta-103k.vtp", "carotid-ica-4k.vtp", "aorta-open-6k.stl",
                            "coronary-phantom-7k.stl"}) {
     if (!test::have_data(file)) continue;
-    const MeshData r = read_any_mesh(test::data_dir() / file);
+    const MeshData r = read_mesh(test::data_dir() / file);
     EXPECT_FALSE(check_units(Mesh(r.V, r.F), LengthUnit::Millimetre).implausible) << file;
   }
 }

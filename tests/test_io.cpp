@@ -8,6 +8,7 @@
 #include <set>
 
 #include "meshpde/core/errors.h"
+#include "meshpde/io/file_formats.h"
 #include "meshpde/io/mesh_io.h"
 #include "meshpde/mesh/generators.h"
 #include "test_data.h"
@@ -351,11 +352,46 @@ TEST(Io, ReadsEveryRealFormat) {
   }
 }
 
-TEST(Io, VolumePathsAreKnownByTheirExtensionInAnyCase) {
-  // The one list of volume extensions (core, so the editor built without
-  // meshpde::medical tells an uploaded volume from a mesh by it).
-  for (const char* yes : {"scan.mha", "scan.MHD", "a/b/ct.nii", "CT.Nii.Gz", "seg.nrrd", "seg.NHDR"})
-    EXPECT_TRUE(is_volume_path(yes)) << yes;
-  for (const char* no : {"mesh.ply", "mesh.vtp", "scan.nii.gz.ply", "folder.nii/mesh.obj", "nii", "scan.gz"})
-    EXPECT_FALSE(is_volume_path(no)) << no;
+TEST(Io, AFormatRegisteredByAProgramIsReadAndWrittenByReadMeshAndWriteMesh) {
+  // OBJ under a made-up extension, as a program would register a format of its own.
+  MeshFileFormat f;
+  f.name = "test format";
+  f.extensions = {".TestMesh"};  // registered lower case; matched in any case
+  f.read = [](const std::string& bytes, const std::string& ext, const std::string& name) {
+    EXPECT_EQ(ext, ".testmesh");
+    return read_mesh_from_memory(bytes, MeshFormat::Obj, name);
+  };
+  f.write = [](const MeshData& d, const std::string&, const WriteOptions&) {
+    return write_mesh_to_memory(d, MeshFormat::Obj);
+  };
+  register_mesh_format(f);
+  EXPECT_NE(mesh_extensions().find(".testmesh"), std::string::npos);
+  ASSERT_NE(find_mesh_format("a/b/SPHERE.TESTMESH"), nullptr);
+  EXPECT_EQ(find_mesh_format("a/b/SPHERE.TESTMESH")->name, "test format");
+
+  const auto g = latlong_sphere(5);
+  MeshData d;
+  d.V = g.V;
+  d.F = g.F;
+  d.vertex_scalars["u"] = Eigen::VectorXd::Ones(g.V.rows());
+  const auto path = test::scratch_path("registered.TestMesh");
+  const auto warnings = write_mesh(path, d);
+  ASSERT_EQ(warnings.size(), 1u);  // the format keeps no vertex fields, and says so
+  EXPECT_NE(warnings[0].find("1 field(s) dropped"), std::string::npos) << warnings[0];
+  const MeshData back = read_mesh(path);
+  EXPECT_EQ(back.F, d.F);
+  EXPECT_LT((back.V - d.V).cwiseAbs().maxCoeff(), 1e-12);
+  std::filesystem::remove(path);
+}
+
+TEST(Io, AnUnknownExtensionIsRefusedWithEveryExtensionThisBuildReads) {
+  try {
+    read_mesh_from_memory("v 0 0 0\n", "mesh.xyz");
+    FAIL() << "no error";
+  } catch (const InputError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("mesh.xyz: unknown mesh format '.xyz'"), std::string::npos) << what;
+    for (const char* ext : {".obj", ".off", ".ply", ".stl"}) EXPECT_NE(what.find(ext), std::string::npos) << what;
+  }
+  EXPECT_THROW(write_mesh_to_memory(MeshData{}, "mesh"), InputError);  // no extension at all
 }

@@ -176,12 +176,12 @@ TEST(Vtp, EveryEncodingOfTheFormatReads) {
 
 TEST(Vtp, RealFilesReadWithTheirArraysAndQuadsTriangulated) {
   if (!test::have_data("aorta-closed-6k.vtp") || !test::have_data("carotid-ica-4k.vtp")) return;
-  const MeshData aorta = read_any_mesh(test::data_dir() / "aorta-closed-6k.vtp");
+  const MeshData aorta = read_mesh(test::data_dir() / "aorta-closed-6k.vtp");
   EXPECT_EQ(aorta.V.rows(), 6468);
   EXPECT_EQ(aorta.F.rows(), 12932);
   EXPECT_TRUE(aorta.vertex_scalars.count("Scalars_"));
   EXPECT_TRUE(aorta.vertex_scalars.count("Normals__x") && aorta.vertex_scalars.count("Normals__z"));
-  const MeshData carotid = read_any_mesh(test::data_dir() / "carotid-ica-4k.vtp");
+  const MeshData carotid = read_mesh(test::data_dir() / "carotid-ica-4k.vtp");
   EXPECT_EQ(carotid.V.rows(), 3862);
   EXPECT_EQ(carotid.F.rows(), 7329 + 2 * 78);
   ASSERT_FALSE(carotid.warnings.empty());
@@ -202,8 +202,8 @@ TEST(Vtp, RoundTripKeepsPointsTrianglesAndArraysWithTheirTypes) {
   for (const char* ext : {".vtp", ".vtk"}) {
     SCOPED_TRACE(ext);
     const fs::path p = scratch(std::string("roundtrip") + ext);
-    write_any_mesh(p, d);
-    const MeshData r = read_any_mesh(p);
+    write_mesh(p, d);
+    const MeshData r = read_mesh(p);
     EXPECT_EQ(r.V, d.V);
     EXPECT_EQ(r.F, d.F);
     EXPECT_EQ(r.vertex_scalars.at("temperature"), d.vertex_scalars.at("temperature"));
@@ -315,7 +315,7 @@ TEST(Vtp, BadInputIsAnErrorNamingTheFile) {
       "vtk", "refers to point 7");
   if (test::have_data("aorta-centerlines.vtp")) {
     try {
-      read_any_mesh(test::data_dir() / "aorta-centerlines.vtp");
+      read_mesh(test::data_dir() / "aorta-centerlines.vtp");
       ADD_FAILURE() << "centerlines read as a surface";
     } catch (const InputError& e) {
       EXPECT_NE(std::string(e.what()).find("no polygons"), std::string::npos) << e.what();
@@ -414,7 +414,7 @@ TEST(Volume, AortaMeshLiesOnTheZeroLevelOfItsSegmentation) {
   EXPECT_EQ(phi.dims[0], 157);
   EXPECT_EQ(phi.dims[2], 34);
   EXPECT_EQ(phi.direction(0, 0), -1.0);
-  const MeshData aorta = read_any_mesh(test::data_dir() / "aorta-closed-6k.vtp");
+  const MeshData aorta = read_mesh(test::data_dir() / "aorta-closed-6k.vtp");
   double worst = 0;
   int outside_lps = 0;
   for (Eigen::Index i = 0; i < aorta.V.rows(); ++i) {
@@ -435,7 +435,7 @@ TEST(Volume, AortaMeshLiesOnTheZeroLevelOfItsSegmentation) {
 TEST(Volume, AortaSlicesThroughVerticesShowTheZeroLevel) {
   if (!test::have_data("aorta-levelset.mha") || !test::have_data("aorta-closed-6k.vtp")) return;
   const Volume phi = read_volume(test::data_dir() / "aorta-levelset.mha");
-  const MeshData aorta = read_any_mesh(test::data_dir() / "aorta-closed-6k.vtp");
+  const MeshData aorta = read_mesh(test::data_dir() / "aorta-closed-6k.vtp");
   // The largest distance from the zero level, in mm, read off the slices when the
   // mesh is taken to be in `space`.
   const auto worst_in = [&](Space space) {
@@ -784,12 +784,47 @@ TEST(Volume, NrrdEncodingsDetachedDataAndSpacesByMeshpdesOwnReader) {
   EXPECT_NE(refusal(a).find("cannot hold"), std::string::npos) << refusal(a);
 }
 
+TEST(Medical, VolumePathsAreKnownByTheirExtensionInAnyCase) {
+  // The volume formats the component registers (io/file_formats.h).
+  for (const char* yes : {"scan.mha", "scan.MHD", "a/b/ct.nii", "CT.Nii.Gz", "seg.nrrd", "seg.NHDR"})
+    EXPECT_TRUE(is_volume_path(yes)) << yes;
+  for (const char* no : {"mesh.ply", "mesh.vtp", "scan.nii.gz.ply", "folder.nii/mesh.obj", "nii", "scan.gz", "a.dcm"})
+    EXPECT_FALSE(is_volume_path(no)) << no;
+  EXPECT_NE(volume_extensions().find(".nii.gz"), std::string::npos);
+  ASSERT_NE(find_volume_format("CT.NII.GZ"), nullptr);
+  EXPECT_EQ(find_volume_format("CT.NII.GZ")->name, "NIfTI-1");
+}
+
+TEST(Medical, ReadMeshAndWriteMeshKnowTheComponentsFormats) {
+  EXPECT_NE(mesh_extensions().find(".vtp"), std::string::npos);
+  EXPECT_NE(mesh_extensions().find(".vtk"), std::string::npos);
+  const auto g = latlong_sphere(5);
+  MeshData d;
+  d.V = g.V;
+  d.F = g.F;
+  d.cell_arrays["ModelFaceID"] = DataArray{Eigen::MatrixXd::Ones(g.F.rows(), 1), "Int32"};
+  for (const char* name : {"registry.vtp", "REGISTRY.VTK"}) {
+    const auto path = test::scratch_path(name);
+    EXPECT_TRUE(write_mesh(path, d).empty()) << name;  // VTK keeps the cell array: no warning
+    const MeshData back = read_mesh(path);
+    EXPECT_EQ(back.F, d.F) << name;
+    EXPECT_EQ(back.cell_arrays.at("ModelFaceID").type, "Int32") << name;
+    std::filesystem::remove(path);
+  }
+  try {
+    read_mesh(test::scratch_path("scan.nii.gz"));
+    FAIL() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("a volume, not a mesh"), std::string::npos) << e.what();
+  }
+}
+
 TEST(Vtp, EveryRealVtpMeshGetsTheDirectSolversAnswerFromTheGlobalSolver) {
   // The global-solver check (tests/solver_problems.h) on the .vtp meshes of ../shared/data; the
   // subdivided aorta-103k is the bench's (global_bilap_*_aorta-103k).
   for (const char* name : {"aorta-closed-6k.vtp", "carotid-ica-4k.vtp", "vessel-boolean-nonmanifold.vtp"}) {
     if (!test::have_data(name)) continue;
-    test::expect_global_matches_direct(name, read_any_mesh(test::data_dir() / name));
+    test::expect_global_matches_direct(name, read_mesh(test::data_dir() / name));
   }
 }
 

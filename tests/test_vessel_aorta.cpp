@@ -24,7 +24,7 @@ namespace {
 
 bool load_vtp(const std::string& name, Mesh& mesh) {
   if (!test::have_data(name)) return false;
-  const MeshData d = read_any_mesh(test::data_dir() / name);
+  const MeshData d = read_mesh(test::data_dir() / name);
   mesh = Mesh(d.V, d.F);
   return true;
 }

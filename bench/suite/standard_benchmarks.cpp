@@ -531,7 +531,7 @@ void global_real_figures(const BenchOptions& options, nlohmann::json& j, bool ev
       continue;
     }
 #ifdef MESHPDE_HAVE_MEDICAL
-    const MeshData d = read_any_mesh(path);
+    const MeshData d = read_mesh(path);
 #else
     if (path.extension() == ".vtp") {
       warn(path.string() + ": this build reads no .vtp (meshpde::medical); its figures skipped");
@@ -586,7 +586,7 @@ void correct_guard_figures(const BenchOptions& options, nlohmann::json& j) {
   const auto aorta = options.data_dir / "aorta-closed-6k.vtp";
 #ifdef MESHPDE_HAVE_MEDICAL
   if (std::filesystem::exists(aorta)) {
-    const MeshData d = read_any_mesh(aorta);
+    const MeshData d = read_mesh(aorta);
     run(Mesh(d.V, d.F), 3178, Eigen::Vector3d(10, 0, 0), 12.0, "");  // the carina vertex
   } else if (options.warning) {
     options.warning(aorta.string() + " not found; correct_guarded_ms and correct_unguarded_ms skipped");

@@ -17,6 +17,7 @@
 #include "meshpde/core/errors.h"
 #include "meshpde/core/parallel.h"
 #include "meshpde/image/volume.h"
+#include "meshpde/io/file_formats.h"
 #include "meshpde/io/mesh_io.h"
 #include "meshpde/mesh/field.h"
 #include "meshpde/mesh/generators.h"

@@ -40,22 +40,6 @@ void require_file(const std::filesystem::path& path) {
   throw py::error_already_set();
 }
 
-MeshData read_by_extension(const std::filesystem::path& path) {
-#ifdef MESHPDE_HAVE_MEDICAL
-  return read_any_mesh(path);
-#else
-  return read_mesh(path);
-#endif
-}
-
-std::vector<std::string> write_by_extension(const std::filesystem::path& path, const MeshData& d, bool binary) {
-#ifdef MESHPDE_HAVE_MEDICAL
-  return write_any_mesh(path, d, WriteOptions{.binary = binary});
-#else
-  return write_mesh(path, d, WriteOptions{.binary = binary});
-#endif
-}
-
 // numpy's name of a VTK array type (an unknown one reads as float64).
 const char* numpy_type(const std::string& vtk) {
   static const std::pair<const char*, const char*> types[] = {
@@ -319,7 +303,7 @@ void bind_mesh(py::module_& m) {
         MeshData d;
         {
           py::gil_scoped_release release;
-          d = read_by_extension(path);
+          d = read_mesh(path);
         }
         for (const auto& w : d.warnings) {
           // The readers' warnings name the file already; the others get its name.
@@ -346,7 +330,7 @@ void bind_mesh(py::module_& m) {
         std::vector<std::string> warnings;
         {
           py::gil_scoped_release release;
-          warnings = write_by_extension(path, d, binary);
+          warnings = write_mesh(path, d, WriteOptions{.binary = binary});
         }
         for (const auto& w : warnings)
           PyErr_WarnEx(PyExc_UserWarning, fmt::format("{}: {}", path.string(), w).c_str(), 1);
@@ -388,7 +372,7 @@ void bind_mesh(py::module_& m) {
           MeshData d;
           {
             py::gil_scoped_release release;
-            d = read_by_extension(path);
+            d = read_mesh(path);
           }
           const Mesh mesh(d.V, d.F);
           MeshReport r;

@@ -8,13 +8,22 @@
 #include <sstream>
 
 #include "io_detail.h"
+#include "meshpde/io/file_formats.h"
 #include "meshpde/mesh/topology.h"
 
 namespace meshpde {
+namespace {
 
-MeshFormat format_from_path(const std::filesystem::path& path) {
+std::string lower_extension(const std::filesystem::path& path) {
   std::string ext = path.extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  return ext;
+}
+
+}  // namespace
+
+MeshFormat format_from_path(const std::filesystem::path& path) {
+  const std::string ext = lower_extension(path);
   if (ext == ".obj") return MeshFormat::Obj;
   if (ext == ".off") return MeshFormat::Off;
   if (ext == ".ply") return MeshFormat::Ply;
@@ -22,12 +31,35 @@ MeshFormat format_from_path(const std::filesystem::path& path) {
   throw InputError(fmt::format("{}: unknown mesh format '{}' (supported: .obj .off .ply .stl)", path.string(), ext));
 }
 
-bool is_volume_path(const std::filesystem::path& path) {
-  std::string name = path.filename().string();
-  std::transform(name.begin(), name.end(), name.begin(), [](unsigned char c) { return std::tolower(c); });
-  for (const char* ext : {".mha", ".mhd", ".nii", ".nii.gz", ".nrrd", ".nhdr"})
-    if (name.ends_with(ext)) return true;
-  return false;
+namespace {
+
+// The registered format of a mesh file's name, or an InputError that says what the
+// name is instead (a volume) and which extensions this build reads.
+const MeshFileFormat& mesh_format_of(const std::filesystem::path& path) {
+  if (const MeshFileFormat* f = find_mesh_format(path)) return *f;
+  if (is_volume_path(path))
+    throw InputError(fmt::format("{}: a volume, not a mesh (read_volume reads it; it guides a correction as its image)",
+                                 path.string()));
+  const std::string ext = lower_extension(path);
+  const std::string known = mesh_extensions();
+  if (ext == ".vtp" || ext == ".vtk")
+    throw InputError(fmt::format("{}: {} meshes need meshpde built with meshpde::medical (this build reads {})",
+                                 path.string(), ext, known));
+  throw InputError(fmt::format("{}: unknown mesh format '{}' (supported: {})", path.string(), ext, known));
+}
+
+}  // namespace
+
+MeshData read_mesh_from_memory(const std::string& bytes, const std::string& name) {
+  const MeshFileFormat& f = mesh_format_of(name);
+  const std::string ext = lower_extension(name);
+  return f.read(bytes, ext, name);
+}
+
+std::string write_mesh_to_memory(const MeshData& data, const std::string& name, const WriteOptions& options) {
+  const MeshFileFormat& f = mesh_format_of(name);
+  const std::string ext = lower_extension(name);
+  return f.write(data, ext, options);
 }
 
 MeshData read_mesh_from_memory(const std::string& bytes, MeshFormat format, const std::string& name) {
@@ -63,8 +95,8 @@ std::string read_file(const std::filesystem::path& path) {
 MeshData read_mesh(const std::filesystem::path& path) {
   if (std::error_code ec; std::filesystem::is_directory(path, ec))
     throw InputError(fmt::format("{}: is a directory, not a mesh file", path.string()));
-  const auto format = format_from_path(path);
-  return read_mesh_from_memory(read_file(path), format, path.string());
+  mesh_format_of(path);  // an unknown name is refused before the file is read
+  return read_mesh_from_memory(read_file(path), path.string());
 }
 
 std::string write_mesh_to_memory(const MeshData& data, MeshFormat format, const WriteOptions& options) {
@@ -83,21 +115,21 @@ std::string write_mesh_to_memory(const MeshData& data, MeshFormat format, const 
 
 std::vector<std::string> write_mesh(const std::filesystem::path& path, const MeshData& data,
                                     const WriteOptions& options) {
-  const auto format = format_from_path(path);
+  const MeshFileFormat& format = mesh_format_of(path);
   std::vector<std::string> warnings;
-  if (!data.vertex_scalars.empty() && format != MeshFormat::Ply)
+  if (!data.vertex_scalars.empty() && !format.keeps_vertex_fields)
     warnings.push_back(fmt::format("{}: this format cannot store vertex fields; {} field(s) dropped (use .ply or .vtp)",
                                    path.string(), data.vertex_scalars.size()));
-  if (!data.point_arrays.empty() || !data.cell_arrays.empty())
+  if ((!data.point_arrays.empty() || !data.cell_arrays.empty()) && !format.keeps_data_arrays)
     warnings.push_back(fmt::format("{}: {} point and {} cell data array(s) dropped (only .vtp and .vtk keep them)",
                                    path.string(), data.point_arrays.size(), data.cell_arrays.size()));
-  if (!data.field_strings.empty() || !data.field_arrays.empty())
+  if ((!data.field_strings.empty() || !data.field_arrays.empty()) && !format.keeps_field_data)
     warnings.push_back(fmt::format("{}: {} field data array(s) dropped (only .vtp keeps them)", path.string(),
                                    data.field_strings.size() + data.field_arrays.size()));
   for (const auto& [key, field] : data.vertex_scalars)
     if (field.size() != data.V.rows())
       throw InputError(fmt::format("field '{}' has {} values for {} vertices", key, field.size(), data.V.rows()));
-  write_file_atomically(path, write_mesh_to_memory(data, format, options));
+  write_file_atomically(path, write_mesh_to_memory(data, path.string(), options));
   return warnings;
 }
 

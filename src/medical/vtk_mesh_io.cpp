@@ -201,35 +201,4 @@ void write_vtk_mesh(const std::filesystem::path& path, const MeshData& data) {
   write_file_atomically(path, write_vtk_mesh_to_memory(data, lower_ext(path).substr(1)));
 }
 
-namespace {
-
-// The core readers know only their own formats; name every format this build reads.
-void require_mesh_extension(const std::filesystem::path& path) {
-  if (is_vtk_mesh_path(path)) return;
-  const std::string ext = lower_ext(path);
-  if (ext == ".obj" || ext == ".off" || ext == ".ply" || ext == ".stl") return;
-  if (is_volume_path(path))
-    throw InputError(
-        fmt::format("{}: a volume, not a mesh (volumes go to --image; `meshpde info` describes them)", path.string()));
-  throw InputError(
-      fmt::format("{}: unknown mesh format '{}' (supported: .obj .off .ply .stl .vtp .vtk)", path.string(), ext));
-}
-
-}  // namespace
-
-MeshData read_any_mesh(const std::filesystem::path& path) {
-  if (std::error_code ec; std::filesystem::is_directory(path, ec))
-    throw InputError(fmt::format("{}: is a directory, not a mesh file", path.string()));
-  require_mesh_extension(path);
-  return is_vtk_mesh_path(path) ? read_vtk_mesh(path) : read_mesh(path);
-}
-
-std::vector<std::string> write_any_mesh(const std::filesystem::path& path, const MeshData& data,
-                                        const WriteOptions& options) {
-  require_mesh_extension(path);
-  if (!is_vtk_mesh_path(path)) return write_mesh(path, data, options);
-  write_vtk_mesh(path, data);
-  return {};
-}
-
 }  // namespace meshpde

@@ -1,13 +1,14 @@
 // A downstream project: builds operators on a generated sphere through the
 // installed package (the one-include header) and checks one identity and a plain
-// (V, F) call; with meshpde::medical, also writes the sphere as .vtp bytes and reads
-// it back.
+// (V, F) call; with meshpde::medical linked, also writes the sphere as a .vtp file and
+// reads it back through the core's read_mesh and write_mesh alone (the component's
+// formats are registered without the program calling any of its functions).
 #include <meshpde/meshpde.h>
-#ifdef CONSUMER_HAS_MEDICAL
-#include <meshpde/io/medical_io.h>
-#endif
+#include <unistd.h>
 
 #include <cstdio>
+#include <filesystem>
+#include <string>
 
 int main() {
   const auto g = meshpde::icosphere(2);
@@ -23,8 +24,10 @@ int main() {
   meshpde::MeshData d;
   d.V = g.V;
   d.F = g.F;
-  const auto back =
-      meshpde::read_vtk_mesh_from_memory(meshpde::write_vtk_mesh_to_memory(d, "vtp"), "vtp", "consumer.vtp");
+  const auto path = std::filesystem::temp_directory_path() / ("meshpde-consumer-" + std::to_string(getpid()) + ".vtp");
+  meshpde::write_mesh(path, d);
+  const auto back = meshpde::read_mesh(path);
+  std::filesystem::remove(path);
   std::printf("vtp round trip: %s\n", back.V == d.V && back.F == d.F ? "same" : "DIFFERENT");
   if (!(back.V == d.V && back.F == d.F)) return 1;
 #endif

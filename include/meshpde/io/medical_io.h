@@ -17,7 +17,9 @@
 //  - DICOM series (io/dicom.h): parsed by meshpde, compressed pixels decoded by
 //    CharLS, OpenJPEG and GDCM.
 //
-// Errors name the file. Writers are atomic (temporary file, then rename).
+// Errors name the file. Writers are atomic (temporary file, then rename). Linking this
+// component registers .vtp, .vtk and the volume formats with io/file_formats.h, so
+// read_mesh and write_mesh (io/mesh_io.h) read and write them too.
 #pragma once
 
 #include <filesystem>
@@ -25,6 +27,7 @@
 #include <vector>
 
 #include "meshpde/image/volume.h"
+#include "meshpde/io/file_formats.h"
 #include "meshpde/io/mesh_io.h"
 
 namespace meshpde {
@@ -39,27 +42,11 @@ MeshData read_vtk_mesh_from_memory(const std::string& bytes, const std::string& 
 void write_vtk_mesh(const std::filesystem::path& path, const MeshData& data);
 std::string write_vtk_mesh_to_memory(const MeshData& data, const std::string& kind);
 
-/// Every mesh format the project reads: .obj .off .ply .stl (core) and .vtp .vtk.
-MeshData read_any_mesh(const std::filesystem::path& path);
-/// Writes by extension; returns warnings (fields a format cannot hold). `options`
-/// applies to the core formats (PLY and STL binary or ascii); .vtp and .vtk are always
-/// written binary.
-std::vector<std::string> write_any_mesh(const std::filesystem::path& path, const MeshData& data,
-                                        const WriteOptions& options = {});
 bool is_vtk_mesh_path(const std::filesystem::path& path);
 
-struct VolumeReadOptions {
-  /// > 0: a header that declares more voxels is refused before any is read or allocated:
-  /// a compressed file of a few megabytes can declare gigabytes (deflate inflates up to
-  /// 1,032 times), which is how the editor bounds an uploaded volume. Default 0 (no limit).
-  std::size_t max_voxels = 0;
-  /// A DICOM folder of several series: the one to read, by SeriesInstanceUID or series
-  /// number (io/dicom.h). Default empty: the only series, an error listing them otherwise.
-  std::string series;
-};
-
 /// .mha .mhd .nii .nii.gz .nrrd .nhdr, or DICOM (a folder holding a series, or one file
-/// of it: io/dicom.h). \throw InputError naming the file.
+/// of it: io/dicom.h): every registered volume format (io/file_formats.h; options
+/// there). \throw InputError naming the file.
 Volume read_volume(const std::filesystem::path& path, const VolumeReadOptions& options);
 Volume read_volume(const std::filesystem::path& path, std::size_t max_voxels = 0);
 // Whether read_volume() reads a path: is_volume_path() in mesh_io.h.

@@ -63,26 +63,34 @@ struct WriteOptions {
 /// Format from the file extension (case-insensitive). \throw InputError if unknown.
 MeshFormat format_from_path(const std::filesystem::path& path);
 
-/// Whether a path names a volume by its extension, any case: .mha .mhd .nii .nii.gz
-/// .nrrd .nhdr, the formats meshpde::medical's read_volume() reads (medical_io.h).
-/// In the core library so that front ends built without meshpde::medical (the editor's
-/// upload) tell a volume from a mesh by the same list.
+/// Whether a path's name ends as a registered volume format's does, any case (.mha
+/// .mhd .nii .nii.gz .nrrd .nhdr with meshpde::medical linked; io/file_formats.h). The
+/// name alone decides: nothing is read.
 bool is_volume_path(const std::filesystem::path& path);
 
-/// \throw InputError naming the file and line/element on any malformed input.
+/// Reads any registered mesh format (io/file_formats.h), chosen by the extension, any
+/// case: .obj .off .ply .stl, and .vtp .vtk where meshpde::medical is linked.
+/// \throw InputError naming the file and line/element on any malformed input, and for a
+/// folder, a volume or an extension no registered format has.
 MeshData read_mesh(const std::filesystem::path& path);
 
 /// Parses a mesh held in memory; `name` is used in messages and `format` picks the parser.
 MeshData read_mesh_from_memory(const std::string& bytes, MeshFormat format, const std::string& name);
+/// The same for any registered format, chosen by the extension of `name`.
+MeshData read_mesh_from_memory(const std::string& bytes, const std::string& name);
 
-/// Writes atomically. Scalar fields are kept by PLY (as vertex properties); other
-/// formats drop them with a warning in the returned list.
+/// Writes atomically in the registered format the extension names (as read_mesh).
+/// Scalar fields are kept by PLY (as vertex properties), .vtp and .vtk; other formats
+/// drop them, and point, cell and field data where the format has no place for them,
+/// with a warning in the returned list.
 /// \throw Error if the file cannot be written (the target is left untouched).
 std::vector<std::string> write_mesh(const std::filesystem::path& path, const MeshData& data,
                                     const WriteOptions& options = {});
 
 /// Serializes to bytes (the content write_mesh would write).
 std::string write_mesh_to_memory(const MeshData& data, MeshFormat format, const WriteOptions& options = {});
+/// The same for any registered format, chosen by the extension of `name`.
+std::string write_mesh_to_memory(const MeshData& data, const std::string& name, const WriteOptions& options = {});
 
 /// The face labels a mesh file carries: its cell array ModelFaceID (SimVascular), else
 /// CellEntityIds (VMTK), else MaterialIds, when it has one component of whole numbers;
