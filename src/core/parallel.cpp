@@ -3,6 +3,9 @@
 #include <algorithm>
 #include <atomic>
 #include <thread>
+#ifdef MESHPDE_HAVE_OPENMP
+#include <omp.h>
+#endif
 
 namespace meshpde {
 
@@ -28,6 +31,28 @@ ThreadLimit::ThreadLimit(int n) : saved_(t_limit) {
 ThreadLimit::~ThreadLimit() {
   t_limit = saved_;
 }
+
+namespace detail {
+
+int run_row_ranges(std::ptrdiff_t n, int threads, void (*f)(void*, std::ptrdiff_t, std::ptrdiff_t, int),
+                   void* context) {
+#ifdef MESHPDE_HAVE_OPENMP
+  int used = 1;
+#pragma omp parallel num_threads(threads)
+  {
+    const std::ptrdiff_t t = omp_get_thread_num(), parts = omp_get_num_threads();
+    if (t == 0) used = static_cast<int>(parts);
+    f(context, n * t / parts, n * (t + 1) / parts, static_cast<int>(t));
+  }
+  return used;
+#else
+  (void)threads;
+  f(context, 0, n, 0);
+  return 1;
+#endif
+}
+
+}  // namespace detail
 
 bool openmp_available() {
 #ifdef MESHPDE_HAVE_OPENMP

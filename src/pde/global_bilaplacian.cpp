@@ -8,6 +8,7 @@
 
 #include "free_parts.h"
 #include "meshpde/core/errors.h"
+#include "meshpde/solvers/cg.h"
 #include "meshpde/solvers/surface_multigrid.h"
 
 namespace meshpde {
@@ -204,35 +205,19 @@ struct GlobalBilaplacianSolver::Impl {
     const auto t1 = clock_type::now();
     // Block PCG: every component its own step lengths, one operator application for all;
     // from the multigrid's iterate when Auto handed the solve on, or the warm start.
-    Eigen::MatrixXd r = handed_on || warm_start ? Eigen::MatrixXd(b - apply(x)) : b;
-    Eigen::MatrixXd z = precondition(r), pdir = z;
-    Eigen::VectorXd bn = b.colwise().norm().transpose(), rz = (r.cwiseProduct(z)).colwise().sum().transpose();
-    auto worst = [&] {
-      double rel = 0;
-      for (int c = 0; c < m; ++c) rel = std::max(rel, bn[c] > 0 ? r.col(c).norm() / bn[c] : 0.0);
-      return rel;
-    };
-    res.relative_residual = worst();
-    while (res.relative_residual > p.tolerance && res.iterations < p.max_iterations) {
-      const Eigen::MatrixXd q = apply(pdir);
-      for (int c = 0; c < m; ++c) {
-        const double pq = pdir.col(c).dot(q.col(c));
-        if (!(pq > 0)) continue;  // this component has converged (or is zero)
-        const double alpha = rz[c] / pq;
-        x.col(c) += alpha * pdir.col(c);
-        r.col(c) -= alpha * q.col(c);
-      }
-      z = precondition(r);
-      for (int c = 0; c < m; ++c) {
-        const double rz_new = r.col(c).dot(z.col(c));
-        pdir.col(c) = z.col(c) + (rz[c] > 0 ? rz_new / rz[c] : 0.0) * pdir.col(c);
-        rz[c] = rz_new;
-      }
-      ++res.iterations;
-      res.relative_residual = worst();
-      if (!std::isfinite(res.relative_residual))
-        throw SolverError("global bi-Laplacian solve: the residual became NaN");
-    }
+    // The iterations the multigrid ran count against the cap.
+    CgOptions options;
+    options.tolerance = p.tolerance;
+    options.max_iterations = std::max(0, p.max_iterations - res.iterations);
+    CgWorkspace workspace;
+    Field xf = x;
+    const CgResult cg = block_pcg([&](const Field& P, Field& Q) { Q = apply(P); },
+                                  [&](const Field& R, Field& Z) { Z = precondition(R); }, Field(b), xf, options,
+                                  workspace);
+    if (cg.status == CgStatus::Breakdown) throw SolverError("global bi-Laplacian solve: " + cg.message);
+    x = xf;
+    res.iterations += cg.iterations;
+    res.relative_residual = cg.relative_residual;
     res.converged = res.relative_residual <= p.tolerance;
     finish();
     res.solve_seconds += seconds_since(t1);

@@ -11,6 +11,7 @@
 
 #include "meshpde/core/errors.h"
 #include "meshpde/core/parallel.h"
+#include "meshpde/solvers/cg.h"
 #include "meshpde/solvers/direct.h"
 
 #ifdef MESHPDE_HAVE_OPENMP
@@ -78,25 +79,12 @@ void spmm(const RowSparse& S, const Field& X, Field& Y) {
   }
 }
 
-// Runs f(begin, end, part) on [0, n) cut into one contiguous range per thread when n is
-// at least kParallelRows, else f(0, n, 0). Returns the number of parts. For the cycle's
-// and CG's vector updates: serial, they were 14 % of a perf profile of the 164k solve
-// (spin-waiting threads' samples included).
+// The cycle's and CG's vector updates run on every thread from kParallelRows rows on
+// (for_row_ranges, core/parallel.h): serial, they were 14 % of a perf profile of the
+// 164k solve (spin-waiting threads' samples included).
 template <class F>
 int for_row_ranges(Eigen::Index n, F&& f) {
-#ifdef MESHPDE_HAVE_OPENMP
-  const int threads = max_threads();
-  if (n >= kParallelRows && threads > 1) {
-#pragma omp parallel num_threads(threads)
-    {
-      const Eigen::Index t = omp_get_thread_num(), parts = omp_get_num_threads();
-      f(n * t / parts, n * (t + 1) / parts, static_cast<int>(t));
-    }
-    return threads;
-  }
-#endif
-  f(Eigen::Index{0}, n, 0);
-  return 1;
+  return meshpde::for_row_ranges(n, kParallelRows, std::forward<F>(f));
 }
 
 // A compressed row-major matrix from rows given as (column, value) lists.
@@ -780,76 +768,23 @@ double BilaplacianMultigrid::bytes(int columns) const {
 
 MultigridSolveResult BilaplacianMultigrid::solve(const Field& B, Field& X, double tolerance, int max_iterations,
                                                  const std::function<bool(int, double)>& keep_going) const {
-  const Eigen::Index n = B.rows(), m = B.cols();
+  const Eigen::Index n = B.rows();
   if (n != impl_->nF) throw InputError(fmt::format("right-hand side has {} rows for {} unknowns", n, impl_->nF));
-  if (X.rows() != n || X.cols() != m) X = Field::Zero(n, m);
+  CgOptions options;
+  options.tolerance = tolerance;
+  options.max_iterations = max_iterations;
+  options.parallel_rows = kParallelRows;
+  CgWorkspace w;
+  const CgResult cg = block_pcg([&](const Field& P, Field& Q) { apply(P, Q); },
+                                [&](const Field& R, Field& Z) { precondition(R, Z); }, B, X, options, w,
+                                [&](int iterations, double residual) {
+                                  return !keep_going || keep_going(iterations, residual);
+                                });
+  if (cg.status == CgStatus::Breakdown) throw SolverError("bi-Laplacian multigrid: " + cg.message);
   MultigridSolveResult res;
-  Field r, z, p, q;
-  apply(X, q);
-  r = B - q;
-  // Per-column sums over row-major blocks in one pass, each thread's range summed
-  // apart and the parts added in order.
-  std::vector<Eigen::VectorXd> partial(static_cast<std::size_t>(max_threads()));
-  auto add_parts = [&](int parts) {
-    Eigen::VectorXd s = Eigen::VectorXd::Zero(m);
-    for (int t = 0; t < parts; ++t) s += partial[static_cast<std::size_t>(t)];
-    return s;
-  };
-  auto column_dots = [&](const Field& a, const Field& b) {
-    const double *A = a.data(), *Bp = b.data();
-    return add_parts(for_row_ranges(n, [&](Eigen::Index begin, Eigen::Index end, int t) {
-      Eigen::VectorXd s = Eigen::VectorXd::Zero(m);
-      for (Eigen::Index i = begin; i < end; ++i)
-        for (Eigen::Index c = 0; c < m; ++c) s[c] += A[i * m + c] * Bp[i * m + c];
-      partial[static_cast<std::size_t>(t)] = s;
-    }));
-  };
-  const Eigen::VectorXd bn = column_dots(B, B).cwiseSqrt();
-  auto worst = [&](const Eigen::VectorXd& rr) {
-    double rel = 0;
-    for (Eigen::Index c = 0; c < m; ++c) rel = std::max(rel, bn[c] > 0 ? std::sqrt(rr[c]) / bn[c] : 0.0);
-    return rel;
-  };
-  res.relative_residual = worst(column_dots(r, r));
-  if (res.relative_residual <= tolerance) return res.converged = true, res;
-  if (keep_going && !keep_going(0, res.relative_residual)) return res;
-  precondition(r, z);
-  p = z;
-  Eigen::VectorXd rz = column_dots(r, z), alpha(m), beta(m);
-  while (res.iterations < max_iterations) {
-    apply(p, q);
-    const Eigen::VectorXd pq = column_dots(p, q);
-    for (Eigen::Index c = 0; c < m; ++c) alpha[c] = pq[c] > 0 ? rz[c] / pq[c] : 0.0;  // 0: a converged (or zero) column
-    double *Xp = X.data(), *R = r.data();
-    const double *P = p.data(), *Q = q.data();
-    const Eigen::VectorXd rr = add_parts(for_row_ranges(n, [&](Eigen::Index begin, Eigen::Index end, int t) {
-      Eigen::VectorXd s = Eigen::VectorXd::Zero(m);
-      for (Eigen::Index i = begin; i < end; ++i)
-        for (Eigen::Index c = 0; c < m; ++c) {
-          const Eigen::Index k = i * m + c;
-          Xp[k] += alpha[c] * P[k];
-          R[k] -= alpha[c] * Q[k];
-          s[c] += R[k] * R[k];
-        }
-      partial[static_cast<std::size_t>(t)] = s;
-    }));
-    ++res.iterations;
-    res.relative_residual = worst(rr);
-    if (!std::isfinite(res.relative_residual)) throw SolverError("bi-Laplacian multigrid: the residual became NaN");
-    if (res.relative_residual <= tolerance) break;
-    if (keep_going && !keep_going(res.iterations, res.relative_residual)) break;
-    precondition(r, z);
-    const Eigen::VectorXd rz_new = column_dots(r, z);
-    for (Eigen::Index c = 0; c < m; ++c) beta[c] = rz[c] > 0 ? rz_new[c] / rz[c] : 0.0;
-    rz = rz_new;
-    double* Pw = p.data();
-    const double* Z = z.data();
-    for_row_ranges(n, [&](Eigen::Index begin, Eigen::Index end, int) {
-      for (Eigen::Index i = begin; i < end; ++i)
-        for (Eigen::Index c = 0; c < m; ++c) Pw[i * m + c] = Z[i * m + c] + beta[c] * Pw[i * m + c];
-    });
-  }
-  res.converged = res.relative_residual <= tolerance;
+  res.iterations = cg.iterations;
+  res.relative_residual = cg.relative_residual;
+  res.converged = cg.converged();
   return res;
 }
 

@@ -1,24 +1,31 @@
-// Jacobi-preconditioned conjugate gradient for symmetric positive definite
-// operators given as a function, on several right-hand sides at once (one CG per
-// column sharing each operator application: x, y, z of a displacement).
+// Preconditioned conjugate gradients for symmetric positive definite operators given
+// as functions, on several right-hand sides at once (one CG per column sharing each
+// operator application: x, y, z of a displacement). The one CG kernel of the library:
+// the time step's Jacobi-CG, the surface multigrid's and the global bi-Laplacian's
+// outer iterations and the refinement of direct solves all run block_pcg.
 //
-// Tolerance is on the relative residual |b - A x| / |b| per column; non-convergence
-// is a status, not an exception. A non-positive curvature p'Ap <= 0 (the operator
-// is not SPD on the free set, e.g. a floating component with no constraint under
-// a pure stiffness operator) stops with status Breakdown and a message in words.
+// Tolerance is on the relative residual |b - A x| / |b| per column; a column that
+// meets it stops moving while the others go on. Non-convergence is a status, not an
+// exception. A non-positive curvature p'Ap <= 0 on a column still iterating (the
+// operator is not SPD on the free set, e.g. a floating component with no constraint
+// under a pure stiffness operator) or a residual that is not finite stops with status
+// Breakdown and a message in words.
 #pragma once
 
 #include <fmt/format.h>
 
 #include <Eigen/Core>
+#include <algorithm>
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <cstddef>
 #include <limits>
 #include <string>
 #include <type_traits>
 #include <vector>
 
+#include "meshpde/core/parallel.h"
 #include "meshpde/mesh/field.h"
 
 namespace meshpde {
@@ -36,14 +43,22 @@ struct CgOptions {
   /// Real-time loops set it (HapticParams: 1e-2): an overrun costs one late step,
   /// an inaccurate implicit step can feed energy into the surface, step after step.
   double late_tolerance = std::numeric_limits<double>::infinity();
+  /// Above this many rows the vector loops (dot products, updates) run on every thread
+  /// (core/parallel.h); up to it they stay on the calling thread and allocate nothing
+  /// after the first solve. Dot products are summed in chunks of this many rows, added
+  /// in order: the same bits on any number of threads.
+  std::ptrdiff_t parallel_rows = 5000;
+  /// The workspace's r holds b - A x for the starting x on entry (a caller that has
+  /// it saves one product).
+  bool residual_given = false;
 };
 
-enum class CgStatus { Converged, MaxIterations, Breakdown, Deadline };
+enum class CgStatus { Converged, MaxIterations, Breakdown, Deadline, Stopped };
 
 struct CgResult {
   CgStatus status = CgStatus::Converged;
   int iterations = 0;
-  double relative_residual = 0;  ///< worst column
+  double relative_residual = 0;  ///< worst column (of the recurrence's residual)
   std::string message;           ///< set when not converged
   bool converged() const { return status == CgStatus::Converged; }
 };
@@ -53,61 +68,107 @@ const char* to_string(CgStatus s);
 /// Work buffers kept between solves so repeated small solves allocate nothing.
 struct CgWorkspace {
   Field r, z, p, q;
+  std::vector<double> partial;  ///< per-chunk column sums (CgOptions::parallel_rows)
+};
+
+/// The Jacobi preconditioner z_i = inverse_diagonal_i r_i. block_pcg fuses it into its
+/// vector loops (the haptic steps' solves are small and frequent).
+struct JacobiPreconditioner {
+  const Eigen::VectorXd& inverse_diagonal;  ///< 1 / A_ii, one per row
+};
+
+/// The default monitor of block_pcg: never stops a solve.
+struct NoCgMonitor {
+  bool operator()(int, double) const { return true; }
 };
 
 namespace detail {
 
-/// CG on n x M blocks; M > 0 fixes the column count at compile time so the per-column
-/// accumulators live in registers (M = 0: any count, read from b).
-template <int M, class Apply>
-CgResult pcg_impl(Apply&& apply, const Eigen::VectorXd& inv_diag, const Field& b, Field& x, const CgOptions& opt,
-                  CgWorkspace& w) {
-  // Flat loops over the row-major n x m blocks: the solves are small and frequent
-  // (haptic steps), so per-iteration overhead matters more than vectorized width.
+// acc[k * m + c] summed over the rows by body(begin, end, acc), chunk by chunk of
+// opt.parallel_rows rows (the chunks on every thread when there are several), the
+// chunks' sums added in chunk order into out: the same bits on any number of threads.
+template <int M, int K, class Body>
+void cg_reduce(Eigen::Index n, Eigen::Index m, const CgOptions& opt, std::vector<double>& partial, double* out,
+               Body&& body) {
+  const std::ptrdiff_t chunk = std::max<std::ptrdiff_t>(opt.parallel_rows, 1);
+  const std::ptrdiff_t chunks = (n + chunk - 1) / chunk;
+  for_row_ranges(chunks, 2, [&](std::ptrdiff_t first, std::ptrdiff_t last, int) {
+    for (std::ptrdiff_t c = first; c < last; ++c) {
+      double* dst = partial.data() + static_cast<std::size_t>(c) * K * m;
+      const std::ptrdiff_t begin = c * chunk, end = std::min<std::ptrdiff_t>(n, begin + chunk);
+      if constexpr (M > 0) {
+        std::array<double, K * M> acc{};  // in registers: the loops are short and frequent
+        body(begin, end, acc.data());
+        std::copy(acc.begin(), acc.end(), dst);
+      } else {
+        std::fill(dst, dst + K * m, 0.0);
+        body(begin, end, dst);
+      }
+    }
+  });
+  std::fill(out, out + K * m, 0.0);
+  for (std::ptrdiff_t c = 0; c < chunks; ++c)
+    for (Eigen::Index k = 0; k < K * m; ++k) out[k] += partial[static_cast<std::size_t>(c) * K * m + k];
+}
+
+// The kernel on n x m row-major blocks; M > 0 fixes the column count at compile time
+// so the per-column accumulators live in registers (M = 0: any count, read from b).
+template <int M, class Apply, class Precondition, class Monitor>
+CgResult block_pcg_impl(Apply& apply, Precondition& precondition, const Field& b, Field& x, const CgOptions& opt,
+                        CgWorkspace& w, Monitor& monitor) {
+  constexpr bool kJacobi = std::is_same_v<std::remove_cvref_t<Precondition>, JacobiPreconditioner>;
   const Eigen::Index n = b.rows();
   const Eigen::Index m = M > 0 ? M : b.cols();
   CgResult res;
   if (n == 0) return res;
-  w.r.resize(n, m);
-  w.z.resize(n, m);
-  w.p.resize(n, m);
-  w.q.resize(n, m);
-  constexpr int kMax = M > 0 ? M : 1;
-  using Acc = std::conditional_t<(M > 0), std::array<double, kMax>, std::vector<double>>;
-  using Flags = std::conditional_t<(M > 0), std::array<char, kMax>, std::vector<char>>;
-  Acc bnorm{}, rz{}, rr{}, pq{}, alpha{}, beta{}, rz_new{};
-  Flags active{};
-  if constexpr (M == 0) {
-    for (auto* v : {&bnorm, &rz, &rr, &pq, &alpha, &beta, &rz_new}) v->assign(m, 0.0);
-    active.assign(m, 1);
-  } else {
-    active.fill(1);
-  }
+  if (x.rows() != n || x.cols() != m) x = Field::Zero(n, m);
+  for (Field* f : {&w.z, &w.p, &w.q}) f->resize(n, m);
+  const auto chunks = static_cast<std::size_t>((n + std::max<std::ptrdiff_t>(opt.parallel_rows, 1) - 1) /
+                                                std::max<std::ptrdiff_t>(opt.parallel_rows, 1));
+  if (w.partial.size() < chunks * 2 * static_cast<std::size_t>(m)) w.partial.resize(chunks * 2 * m);
+  // Column sums: [0, m) and [m, 2m) of one pass.
+  std::vector<double> heap;
+  std::array<double, 2 * (M > 0 ? M : 1)> stack{};
+  if constexpr (M == 0) heap.assign(static_cast<std::size_t>(2 * m), 0.0);
+  double* sums = M > 0 ? stack.data() : heap.data();
+  std::array<double, (M > 0 ? 5 * M : 1)> stack_cols{};
+  std::vector<double> heap_cols;
+  if constexpr (M == 0) heap_cols.assign(static_cast<std::size_t>(5 * m), 0.0);
+  double* cols = M > 0 ? stack_cols.data() : heap_cols.data();
+  double* bnorm = cols;
+  double* rz = cols + m;
+  double* alpha = cols + 2 * m;
+  double* beta = cols + 3 * m;
+  double* active = cols + 4 * m;  // 1 while the column iterates
+
   const double* B = b.data();
   double* X = x.data();
+  cg_reduce<M, 1>(n, m, opt, w.partial, sums, [&](std::ptrdiff_t begin, std::ptrdiff_t end, double* acc) {
+    for (std::ptrdiff_t i = begin; i < end; ++i)
+      for (Eigen::Index c = 0; c < m; ++c) acc[c] += B[i * m + c] * B[i * m + c];
+  });
+  for (Eigen::Index c = 0; c < m; ++c) {
+    bnorm[c] = std::sqrt(sums[c]);
+    if (bnorm[c] == 0)
+      for (Eigen::Index i = 0; i < n; ++i) X[i * m + c] = 0;  // the exact solution of an SPD system
+  }
+  if (!opt.residual_given) {
+    w.r.resize(n, m);
+    if (x.isZero(0)) {
+      w.r = b;  // a zero start needs no product
+    } else {
+      apply(x, w.q);
+      w.r = b - w.q;
+    }
+  }
   double* R = w.r.data();
   double* Z = w.z.data();
   double* P = w.p.data();
   double* Q = w.q.data();
-  const double* Dinv = inv_diag.data();
-  for (Eigen::Index i = 0; i < n; ++i)
-    for (Eigen::Index c = 0; c < m; ++c) bnorm[c] += B[i * m + c] * B[i * m + c];
-  for (Eigen::Index c = 0; c < m; ++c) bnorm[c] = std::sqrt(bnorm[c]);
-  for (Eigen::Index c = 0; c < m; ++c)
-    if (bnorm[c] == 0)
-      for (Eigen::Index i = 0; i < n; ++i) X[i * m + c] = 0;  // exact solution of an SPD system
-  apply(x, w.q);
-  for (Eigen::Index c = 0; c < m; ++c) rz[c] = rr[c] = 0;
-  for (Eigen::Index i = 0; i < n; ++i)
-    for (Eigen::Index c = 0; c < m; ++c) {
-      const Eigen::Index k = i * m + c;
-      R[k] = B[k] - Q[k];
-      Z[k] = Dinv[i] * R[k];
-      P[k] = Z[k];
-      rz[c] += R[k] * Z[k];
-      rr[c] += R[k] * R[k];
-    }
-  auto update_active = [&]() {
+
+  // Sets `active` from the residual norms rr (m values); false when no column iterates
+  // or the residual is not finite (then status Breakdown).
+  auto update_active = [&](const double* rr) {
     bool any = false;
     res.relative_residual = 0;
     for (Eigen::Index c = 0; c < m; ++c) {
@@ -118,12 +179,56 @@ CgResult pcg_impl(Apply&& apply, const Eigen::VectorXd& inv_diag, const Field& b
         return false;
       }
       res.relative_residual = std::max(res.relative_residual, rel);
-      active[c] = rel > opt.tolerance;
+      active[c] = rel > opt.tolerance ? 1.0 : 0.0;
       any |= active[c] != 0;
     }
     return any;
   };
-  if (!update_active()) return res;
+  // z = M^-1 r and its sums r'z into sums[m, 2m) (with r'r into [0, m) for Jacobi,
+  // which computes z in the same pass).
+  auto precondition_and_rz = [&] {
+    if constexpr (kJacobi) {
+      const double* Dinv = precondition.inverse_diagonal.data();
+      cg_reduce<M, 2>(n, m, opt, w.partial, sums, [&](std::ptrdiff_t begin, std::ptrdiff_t end, double* acc) {
+        for (std::ptrdiff_t i = begin; i < end; ++i)
+          for (Eigen::Index c = 0; c < m; ++c) {
+            const Eigen::Index k = i * m + c;
+            Z[k] = Dinv[i] * R[k];
+            acc[c] += R[k] * R[k];
+            acc[m + c] += R[k] * Z[k];
+          }
+      });
+    } else {
+      precondition(w.r, w.z);
+      cg_reduce<M, 2>(n, m, opt, w.partial, sums, [&](std::ptrdiff_t begin, std::ptrdiff_t end, double* acc) {
+        for (std::ptrdiff_t i = begin; i < end; ++i)
+          for (Eigen::Index c = 0; c < m; ++c) {
+            const Eigen::Index k = i * m + c;
+            acc[c] += R[k] * R[k];
+            acc[m + c] += R[k] * Z[k];
+          }
+      });
+    }
+  };
+  auto residual_norms = [&] {
+    cg_reduce<M, 1>(n, m, opt, w.partial, sums, [&](std::ptrdiff_t begin, std::ptrdiff_t end, double* acc) {
+      for (std::ptrdiff_t i = begin; i < end; ++i)
+        for (Eigen::Index c = 0; c < m; ++c) acc[c] += R[i * m + c] * R[i * m + c];
+    });
+  };
+
+  residual_norms();
+  if (!update_active(sums)) return res;
+  if (!monitor(0, res.relative_residual)) {
+    res.status = CgStatus::Stopped;
+    res.message = fmt::format("stopped by its caller (relative residual {:.3g})", res.relative_residual);
+    return res;
+  }
+  precondition_and_rz();
+  for (Eigen::Index c = 0; c < m; ++c) rz[c] = sums[m + c];
+  for_row_ranges(n, opt.parallel_rows, [&](std::ptrdiff_t begin, std::ptrdiff_t end, int) {
+    std::copy(Z + begin * m, Z + end * m, P + begin * m);
+  });
   const bool timed = opt.deadline != std::chrono::steady_clock::time_point{};
   for (int it = 0; it < opt.max_iterations; ++it) {
     if (timed && it >= opt.min_iterations && res.relative_residual <= opt.late_tolerance &&
@@ -135,48 +240,72 @@ CgResult pcg_impl(Apply&& apply, const Eigen::VectorXd& inv_diag, const Field& b
     }
     apply(w.p, w.q);
     res.iterations = it + 1;
-    for (Eigen::Index c = 0; c < m; ++c) pq[c] = 0;
-    for (Eigen::Index i = 0; i < n; ++i)
-      for (Eigen::Index c = 0; c < m; ++c) pq[c] += P[i * m + c] * Q[i * m + c];
+    cg_reduce<M, 1>(n, m, opt, w.partial, sums, [&](std::ptrdiff_t begin, std::ptrdiff_t end, double* acc) {
+      for (std::ptrdiff_t i = begin; i < end; ++i)
+        for (Eigen::Index c = 0; c < m; ++c) acc[c] += P[i * m + c] * Q[i * m + c];
+    });
     for (Eigen::Index c = 0; c < m; ++c) {
-      if (!active[c]) {
-        alpha[c] = 0;
-        continue;
-      }
-      if (!(pq[c] > 0)) {
+      alpha[c] = 0;
+      if (active[c] == 0) continue;
+      if (!(sums[c] > 0)) {
         res.status = CgStatus::Breakdown;
         res.message = fmt::format(
             "the system is not positive definite on the free vertices (p'Ap = {:.3g} in component {}); "
             "is there a connected part with no constrained vertex?",
-            pq[c], c);
+            sums[c], c);
         return res;
       }
-      alpha[c] = rz[c] / pq[c];
+      alpha[c] = rz[c] / sums[c];
     }
-    for (Eigen::Index c = 0; c < m; ++c) rr[c] = rz_new[c] = 0;
-    for (Eigen::Index i = 0; i < n; ++i)
-      for (Eigen::Index c = 0; c < m; ++c) {
-        const Eigen::Index k = i * m + c;
-        X[k] += alpha[c] * P[k];
-        R[k] -= alpha[c] * Q[k];
-        Z[k] = Dinv[i] * R[k];
-        rr[c] += R[k] * R[k];
-        rz_new[c] += R[k] * Z[k];
-      }
-    if (!update_active()) {
-      if (res.status == CgStatus::Breakdown) return res;
-      res.status = CgStatus::Converged;
+    if constexpr (kJacobi) {
+      // The update, z and both sums in one pass over the rows.
+      const double* Dinv = precondition.inverse_diagonal.data();
+      cg_reduce<M, 2>(n, m, opt, w.partial, sums, [&](std::ptrdiff_t begin, std::ptrdiff_t end, double* acc) {
+        for (std::ptrdiff_t i = begin; i < end; ++i)
+          for (Eigen::Index c = 0; c < m; ++c) {
+            const Eigen::Index k = i * m + c;
+            X[k] += alpha[c] * P[k];
+            R[k] -= alpha[c] * Q[k];
+            Z[k] = Dinv[i] * R[k];
+            acc[c] += R[k] * R[k];
+            acc[m + c] += R[k] * Z[k];
+          }
+      });
+    } else {
+      cg_reduce<M, 1>(n, m, opt, w.partial, sums, [&](std::ptrdiff_t begin, std::ptrdiff_t end, double* acc) {
+        for (std::ptrdiff_t i = begin; i < end; ++i)
+          for (Eigen::Index c = 0; c < m; ++c) {
+            const Eigen::Index k = i * m + c;
+            X[k] += alpha[c] * P[k];
+            R[k] -= alpha[c] * Q[k];
+            acc[c] += R[k] * R[k];
+          }
+      });
+    }
+    if (!update_active(sums)) break;
+    if (!monitor(res.iterations, res.relative_residual)) {
+      res.status = CgStatus::Stopped;
+      res.message = fmt::format("stopped by its caller after {} iterations (relative residual {:.3g})", res.iterations,
+                                res.relative_residual);
       return res;
     }
+    if constexpr (!kJacobi) precondition_and_rz();
     for (Eigen::Index c = 0; c < m; ++c) {
-      beta[c] = active[c] ? rz_new[c] / rz[c] : 0.0;
-      rz[c] = rz_new[c];
+      beta[c] = active[c] != 0 && rz[c] != 0 ? sums[m + c] / rz[c] : 0.0;
+      rz[c] = sums[m + c];
     }
-    for (Eigen::Index i = 0; i < n; ++i)
-      for (Eigen::Index c = 0; c < m; ++c) {
-        const Eigen::Index k = i * m + c;
-        P[k] = active[c] ? Z[k] + beta[c] * P[k] : 0.0;
-      }
+    for_row_ranges(n, opt.parallel_rows, [&](std::ptrdiff_t begin, std::ptrdiff_t end, int) {
+      for (std::ptrdiff_t i = begin; i < end; ++i)
+        for (Eigen::Index c = 0; c < m; ++c) {
+          const Eigen::Index k = i * m + c;
+          P[k] = active[c] != 0 ? Z[k] + beta[c] * P[k] : 0.0;
+        }
+    });
+  }
+  if (res.status == CgStatus::Breakdown) return res;
+  if (res.relative_residual <= opt.tolerance) {
+    res.status = CgStatus::Converged;
+    return res;
   }
   res.status = CgStatus::MaxIterations;
   res.message = fmt::format("no convergence in {} iterations (relative residual {:.3g} > {:.3g})", opt.max_iterations,
@@ -186,19 +315,30 @@ CgResult pcg_impl(Apply&& apply, const Eigen::VectorXd& inv_diag, const Field& b
 
 }  // namespace detail
 
-/// Solves A x = b. `apply(P, Q)` must write Q = A P for n x m blocks; `inv_diag`
-/// (length n) is the Jacobi preconditioner 1 / A_ii. `x` holds the initial guess.
+/// Solves A x = b by preconditioned CG. `apply(P, Q)` writes Q = A P and
+/// `precondition(R, Z)` writes Z = M^-1 R, both on n x m blocks (M symmetric positive
+/// definite; a JacobiPreconditioner is fused into the vector loops). `x` holds the
+/// starting guess (resized to zero when its shape is not b's). `monitor(iterations,
+/// relative_residual)` is called with the starting residual and after every iteration
+/// that has not converged; false stops the solve with status Stopped.
+template <class Apply, class Precondition, class Monitor = NoCgMonitor>
+CgResult block_pcg(Apply&& apply, Precondition&& precondition, const Field& b, Field& x, const CgOptions& opt,
+                   CgWorkspace& w, Monitor&& monitor = {}) {
+  switch (b.cols()) {
+    case 1:
+      return detail::block_pcg_impl<1>(apply, precondition, b, x, opt, w, monitor);
+    case 3:
+      return detail::block_pcg_impl<3>(apply, precondition, b, x, opt, w, monitor);
+    default:
+      return detail::block_pcg_impl<0>(apply, precondition, b, x, opt, w, monitor);
+  }
+}
+
+/// Jacobi-preconditioned CG: `inv_diag` (length n) is 1 / A_ii; otherwise as block_pcg.
 template <class Apply>
 CgResult pcg(Apply&& apply, const Eigen::VectorXd& inv_diag, const Field& b, Field& x, const CgOptions& opt,
              CgWorkspace& w) {
-  switch (b.cols()) {
-    case 1:
-      return detail::pcg_impl<1>(apply, inv_diag, b, x, opt, w);
-    case 3:
-      return detail::pcg_impl<3>(apply, inv_diag, b, x, opt, w);
-    default:
-      return detail::pcg_impl<0>(apply, inv_diag, b, x, opt, w);
-  }
+  return block_pcg(apply, JacobiPreconditioner{inv_diag}, b, x, opt, w);
 }
 
 inline const char* to_string(CgStatus s) {
@@ -211,6 +351,8 @@ inline const char* to_string(CgStatus s) {
       return "breakdown";
     case CgStatus::Deadline:
       return "deadline";
+    case CgStatus::Stopped:
+      return "stopped";
   }
   return "unknown";
 }

@@ -23,6 +23,8 @@
 #include <algorithm>
 #include <limits>
 
+#include "meshpde/solvers/cg.h"
+
 namespace meshpde {
 
 struct RefinedSolve {
@@ -74,9 +76,10 @@ RefinedSolve refined_solve(const Eigen::MatrixXd& b, Solve&& solve, Multiply&& m
 }
 
 /// CG on A x = b preconditioned by solve() (a factor of an approximation of A), started
-/// from solve(b), each column on its own: at most max_steps steps (one solve and one
-/// product each, for all columns at once), until every column's recurrence residual is
-/// at most `tolerance` relative to its b. The answer is the last iterate: its true
+/// from solve(b), each column on its own (block_pcg, solvers/cg.h): at most max_steps
+/// steps (one solve and one product each, for all columns at once), until every
+/// column's recurrence residual is at most `tolerance` relative to its b. The answer
+/// is the last iterate: its true
 /// residual, measured at the end as refined_solve measures, can stay above the
 /// recurrence's, at the rounding of the product b - A x itself (5e-12 relative on the
 /// aorta, whose answer CG still moves from 6.7e-9 to 7e-13 off an extended-precision
@@ -89,35 +92,18 @@ RefinedSolve pcg_refined_solve(const Eigen::MatrixXd& b, Solve&& solve, Multiply
   out.residual = b - multiply(out.x);
   detail::measure_refined(b, a_norm_inf, out);
   if (out.relative_residual <= tolerance || max_steps <= 0) return out;
-  const Eigen::Index m = b.cols();
-  Eigen::VectorXd b_norm(m);
-  for (Eigen::Index c = 0; c < m; ++c) b_norm[c] = b.col(c).norm();
-  Eigen::MatrixXd r = out.residual;
-  Eigen::MatrixXd z = solve(r), p = z;
-  Eigen::VectorXd rz(m);
-  for (Eigen::Index c = 0; c < m; ++c) rz[c] = r.col(c).dot(z.col(c));
-  while (out.steps < max_steps) {
-    ++out.steps;
-    const Eigen::MatrixXd q = multiply(p);
-    double worst = 0;
-    for (Eigen::Index c = 0; c < m; ++c) {
-      const double pq = p.col(c).dot(q.col(c));
-      if (pq > 0 && rz[c] > 0) {  // otherwise this column's residual is zero already
-        const double alpha = rz[c] / pq;
-        out.x.col(c) += alpha * p.col(c);
-        r.col(c) -= alpha * q.col(c);
-      }
-      if (b_norm[c] > 0) worst = std::max(worst, r.col(c).norm() / b_norm[c]);
-    }
-    if (worst <= tolerance) break;
-    z = solve(r);
-    for (Eigen::Index c = 0; c < m; ++c) {
-      const double rz_next = r.col(c).dot(z.col(c));
-      const double beta = rz[c] > 0 ? rz_next / rz[c] : 0.0;
-      rz[c] = rz_next;
-      p.col(c) = z.col(c) + beta * p.col(c);
-    }
-  }
+  CgOptions options;
+  options.tolerance = tolerance;
+  options.max_iterations = max_steps;
+  options.residual_given = true;
+  CgWorkspace w;
+  w.r = out.residual;
+  Field x = out.x;
+  const CgResult cg = block_pcg([&](const Field& P, Field& Q) { Q = multiply(Eigen::MatrixXd(P)); },
+                                [&](const Field& R, Field& Z) { Z = solve(Eigen::MatrixXd(R)); }, Field(b), x, options,
+                                w);
+  out.steps = cg.iterations;
+  out.x = x;
   out.residual = b - multiply(out.x);
   detail::measure_refined(b, a_norm_inf, out);
   return out;
