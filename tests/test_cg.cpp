@@ -125,12 +125,13 @@ TEST(Cg, AColumnStopsOnItsOwnAndAMonitorCanStopTheSolve) {
   EXPECT_TRUE(r.converged());
   EXPECT_EQ(x.col(1).cwiseAbs().maxCoeff(), 0.0);
   x.setZero();
-  const CgResult stopped = block_pcg(
-      [&](const Field& p, Field& y) { y = A * p; }, JacobiPreconditioner{Eigen::VectorXd::Constant(n, 0.5)}, b, x,
-      CgOptions{.tolerance = 1e-12}, w, [&](int iterations, double) {
-        seen.push_back(iterations);
-        return iterations < 3;
-      });
+  const CgResult stopped =
+      block_pcg([&](const Field& p, Field& y) { y = A * p; }, JacobiPreconditioner{Eigen::VectorXd::Constant(n, 0.5)},
+                b, x, CgOptions{.tolerance = 1e-12}, w,
+                [&](int iterations, double) {
+                  seen.push_back(iterations);
+                  return iterations < 3;
+                });
   EXPECT_EQ(stopped.status, CgStatus::Stopped);
   EXPECT_EQ(stopped.iterations, 3);
   EXPECT_EQ(seen, (std::vector<int>{0, 1, 2, 3}));

@@ -211,9 +211,9 @@ struct GlobalBilaplacianSolver::Impl {
     options.max_iterations = std::max(0, p.max_iterations - res.iterations);
     CgWorkspace workspace;
     Field xf = x;
-    const CgResult cg = block_pcg([&](const Field& P, Field& Q) { Q = apply(P); },
-                                  [&](const Field& R, Field& Z) { Z = precondition(R); }, Field(b), xf, options,
-                                  workspace);
+    const CgResult cg =
+        block_pcg([&](const Field& P, Field& Q) { Q = apply(P); },
+                  [&](const Field& R, Field& Z) { Z = precondition(R); }, Field(b), xf, options, workspace);
     if (cg.status == CgStatus::Breakdown) throw SolverError("global bi-Laplacian solve: " + cg.message);
     x = xf;
     res.iterations += cg.iterations;

@@ -775,11 +775,9 @@ MultigridSolveResult BilaplacianMultigrid::solve(const Field& B, Field& X, doubl
   options.max_iterations = max_iterations;
   options.parallel_rows = kParallelRows;
   CgWorkspace w;
-  const CgResult cg = block_pcg([&](const Field& P, Field& Q) { apply(P, Q); },
-                                [&](const Field& R, Field& Z) { precondition(R, Z); }, B, X, options, w,
-                                [&](int iterations, double residual) {
-                                  return !keep_going || keep_going(iterations, residual);
-                                });
+  const CgResult cg = block_pcg(
+      [&](const Field& P, Field& Q) { apply(P, Q); }, [&](const Field& R, Field& Z) { precondition(R, Z); }, B, X,
+      options, w, [&](int iterations, double residual) { return !keep_going || keep_going(iterations, residual); });
   if (cg.status == CgStatus::Breakdown) throw SolverError("bi-Laplacian multigrid: " + cg.message);
   MultigridSolveResult res;
   res.iterations = cg.iterations;
