@@ -124,7 +124,7 @@ CgResult block_pcg_impl(Apply& apply, Precondition& precondition, const Field& b
   if (x.rows() != n || x.cols() != m) x = Field::Zero(n, m);
   for (Field* f : {&w.z, &w.p, &w.q}) f->resize(n, m);
   const auto chunks = static_cast<std::size_t>((n + std::max<std::ptrdiff_t>(opt.parallel_rows, 1) - 1) /
-                                                std::max<std::ptrdiff_t>(opt.parallel_rows, 1));
+                                               std::max<std::ptrdiff_t>(opt.parallel_rows, 1));
   if (w.partial.size() < chunks * 2 * static_cast<std::size_t>(m)) w.partial.resize(chunks * 2 * m);
   // Column sums: [0, m) and [m, 2m) of one pass.
   std::vector<double> heap;
@@ -184,47 +184,58 @@ CgResult block_pcg_impl(Apply& apply, Precondition& precondition, const Field& b
     }
     return any;
   };
-  // z = M^-1 r and its sums r'z into sums[m, 2m) (with r'r into [0, m) for Jacobi,
-  // which computes z in the same pass).
-  auto precondition_and_rz = [&] {
+  // One pass over the rows: with `step`, x += alpha p and r -= alpha q first; then the
+  // sums r'r into sums[0, m), and for Jacobi z = D^-1 r and r'z into sums[m, 2m) in
+  // the same pass (the haptic steps' solves are small and frequent).
+  auto sweep = [&](bool step) {
     if constexpr (kJacobi) {
       const double* Dinv = precondition.inverse_diagonal.data();
       cg_reduce<M, 2>(n, m, opt, w.partial, sums, [&](std::ptrdiff_t begin, std::ptrdiff_t end, double* acc) {
         for (std::ptrdiff_t i = begin; i < end; ++i)
           for (Eigen::Index c = 0; c < m; ++c) {
             const Eigen::Index k = i * m + c;
+            if (step) {
+              X[k] += alpha[c] * P[k];
+              R[k] -= alpha[c] * Q[k];
+            }
             Z[k] = Dinv[i] * R[k];
             acc[c] += R[k] * R[k];
             acc[m + c] += R[k] * Z[k];
           }
       });
     } else {
-      precondition(w.r, w.z);
-      cg_reduce<M, 2>(n, m, opt, w.partial, sums, [&](std::ptrdiff_t begin, std::ptrdiff_t end, double* acc) {
+      cg_reduce<M, 1>(n, m, opt, w.partial, sums, [&](std::ptrdiff_t begin, std::ptrdiff_t end, double* acc) {
         for (std::ptrdiff_t i = begin; i < end; ++i)
           for (Eigen::Index c = 0; c < m; ++c) {
             const Eigen::Index k = i * m + c;
+            if (step) {
+              X[k] += alpha[c] * P[k];
+              R[k] -= alpha[c] * Q[k];
+            }
             acc[c] += R[k] * R[k];
-            acc[m + c] += R[k] * Z[k];
           }
       });
     }
   };
-  auto residual_norms = [&] {
-    cg_reduce<M, 1>(n, m, opt, w.partial, sums, [&](std::ptrdiff_t begin, std::ptrdiff_t end, double* acc) {
-      for (std::ptrdiff_t i = begin; i < end; ++i)
-        for (Eigen::Index c = 0; c < m; ++c) acc[c] += R[i * m + c] * R[i * m + c];
-    });
+  // Any other preconditioner: z = M^-1 r, then r'z into sums[m, 2m).
+  auto precondition_rz = [&] {
+    if constexpr (!kJacobi) {
+      precondition(w.r, w.z);
+      cg_reduce<M, 1>(n, m, opt, w.partial, sums + m, [&](std::ptrdiff_t begin, std::ptrdiff_t end, double* acc) {
+        for (std::ptrdiff_t i = begin; i < end; ++i)
+          for (Eigen::Index c = 0; c < m; ++c) acc[c] += R[i * m + c] * Z[i * m + c];
+      });
+    }
   };
 
-  residual_norms();
+  sweep(false);
   if (!update_active(sums)) return res;
   if (!monitor(0, res.relative_residual)) {
     res.status = CgStatus::Stopped;
     res.message = fmt::format("stopped by its caller (relative residual {:.3g})", res.relative_residual);
     return res;
   }
-  precondition_and_rz();
+  precondition_rz();
   for (Eigen::Index c = 0; c < m; ++c) rz[c] = sums[m + c];
   for_row_ranges(n, opt.parallel_rows, [&](std::ptrdiff_t begin, std::ptrdiff_t end, int) {
     std::copy(Z + begin * m, Z + end * m, P + begin * m);
@@ -257,31 +268,7 @@ CgResult block_pcg_impl(Apply& apply, Precondition& precondition, const Field& b
       }
       alpha[c] = rz[c] / sums[c];
     }
-    if constexpr (kJacobi) {
-      // The update, z and both sums in one pass over the rows.
-      const double* Dinv = precondition.inverse_diagonal.data();
-      cg_reduce<M, 2>(n, m, opt, w.partial, sums, [&](std::ptrdiff_t begin, std::ptrdiff_t end, double* acc) {
-        for (std::ptrdiff_t i = begin; i < end; ++i)
-          for (Eigen::Index c = 0; c < m; ++c) {
-            const Eigen::Index k = i * m + c;
-            X[k] += alpha[c] * P[k];
-            R[k] -= alpha[c] * Q[k];
-            Z[k] = Dinv[i] * R[k];
-            acc[c] += R[k] * R[k];
-            acc[m + c] += R[k] * Z[k];
-          }
-      });
-    } else {
-      cg_reduce<M, 1>(n, m, opt, w.partial, sums, [&](std::ptrdiff_t begin, std::ptrdiff_t end, double* acc) {
-        for (std::ptrdiff_t i = begin; i < end; ++i)
-          for (Eigen::Index c = 0; c < m; ++c) {
-            const Eigen::Index k = i * m + c;
-            X[k] += alpha[c] * P[k];
-            R[k] -= alpha[c] * Q[k];
-            acc[c] += R[k] * R[k];
-          }
-      });
-    }
+    sweep(true);
     if (!update_active(sums)) break;
     if (!monitor(res.iterations, res.relative_residual)) {
       res.status = CgStatus::Stopped;
@@ -289,7 +276,7 @@ CgResult block_pcg_impl(Apply& apply, Precondition& precondition, const Field& b
                                 res.relative_residual);
       return res;
     }
-    if constexpr (!kJacobi) precondition_and_rz();
+    precondition_rz();
     for (Eigen::Index c = 0; c < m; ++c) {
       beta[c] = active[c] != 0 && rz[c] != 0 ? sums[m + c] / rz[c] : 0.0;
       rz[c] = sums[m + c];
