@@ -248,6 +248,7 @@ void add_fair_command(CLI::App& app) {
     params.solver = parse_steady_solver(a->solver);
     params.laplacian = parse_laplacian_kind(a->laplacian);
     const FairResult r = fair(mesh, fixed, params);
+    if (!r.converged) throw SolverError(fmt::format("fairing did not converge: {}", r.message));
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     // Everything the input carried (point and cell arrays, face labels, the frame) with
     // the faired positions, and which vertices were free where the format holds fields.
@@ -359,6 +360,7 @@ void add_interpolate_command(CLI::App& app) {
                                                                     .method = method,
                                                                     .solver = parse_steady_solver(a->solver),
                                                                     .laplacian = parse_laplacian_kind(a->laplacian)});
+      if (!r.cg.converged()) throw SolverError(fmt::format("interpolation did not converge: {}", r.cg.message));
       report["laplacian"] = to_string(r.laplacian);
       report["laplacian_reason"] = r.laplacian_reason;
       report["solver"] = to_string(r.solver);

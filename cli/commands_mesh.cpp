@@ -24,29 +24,7 @@ namespace meshpde::cli {
 namespace {
 
 nlohmann::json report_json(const MeshReport& r) {
-  return {{"vertices", r.vertices},
-          {"faces", r.faces},
-          {"edges", r.edges},
-          {"boundary_edges", r.boundary_edges},
-          {"boundary_loops", r.boundary_loops},
-          {"nonmanifold_edges", r.nonmanifold_edges},
-          {"nonmanifold_vertices", r.nonmanifold_vertices},
-          {"components", r.components},
-          {"degenerate_faces", r.degenerate_faces},
-          {"duplicate_vertices", r.duplicate_vertices},
-          {"unreferenced_vertices", r.unreferenced_vertices},
-          {"orientation_consistent", r.orientation_consistent},
-          {"inconsistent_edges", r.inconsistent_edges},
-          {"euler_characteristic", r.euler_characteristic},
-          {"area", r.area},
-          {"signed_volume", r.signed_volume},
-          {"min_angle_deg", r.min_angle_deg},
-          {"max_angle_deg", r.max_angle_deg},
-          {"area_ratio", r.area_ratio},
-          {"mean_edge_length", r.mean_edge_length},
-          {"bbox_min", {r.bbox_min.x(), r.bbox_min.y(), r.bbox_min.z()}},
-          {"bbox_max", {r.bbox_max.x(), r.bbox_max.y(), r.bbox_max.z()}},
-          {"warnings", r.warnings}};
+  return nlohmann::json::parse(to_json(r));
 }
 
 void print_report(const std::string& name, const MeshReport& r) {
@@ -82,21 +60,7 @@ nlohmann::json matrix3(const Eigen::Matrix3d& m) {
 }
 
 nlohmann::json volume_report_json(const VolumeReport& r) {
-  const nlohmann::json dir = matrix3(r.direction);
-  return {{"kind", "volume"},
-          {"dims", {r.dims[0], r.dims[1], r.dims[2]}},
-          {"spacing", vec3(r.spacing)},
-          {"origin", vec3(r.origin)},
-          {"direction", dir},
-          {"frame", "LPS"},
-          {"orientation", r.orientation},
-          {"oblique", r.oblique},
-          {"bbox_min", vec3(r.bbox_min)},
-          {"bbox_max", vec3(r.bbox_max)},
-          {"min", r.min},
-          {"max", r.max},
-          {"mean", r.mean},
-          {"nonfinite", r.nonfinite}};
+  return nlohmann::json::parse(to_json(r));
 }
 
 void print_volume_report(const std::string& path, const VolumeReport& r) {

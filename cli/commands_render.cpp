@@ -39,7 +39,7 @@ void apply_view_options(RenderOptions& r, const std::string& view, const std::st
     throw InputError(fmt::format("--view '{}' must be AZ,EL in degrees, e.g. 30,20", view));
   if (std::sscanf(size.c_str(), "%dx%d", &r.width, &r.height) != 2)
     throw InputError(fmt::format("--size '{}' must be WxH, e.g. 960x720", size));
-  r.up_axis = up == "x" ? 0 : (up == "y" ? 1 : 2);
+  r.up_axis = parse_up_axis(up);
 }
 
 void add_render_command(CLI::App& app) {
@@ -68,7 +68,7 @@ void add_render_command(CLI::App& app) {
     if (!a->center.empty()) r.center = mesh.positions().row(parse_vertex(mesh, a->center, "--center")).transpose();
     apply_view_options(r, a->view, a->up, a->size);
     r.title = a->title;
-    r.colormap = a->colormap == "coolwarm" ? Colormap::Coolwarm : Colormap::Viridis;
+    r.colormap = parse_colormap(a->colormap);
     if (!a->field.empty()) {
       const auto it = d.vertex_scalars.find(a->field);
       if (it == d.vertex_scalars.end()) {

@@ -213,6 +213,7 @@ void run_correct(const CorrectArgs& a) {
   Field disp;
   {
     const CorrectionResult r = correct_vessel(mesh, p);
+    if (!r.converged) throw SolverError(fmt::format("the correction's solve did not converge: {}", r.solver_message));
     V = r.V;
     disp = r.displacement;
     if (!r.accuracy_warning.empty()) fmt::print(stderr, "warning: {}\n", r.accuracy_warning);
@@ -222,58 +223,8 @@ void run_correct(const CorrectArgs& a) {
                  "warning: {}: only {:.3f} of the displacement was applied: the whole of it would make the surface "
                  "intersect itself ({}; --allow-intersections applies it all)\n",
                  a.mesh, r.applied_fraction, r.intersection_action);
-    j = {{"moved_vertices", r.moved_vertices},
-         {"max_displacement", r.max_displacement},
-         {"region_vertices", r.region.size()},
-         {"new_self_intersections", r.new_self_intersections},
-         {"time_ms", r.time_ms},
-         {"method", a.method},
-         {"boundary", a.boundary},
-         {"dynamic", a.dynamic},
-         {"laplacian", to_string(r.laplacian)},
-         {"laplacian_reason", r.laplacian_reason},
-         {"relative_residual", r.relative_residual},
-         {"condition_estimate", r.condition_estimate},
-         {"error_bound", r.error_bound},
-         {"accuracy_warning", r.accuracy_warning.empty() ? nlohmann::json() : nlohmann::json(r.accuracy_warning)},
-         {"region_warning", r.region_warning.empty() ? nlohmann::json() : nlohmann::json(r.region_warning)},
-         {"applied_fraction", r.applied_fraction},
-         {"substeps", r.substeps},
-         {"intersection_action", r.intersection_action},
-         {"handles", p.handles.size()},
-         {"handle_radius", r.handle_radius},
-         {"solver", to_string(r.solver)},
-         {"units", to_string(p.units)}};
-    nlohmann::json held = nlohmann::json::array();
-    for (const Cap& c : caps)
-      held.push_back({{"label", c.label},
-                      {"faces", c.faces.size()},
-                      {"vertices", c.vertices.size()},
-                      {"centre", {c.centre.x(), c.centre.y(), c.centre.z()}},
-                      {"normal", {c.normal.x(), c.normal.y(), c.normal.z()}}});
-    nlohmann::json handle_points = nlohmann::json::array();
-    for (const CorrectionHandle& h : p.handles) {
-      nlohmann::json hj = {{"vertex", h.vertex},
-                           {"displacement", {h.displacement.x(), h.displacement.y(), h.displacement.z()}}};
-      if (h.point) {
-        const Eigen::Vector3d x = position(mesh, *h.point);
-        hj["triangle"] = h.point->face;
-        hj["barycentric"] = {h.point->bary.x(), h.point->bary.y(), h.point->bary.z()};
-        hj["position"] = {x.x(), x.y(), x.z()};
-      }
-      handle_points.push_back(hj);
-    }
-    j["handle_points"] = handle_points;
-    j["caps"] = {{"rule", a.caps},
-                 {"label_array", label_array.empty() ? nlohmann::json() : nlohmann::json(label_array)},
-                 {"held_vertices", p.held.size()},
-                 {"caps", held}};
-    if (p.image.edges) {
-      j["image"] = {{"pulled_vertices", r.pulled_vertices},
-                    {"mean_edge_before", r.image_mean_edge_before},
-                    {"mean_edge_after", r.image_mean_edge_after},
-                    {"space", to_string(space)}};
-    }
+    j = nlohmann::json::parse(
+        correction_report_json(mesh.positions(), mesh.triangles(), p, r, CorrectionCaps{a.caps, label_array, caps}));
   }
   // Keep everything the input carried; add the displacement (vector and length). A
   // frame given with --space is written too (SPACE= in .vtk, SPACE field data in .vtp).

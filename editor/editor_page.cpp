@@ -27,7 +27,7 @@
 #include "meshpde/io/zip_archive.h"
 #endif
 
-namespace meshpde::cli {
+namespace meshpde::editor {
 
 namespace fs = std::filesystem;
 
@@ -860,4 +860,4 @@ void EditorPage::frame() {
   send_stats(false);
 }
 
-}  // namespace meshpde::cli
+}  // namespace meshpde::editor

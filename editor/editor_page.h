@@ -27,12 +27,12 @@
 #include <nlohmann/json_fwd.hpp>
 #include <string>
 
-#include "meshpde/apps/editor_session.h"
+#include "meshpde/editor/editor_session.h"
 #include "meshpde/image/volume.h"
 #include "meshpde/io/mesh_io.h"
 #include "meshpde/mesh/units.h"
 
-namespace meshpde::cli {
+namespace meshpde::editor {
 
 /// A mesh with the name and format it came in, so saving writes the same format.
 struct Loaded {
@@ -178,4 +178,4 @@ class EditorPage {
   std::chrono::steady_clock::time_point last_stats_{};
 };
 
-}  // namespace meshpde::cli
+}  // namespace meshpde::editor

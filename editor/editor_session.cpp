@@ -1,4 +1,4 @@
-#include "meshpde/apps/editor_session.h"
+#include "meshpde/editor/editor_session.h"
 
 #include <fmt/format.h>
 

@@ -25,15 +25,16 @@ BOXES = [
     (3, 0.0, 6.4, "solvers/", "conjugate gradients, sparse Cholesky (CHOLMOD), surface multigrid, orderings", CORE),
     (4, 0.0, 6.4, "pde/", "PdeSession (stepping, constraints, self-adjusting domain), steady solves,\nglobal bi-Laplacian",
      CORE),
-    (5, 0.0, 6.4, "apps/", "vessel correction, drag, interpolation, fairing, heat and wave, haptics,\nthe editor's session",
+    (5, 0.0, 6.4, "apps/", "vessel correction, drag, interpolation, fairing, heat and wave, haptics,\nsegment surfaces",
      CORE),
-    (6, 0.0, 2.0, "cli/", "meshpde, meshpde-mpi,\nserve (the editor's server)", FRONT),
+    (6, 0.0, 2.0, "cli/", "meshpde, meshpde-mpi;\nserve starts the editor", FRONT),
     (6, 2.2, 2.0, "python/", "the meshpde module\n(pybind11), meshpde.batch", FRONT),
     (6, 4.4, 2.0, "web/", "the editor page\n(three.js)", FRONT),
     (1.5, 7.0, 3.0, "meshpde::medical", "src/medical/: .vtp/.vtk (VTK), MetaImage, NIfTI,\nNRRD, DICOM (GDCM), segmentations",
      OPTIONAL),
     (3.0, 7.0, 3.0, "meshpde::viz", "viz/: the headless renderer (PNG)", OPTIONAL),
     (4.5, 7.0, 3.0, "meshpde::distributed", "distributed/: partitions, solves\nover MPI (PETSc)", OPTIONAL),
+    (0.0, 7.0, 3.0, "meshpde::editor", "editor/: a page's session and protocol,\nthe server (websocketpp)", OPTIONAL),
 ]
 
 

@@ -1,4 +1,5 @@
-// apps/heat_wave.h: heat and wave stepping, their conservation and energy laws.
+// apps/heat_wave.h: heat and wave stepping, their conservation and energy laws, and
+// the heat equation's eigenmode decay on the sphere.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -9,6 +10,7 @@
 #include "meshpde/core/errors.h"
 #include "meshpde/mesh/generators.h"
 #include "meshpde/operators/fem_operators.h"
+#include "meshpde/pde/pde_session.h"
 #include "test_support.h"
 
 using namespace meshpde;
@@ -82,4 +84,34 @@ TEST(HeatWave, DampedWaveEnergyDecaysMonotonically) {
   });
   EXPECT_EQ(rises, 0);
   EXPECT_LT(last, 0.5 * first);
+}
+
+// Heat equation u_t = lap u on the unit sphere: Y_l decays as exp(-l(l+1) t).
+TEST(Heat, SphericalHarmonicsDecayAtTheAnalyticRate) {
+  const Mesh m = make(icosphere(5));  // 10,242 vertices
+  ASSERT_GE(m.num_vertices(), 10000);
+  const FemOperators ops = build_operators(m);
+  const auto& V = m.positions();
+  for (int l = 1; l <= 3; ++l) {
+    SCOPED_TRACE(l);
+    Field u0(m.num_vertices(), 1);
+    for (int i = 0; i < m.num_vertices(); ++i) {
+      const double z = V(i, 2);
+      u0(i, 0) = l == 1 ? z : (l == 2 ? 1.5 * z * z - 0.5 : 2.5 * z * z * z - 1.5 * z);  // Legendre P_l(z)
+    }
+    PdeSession s(m, ops, 1, PdeCoefficients{.alpha = 0, .b1 = 1, .b2 = 0, .g1 = 1, .g2 = 0});
+    s.cg_options.tolerance = 1e-12;
+    s.set_values(u0);
+    s.activate_all();
+    const double dt = 2.5e-4, t = 0.05;
+    const int steps = static_cast<int>(std::lround(t / dt));
+    for (int k = 0; k < steps; ++k) {
+      ASSERT_TRUE(s.step(dt).cg.converged());
+    }
+    // Projection onto u0 in the mass inner product.
+    const double ratio = (u0.cwiseProduct(ops.mass.asDiagonal() * s.values())).sum() /
+                         (u0.cwiseProduct(ops.mass.asDiagonal() * u0)).sum();
+    const double rate = -std::log(ratio) / t;
+    EXPECT_NEAR(rate / (l * (l + 1)), 1.0, 0.01);
+  }
 }

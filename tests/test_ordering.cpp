@@ -11,13 +11,13 @@
 #include <unordered_set>
 
 #include "../src/core/index_map.h"
-#include "meshpde/apps/editor_session.h"
 #include "meshpde/apps/fairing.h"
 #include "meshpde/apps/interpolation.h"
 #include "meshpde/apps/local_drag.h"
 #include "meshpde/apps/vessel_correction.h"
 #include "meshpde/core/errors.h"
 #include "meshpde/core/parallel.h"
+#include "meshpde/editor/editor_session.h"
 #include "meshpde/mesh/generators.h"
 #include "meshpde/mesh/regions.h"
 #include "meshpde/mesh/topology.h"

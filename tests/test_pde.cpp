@@ -1,10 +1,11 @@
-// Constraints, conservation, the self-adjusting domain and localization.
+// pde/pde_session.h: constraints and reaction forces, conservation, backward Euler
+// steps, the self-adjusting domain and localization.
 #include <gtest/gtest.h>
 
+#include <Eigen/SparseCore>
 #include <chrono>
 #include <random>
 
-#include "meshpde/apps/local_drag.h"
 #include "meshpde/core/errors.h"
 #include "meshpde/mesh/generators.h"
 #include "meshpde/mesh/topology.h"
@@ -279,20 +280,35 @@ TEST(Pde, LocalizedPokeOnAHalfMillionVertexMeshMatchesAFullSolve) {
   EXPECT_LE((a.reaction_forces() - b.reaction_forces()).norm(), 1e-3 * b.reaction_forces().norm());
 }
 
-TEST(LocalDrag, MovesTheHandleAndStaysInsideTheRegion) {
-  const Mesh m = make(y_bifurcation(BifurcationParams{.cell = 1.0, .dent = true}));
+TEST(Step, ReactionForceEqualsAssembledBackwardEulerRow) {
+  const Mesh m = make(icosphere(3));
   const FemOperators ops = build_operators(m);
-  const DragResult r = drag_vertex(m, ops, DragParams{.vertex = 5, .displacement = {0.5, 0, 0}, .radius = 5.0});
-  ASSERT_TRUE(r.cg.converged()) << r.cg.message;
-  EXPECT_NEAR((r.V.row(5) - m.positions().row(5)).norm(), 0.5, 1e-12);
-  std::vector<char> in(m.num_vertices(), 0);
-  for (int v : r.region) in[v] = 1;
-  in[5] = 1;
-  for (int v = 0; v < m.num_vertices(); ++v)
-    if (!in[v]) {
-      ASSERT_EQ(r.displacement.row(v).norm(), 0.0);
-    }
-  EXPECT_GT(r.moved_vertices, 20);
-  // Smooth decay: displacement is largest at the handle.
-  EXPECT_LE(r.displacement.rowwise().norm().maxCoeff(), 0.5 * (1 + 1e-9) + 0.05);
+  const PdeCoefficients c{.alpha = 1.0, .b1 = 0.5, .b2 = 0.01, .g0 = 0.1, .g1 = 0.3, .g2 = 0.2};
+  PdeSession s(m, ops, 1, c);
+  s.cg_options.tolerance = 1e-13;
+  s.activate_all();
+  const double dt = 0.01;
+  Field f = Field::Zero(m.num_vertices(), 1);
+  f(7, 0) = 0.25;
+  for (int k = 0; k < 3; ++k) {
+    const double v = 0.01 * (k + 1);
+    s.constrain(5, std::span<const double>(&v, 1));
+    const Field u_old = s.values(), v_old = s.velocities();
+    ASSERT_TRUE(s.step(dt, &f).cg.converged());
+    // Assemble At and b and evaluate (row_5(At) v - b_5) / dt independently.
+    const Eigen::SparseMatrix<double> K = stiffness_matrix(m, ops);
+    Eigen::SparseMatrix<double> D(m.num_vertices(), m.num_vertices());
+    for (int i = 0; i < m.num_vertices(); ++i) D.insert(i, i) = ops.D(i);
+    const Eigen::SparseMatrix<double> M = mass_matrix(ops);
+    const Eigen::SparseMatrix<double> Kt = c.g0 * M + c.g1 * K + c.g2 * (K * D * K);
+    const Eigen::SparseMatrix<double> At = (c.alpha + c.b1 * dt) * M + (c.b2 + dt) * dt * Kt;
+    const Eigen::VectorXd vv = s.velocities().col(0);
+    const Eigen::VectorXd bb = c.alpha * (M * Eigen::VectorXd(v_old.col(0))) -
+                               dt * (Kt * Eigen::VectorXd(u_old.col(0))) + dt * Eigen::VectorXd(f.col(0));
+    Eigen::VectorXd res = At * vv - bb;
+    EXPECT_NEAR(s.reaction_forces()(0, 0), res[5] / dt, 1e-9 * std::abs(res[5] / dt) + 1e-12);
+    // Every free row satisfies the backward Euler equation.
+    res[5] = 0;
+    EXPECT_LE(res.cwiseAbs().maxCoeff(), 1e-10 * bb.cwiseAbs().maxCoeff());
+  }
 }

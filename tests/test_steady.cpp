@@ -12,13 +12,13 @@
 #include <unordered_set>
 
 #include "../src/core/index_map.h"
-#include "meshpde/apps/editor_session.h"
 #include "meshpde/apps/fairing.h"
 #include "meshpde/apps/interpolation.h"
 #include "meshpde/apps/local_drag.h"
 #include "meshpde/apps/vessel_correction.h"
 #include "meshpde/core/errors.h"
 #include "meshpde/core/parallel.h"
+#include "meshpde/editor/editor_session.h"
 #include "meshpde/mesh/generators.h"
 #include "meshpde/mesh/regions.h"
 #include "meshpde/mesh/topology.h"
@@ -37,36 +37,6 @@
 
 using namespace meshpde;
 using namespace meshpde::test;
-
-// Heat equation u_t = lap u on the unit sphere: Y_l decays as exp(-l(l+1) t).
-TEST(Heat, SphericalHarmonicsDecayAtTheAnalyticRate) {
-  const Mesh m = make(icosphere(5));  // 10,242 vertices
-  ASSERT_GE(m.num_vertices(), 10000);
-  const FemOperators ops = build_operators(m);
-  const auto& V = m.positions();
-  for (int l = 1; l <= 3; ++l) {
-    SCOPED_TRACE(l);
-    Field u0(m.num_vertices(), 1);
-    for (int i = 0; i < m.num_vertices(); ++i) {
-      const double z = V(i, 2);
-      u0(i, 0) = l == 1 ? z : (l == 2 ? 1.5 * z * z - 0.5 : 2.5 * z * z * z - 1.5 * z);  // Legendre P_l(z)
-    }
-    PdeSession s(m, ops, 1, PdeCoefficients{.alpha = 0, .b1 = 1, .b2 = 0, .g1 = 1, .g2 = 0});
-    s.cg_options.tolerance = 1e-12;
-    s.set_values(u0);
-    s.activate_all();
-    const double dt = 2.5e-4, t = 0.05;
-    const int steps = static_cast<int>(std::lround(t / dt));
-    for (int k = 0; k < steps; ++k) {
-      ASSERT_TRUE(s.step(dt).cg.converged());
-    }
-    // Projection onto u0 in the mass inner product.
-    const double ratio = (u0.cwiseProduct(ops.mass.asDiagonal() * s.values())).sum() /
-                         (u0.cwiseProduct(ops.mass.asDiagonal() * u0)).sum();
-    const double rate = -std::log(ratio) / t;
-    EXPECT_NEAR(rate / (l * (l + 1)), 1.0, 0.01);
-  }
-}
 
 TEST(Steady, BilaplacianReproducesLinearFieldsExactly) {
   const GeneratedMesh g = test::jittered_plane(16, 0.015, 11);
@@ -153,39 +123,6 @@ TEST(Steady, ReactionForcesEqualAssembledRows) {
     }
 }
 
-TEST(Step, ReactionForceEqualsAssembledBackwardEulerRow) {
-  const Mesh m = make(icosphere(3));
-  const FemOperators ops = build_operators(m);
-  const PdeCoefficients c{.alpha = 1.0, .b1 = 0.5, .b2 = 0.01, .g0 = 0.1, .g1 = 0.3, .g2 = 0.2};
-  PdeSession s(m, ops, 1, c);
-  s.cg_options.tolerance = 1e-13;
-  s.activate_all();
-  const double dt = 0.01;
-  Field f = Field::Zero(m.num_vertices(), 1);
-  f(7, 0) = 0.25;
-  for (int k = 0; k < 3; ++k) {
-    const double v = 0.01 * (k + 1);
-    s.constrain(5, std::span<const double>(&v, 1));
-    const Field u_old = s.values(), v_old = s.velocities();
-    ASSERT_TRUE(s.step(dt, &f).cg.converged());
-    // Assemble At and b and evaluate (row_5(At) v - b_5) / dt independently.
-    const Eigen::SparseMatrix<double> K = stiffness_matrix(m, ops);
-    Eigen::SparseMatrix<double> D(m.num_vertices(), m.num_vertices());
-    for (int i = 0; i < m.num_vertices(); ++i) D.insert(i, i) = ops.D(i);
-    const Eigen::SparseMatrix<double> M = mass_matrix(ops);
-    const Eigen::SparseMatrix<double> Kt = c.g0 * M + c.g1 * K + c.g2 * (K * D * K);
-    const Eigen::SparseMatrix<double> At = (c.alpha + c.b1 * dt) * M + (c.b2 + dt) * dt * Kt;
-    const Eigen::VectorXd vv = s.velocities().col(0);
-    const Eigen::VectorXd bb = c.alpha * (M * Eigen::VectorXd(v_old.col(0))) -
-                               dt * (Kt * Eigen::VectorXd(u_old.col(0))) + dt * Eigen::VectorXd(f.col(0));
-    Eigen::VectorXd res = At * vv - bb;
-    EXPECT_NEAR(s.reaction_forces()(0, 0), res[5] / dt, 1e-9 * std::abs(res[5] / dt) + 1e-12);
-    // Every free row satisfies the backward Euler equation.
-    res[5] = 0;
-    EXPECT_LE(res.cwiseAbs().maxCoeff(), 1e-10 * bb.cwiseAbs().maxCoeff());
-  }
-}
-
 TEST(Steady, AssembledMatrixIsThePrincipalBlockOfTheWholeMeshProduct) {
   // Independent: g0 M + g1 K + g2 K D K from Eigen's sparse products over the whole
   // mesh, then the rows and columns of the free vertices in the order given. Below and
@@ -224,4 +161,60 @@ TEST(Steady, AssembledMatrixIsThePrincipalBlockOfTheWholeMeshProduct) {
     }
   }
   set_max_threads(limit);
+}
+
+TEST(Steady, EverySolverRunsThroughSolveSteadyAndNonConvergenceIsAStatus) {
+  // A cap of the icosphere held at a smooth field, the rest free: the bi-Laplacian
+  // problem every application solves, by each solver through the one entry point.
+  const auto g = icosphere(3);
+  const Mesh mesh(g.V, g.F);
+  const FemOperators ops = build_operators(mesh);
+  Field u = Field::Zero(mesh.num_vertices(), 3);
+  std::vector<int> free;
+  for (int v = 0; v < mesh.num_vertices(); ++v) {
+    if (g.V(v, 2) < -0.5)
+      u.row(v) = g.V.row(v) * 0.1;  // held
+    else
+      free.push_back(v);
+  }
+  const PdeCoefficients coef{.g0 = 0, .g1 = 0, .g2 = 1};
+  const SteadySolveResult direct = solve_steady(mesh, ops, coef, free, u, SteadySolver::Direct);
+  EXPECT_TRUE(direct.converged);
+  const double scale = direct.values.cwiseAbs().maxCoeff();
+  for (const SteadySolver s : {SteadySolver::Iterative, SteadySolver::Global, SteadySolver::Auto}) {
+    const SteadySolveResult r = solve_steady(mesh, ops, coef, free, u, s, kAutoGlobalFromFreeVertices,
+                                             CgOptions{.tolerance = 1e-12, .max_iterations = 100000});
+    EXPECT_TRUE(r.converged) << to_string(s) << ": " << r.message;
+    EXPECT_EQ(r.solver, s == SteadySolver::Auto ? SteadySolver::Direct : s);
+    EXPECT_LE((r.values - direct.values).cwiseAbs().maxCoeff() / scale, 1e-6) << to_string(s);
+    for (int v = 0; v < mesh.num_vertices(); ++v)
+      if (g.V(v, 2) < -0.5) {
+        ASSERT_EQ(r.values.row(v), u.row(v)) << "held vertex " << v << " moved";
+      }
+  }
+  // Iterative stopped after 5 iterations: a status, the last iterate, no exception.
+  const SteadySolveResult cut = solve_steady(mesh, ops, coef, free, u, SteadySolver::Iterative,
+                                             kAutoGlobalFromFreeVertices, CgOptions{.max_iterations = 5});
+  EXPECT_FALSE(cut.converged);
+  EXPECT_EQ(cut.iterations, 5);
+  EXPECT_NE(cut.message.find("no convergence in 5 iterations"), std::string::npos) << cut.message;
+  EXPECT_EQ(cut.cg().status, CgStatus::MaxIterations);
+  EXPECT_TRUE(cut.values.allFinite());
+  // And so in the applications that take the solver: interpolate and fair.
+  InterpolationParams ip;
+  ip.solver = SteadySolver::Iterative;
+  ip.cg = CgOptions{.max_iterations = 3};
+  const InterpolationResult ir =
+      interpolate(mesh, ops, FieldKind::Scalar, {{0, Eigen::VectorXd::Ones(1)}, {7, Eigen::VectorXd::Zero(1)}}, ip);
+  EXPECT_FALSE(ir.cg.converged());
+  EXPECT_EQ(ir.cg.iterations, 3);
+  FairParams fp;
+  fp.solver = SteadySolver::Iterative;
+  fp.cg = CgOptions{.max_iterations = 3};
+  std::vector<int> fixed;
+  for (int v = 0; v < mesh.num_vertices(); ++v)
+    if (g.V(v, 2) < 0) fixed.push_back(v);
+  const FairResult fr = fair(mesh, fixed, fp);
+  EXPECT_FALSE(fr.converged);
+  EXPECT_NE(fr.message.find("no convergence"), std::string::npos) << fr.message;
 }

@@ -1,7 +1,6 @@
 // Vessel correction on generated vessels: resolution independence (and the thesis
 // method failing it), no self-intersections at a carina, several handles, tissue
-// stiffness, dynamics settling to the static answer, undo and redo; the BVH
-// intersection test and the surface distance against direct constructions.
+// stiffness, dynamics settling to the static answer, undo and redo.
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 
@@ -73,40 +72,6 @@ int carina(const Mesh& m) {
 }
 
 }  // namespace
-
-TEST(SurfaceDistance, PointTriangleAndHausdorffAgainstHandComputedCases) {
-  const Eigen::Vector3d a(0, 0, 0), b(1, 0, 0), c(0, 1, 0);
-  EXPECT_DOUBLE_EQ(point_triangle_distance(Eigen::Vector3d(0.2, 0.2, 3), a, b, c), 3.0);           // face
-  EXPECT_DOUBLE_EQ(point_triangle_distance(Eigen::Vector3d(-3, -4, 0), a, b, c), 5.0);             // vertex
-  EXPECT_NEAR(point_triangle_distance(Eigen::Vector3d(1, 1, 0), a, b, c), std::sqrt(0.5), 1e-15);  // edge
-  // Two concentric icospheres: every sample of the outer one is 0.5 from the inner
-  // surface at most (more where the inner facets are flat), at least 0.5 - chord error.
-  const GeneratedMesh s1 = icosphere(3, 1.0), s2 = icosphere(3, 1.5);
-  const double h = hausdorff_distance(s1.V, s1.F, s2.V, s2.F);
-  EXPECT_GT(h, 0.5);
-  EXPECT_LT(h, 0.52);
-  EXPECT_LT(hausdorff_distance(s1.V, s1.F, s1.V, s1.F), 1e-12);
-}
-
-TEST(SelfIntersections, TriangleTestsAndTheCheckerFollowTheMovedRegion) {
-  const Eigen::Vector3d a(0, 0, 0), b(1, 0, 0), c(0, 1, 0);
-  EXPECT_TRUE(triangles_intersect(a, b, c, {0.2, 0.2, -1}, {0.2, 0.2, 1}, {0.3, 0.25, 1}));
-  EXPECT_FALSE(triangles_intersect(a, b, c, {0.2, 0.2, 0.1}, {0.2, 0.2, 1}, {0.3, 0.25, 1}));
-  // A tube: push a wall vertex straight through the opposite wall.
-  const Mesh t = tube_at(24);
-  const SelfIntersectionChecker checker(t);
-  EXPECT_TRUE(checker.all_pairs().empty());
-  const int v = nearest_vertex(t, {5, 0, 30});
-  Positions V = t.positions();
-  EXPECT_EQ(checker.count_new(V, std::vector<int>{v}), 0);
-  V(v, 0) = -7;  // through the wall at x = -5
-  const int n = checker.count_new(V, std::vector<int>{v});
-  EXPECT_GT(n, 0);
-  // The same count from the whole-mesh check built on the moved positions.
-  Mesh moved = t;
-  moved.set_positions(V);
-  EXPECT_EQ(static_cast<int>(SelfIntersectionChecker(moved).all_pairs().size()), n);
-}
 
 TEST(Vessel, SameDragAtThreeResolutionsGivesTheSameSurface) {
   const Eigen::Vector3d at(5, 0, 30), d(-4, 0, 1);  // 4.1 mm inwards and along

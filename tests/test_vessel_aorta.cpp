@@ -7,9 +7,10 @@
 #include <algorithm>
 #include <cmath>
 
-#include "meshpde/apps/editor_session.h"
 #include "meshpde/apps/local_drag.h"
 #include "meshpde/apps/vessel_correction.h"
+#include "meshpde/core/errors.h"
+#include "meshpde/editor/editor_session.h"
 #include "meshpde/io/medical_io.h"
 #include "meshpde/mesh/surface_distance.h"
 #include "meshpde/mesh/topology.h"

@@ -2,11 +2,11 @@
 // mesh -> operators -> solvers -> PDE stepping -> applications). Link meshpde::meshpde.
 //
 // Not included: io/medical_io.h (.vtp/.vtk meshes and volumes: meshpde::medical, on
-// VTK 9) and viz/render.h (pictures: meshpde::viz, on libpng), each with its own
-// target so that the core needs neither.
+// VTK 9), viz/render.h (pictures: meshpde::viz, on libpng) and editor/editor_session.h
+// (the browser editor's session: meshpde::editor), each with its own target so that
+// the core needs none of them.
 #pragma once
 
-#include "meshpde/apps/editor_session.h"
 #include "meshpde/apps/fairing.h"
 #include "meshpde/apps/haptics.h"
 #include "meshpde/apps/heat_wave.h"

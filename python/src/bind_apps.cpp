@@ -128,9 +128,8 @@ struct CorrectionOptions {
   CorrectionParams params;
   std::string method = "fem";
   std::string solver = "auto";
-  std::optional<std::string> image_space;
   std::string units_warning;  // the mesh looks unlike a vessel in params.units
-  std::string caps = "labels";
+  CorrectionCaps caps;        // the rule, and the caps it found, for the report
 };
 
 Volume volume_arg(const py::handle& image) {
@@ -250,14 +249,15 @@ CorrectionOptions correction_options(const Mesh& mesh, const py::handle& vertice
   tissue("mass", p.tissue.mass, p.tissue.mass_field);
   tissue("elasticity", p.tissue.elasticity, p.tissue.elasticity_field);
   tissue("viscosity", p.tissue.viscosity, p.tissue.viscosity_field);
-  if (const py::object v = get("caps"); !v.is_none()) c.caps = v.cast<std::string>();
+  if (const py::object v = get("caps"); !v.is_none()) c.caps.rule = v.cast<std::string>();
   Eigen::VectorXi labels;
   if (const py::object v = get("face_labels"); !v.is_none()) {
     const Eigen::VectorXd x = vector_arg(v, "face_labels", mesh.num_faces());
     if (!(x.array() == x.array().round()).all()) throw InputError("face_labels: expected whole numbers");
     labels = x.cast<int>();
   }
-  p.held = cap_vertices(find_caps(mesh, labels, parse_cap_rule(c.caps)));
+  c.caps.caps = find_caps(mesh, labels, parse_cap_rule(c.caps.rule));
+  p.held = cap_vertices(c.caps.caps);
   if (const py::object v = get("allow_intersections"); !v.is_none()) p.prevent_intersections = !v.cast<bool>();
   integer("max_substeps", p.max_substeps);
   if (const py::object v = get("solver"); !v.is_none()) {
@@ -276,89 +276,24 @@ CorrectionOptions correction_options(const Mesh& mesh, const py::handle& vertice
     Volume volume = volume_arg(image);
     py::gil_scoped_release release;
     p.image.edges = std::make_shared<const Volume>(gradient_magnitude(volume, sigma));
-    c.image_space = to_string(p.image.space);
   }
   return c;
 }
 
-// A correction's report: the fields of `meshpde correct --json` under the same names,
-// plus the arrays (V, displacement, region).
+// A correction's result: its arrays, and its report (correction_report_json, the
+// object `meshpde correct --json` prints) as a dict whose keys are also attributes.
 struct PyCorrectionResult {
   CorrectionResult r;
-  std::string method;
-  bool dynamic = false;
-  int handles = 0;
-  std::optional<std::string> image_space;
-  std::string solver;
-  std::string units;
-  std::string boundary = "smooth";
-  std::string caps = "labels";
-  std::size_t held_vertices = 0;
-  py::list handle_points =
-      py::list();  // per handle: vertex, displacement, and a point's triangle and barycentric coordinates
+  py::dict report;
 
-  py::object image() const {
-    if (!image_space) return py::none();
-    py::dict d;
-    d["pulled_vertices"] = r.pulled_vertices;
-    d["mean_edge_before"] = r.image_mean_edge_before;
-    d["mean_edge_after"] = r.image_mean_edge_after;
-    d["space"] = *image_space;
-    return d;
-  }
-  py::object accuracy_warning() const {
-    return r.accuracy_warning.empty() ? py::object(py::none()) : py::object(py::str(r.accuracy_warning));
-  }
-  py::dict to_dict() const {
-    py::dict j;
-    j["moved_vertices"] = r.moved_vertices;
-    j["max_displacement"] = r.max_displacement;
-    j["region_vertices"] = r.region.size();
-    j["new_self_intersections"] = r.new_self_intersections;
-    j["time_ms"] = r.time_ms;
-    j["method"] = method;
-    j["boundary"] = boundary;
-    j["dynamic"] = dynamic;
-    j["laplacian"] = to_string(r.laplacian);
-    j["laplacian_reason"] = r.laplacian_reason;
-    j["relative_residual"] = r.relative_residual;
-    j["condition_estimate"] = r.condition_estimate;
-    j["error_bound"] = r.error_bound;
-    j["accuracy_warning"] = accuracy_warning();
-    j["region_warning"] = r.region_warning.empty() ? py::object(py::none()) : py::object(py::str(r.region_warning));
-    j["applied_fraction"] = r.applied_fraction;
-    j["substeps"] = r.substeps;
-    j["intersection_action"] = r.intersection_action;
-    j["handles"] = handles;
-    j["handle_radius"] = r.handle_radius;
-    j["handle_points"] = handle_points;
-    j["solver"] = solver;
-    j["units"] = units;
-    py::dict held;
-    held["rule"] = caps;
-    held["held_vertices"] = held_vertices;
-    j["caps"] = held;
-    if (image_space) j["image"] = image();
-    return j;
-  }
+  py::object get(const char* key) const { return report[key]; }
+  py::dict to_dict() const { return py::dict(report); }
 };
 
-PyCorrectionResult wrap(CorrectionResult r, const CorrectionOptions& c) {
-  PyCorrectionResult out{std::move(r),  c.method, c.params.dynamic,          static_cast<int>(c.params.handles.size()),
-                         c.image_space, c.solver, to_string(c.params.units), to_string(c.params.boundary)};
-  out.solver = to_string(out.r.solver);  // the one that ran: auto resolved
-  out.caps = c.caps;
-  out.held_vertices = c.params.held.size();
-  for (const CorrectionHandle& h : c.params.handles) {
-    py::dict d;
-    d["vertex"] = h.vertex;
-    d["displacement"] = py::make_tuple(h.displacement.x(), h.displacement.y(), h.displacement.z());
-    if (h.point) {
-      d["triangle"] = h.point->face;
-      d["barycentric"] = py::make_tuple(h.point->bary.x(), h.point->bary.y(), h.point->bary.z());
-    }
-    out.handle_points.append(d);
-  }
+// V, F: the surface the handles were given on.
+PyCorrectionResult wrap(const Positions& V, const Triangles& F, CorrectionResult r, const CorrectionOptions& c) {
+  PyCorrectionResult out{std::move(r), {}};
+  out.report = json_to_python(correction_report_json(V, F, c.params, out.r, c.caps));
   if (out.r.applied_fraction < 1)
     PyErr_WarnEx(PyExc_UserWarning,
                  fmt::format("only {:.3f} of the displacement was applied: the whole of it would make the surface "
@@ -378,12 +313,14 @@ class PyCorrectionSession {
   PyCorrectionSession(const py::handle& V, const py::handle& F) : session_(mesh_arg(V, F)) {}
   PyCorrectionResult apply(const py::handle& vertices, const py::handle& moves, const py::dict& options) {
     const CorrectionOptions c = correction_options(session_.mesh(), vertices, moves, options);
+    const Positions before = session_.mesh().positions();
     CorrectionResult r;
     {
       py::gil_scoped_release release;
       r = session_.apply(c.params);
     }
-    return wrap(std::move(r), c);
+    if (!r.converged) throw SolverError("the correction's solve did not converge: " + r.solver_message);
+    return wrap(before, session_.mesh().triangles(), std::move(r), c);
   }
   CorrectionSession session_;
 };
@@ -441,6 +378,7 @@ void bind_apps(py::module_& m) {
           py::gil_scoped_release release;
           r = fair(mesh, held, p);
         }
+        if (!r.converged) throw SolverError("fairing did not converge: " + r.message);
         auto quality = [](const TriangleQuality& q) {
           py::dict d;
           d["min_angle_deg"] = q.min_angle_deg;
@@ -488,6 +426,7 @@ void bind_apps(py::module_& m) {
           py::gil_scoped_release release;
           r = interpolate(mesh, k, cons, p);
         }
+        if (!r.cg.converged()) throw SolverError("interpolation did not converge: " + r.cg.message);
         if (k == FieldKind::Scalar) return py::object(to_numpy(Eigen::VectorXd(r.values.col(0))));
         return py::object(to_numpy(r.values));
       },
@@ -568,29 +507,29 @@ them). Answers equal interpolate(..., solver="direct") to rounding.)doc")
       .def_property_readonly("new_self_intersections",
                              [](const PyCorrectionResult& c) { return c.r.new_self_intersections; })
       .def_property_readonly("time_ms", [](const PyCorrectionResult& c) { return c.r.time_ms; })
-      .def_readonly("method", &PyCorrectionResult::method)
-      .def_readonly("boundary", &PyCorrectionResult::boundary)
-      .def_readonly("dynamic", &PyCorrectionResult::dynamic)
+      .def_property_readonly("method", [](const PyCorrectionResult& c) { return c.get("method"); })
+      .def_property_readonly("boundary", [](const PyCorrectionResult& c) { return c.get("boundary"); })
+      .def_property_readonly("dynamic", [](const PyCorrectionResult& c) { return c.get("dynamic"); })
       .def_property_readonly("laplacian",
                              [](const PyCorrectionResult& c) { return std::string(to_string(c.r.laplacian)); })
       .def_property_readonly("laplacian_reason", [](const PyCorrectionResult& c) { return c.r.laplacian_reason; })
       .def_property_readonly("relative_residual", [](const PyCorrectionResult& c) { return c.r.relative_residual; })
       .def_property_readonly("condition_estimate", [](const PyCorrectionResult& c) { return c.r.condition_estimate; })
       .def_property_readonly("error_bound", [](const PyCorrectionResult& c) { return c.r.error_bound; })
-      .def_property_readonly("accuracy_warning", &PyCorrectionResult::accuracy_warning)
+      .def_property_readonly("accuracy_warning", [](const PyCorrectionResult& c) { return c.get("accuracy_warning"); })
       .def_property_readonly(
-          "region_warning",
-          [](const PyCorrectionResult& c) {
-            return c.r.region_warning.empty() ? py::object(py::none()) : py::object(py::str(c.r.region_warning));
-          },
+          "region_warning", [](const PyCorrectionResult& c) { return c.get("region_warning"); },
           "set when the region holds only the handles (a radius below one edge): only they move")
       .def_property_readonly("applied_fraction", [](const PyCorrectionResult& c) { return c.r.applied_fraction; })
       .def_property_readonly("substeps", [](const PyCorrectionResult& c) { return c.r.substeps; })
       .def_property_readonly("intersection_action", [](const PyCorrectionResult& c) { return c.r.intersection_action; })
-      .def_readonly("handles", &PyCorrectionResult::handles)
-      .def_readonly("solver", &PyCorrectionResult::solver)
-      .def_readonly("units", &PyCorrectionResult::units, "unit of the mesh's coordinates: mm, cm or m")
-      .def_property_readonly("image", &PyCorrectionResult::image)
+      .def_property_readonly("handles", [](const PyCorrectionResult& c) { return c.get("handles"); })
+      .def_property_readonly("solver", [](const PyCorrectionResult& c) { return c.get("solver"); })
+      .def_property_readonly(
+          "units", [](const PyCorrectionResult& c) { return c.get("units"); },
+          "unit of the mesh's coordinates: mm, cm or m")
+      .def_property_readonly(
+          "image", [](const PyCorrectionResult& c) { return c.report.contains("image") ? c.get("image") : py::none(); })
       .def("to_dict", &PyCorrectionResult::to_dict, "The report as a dict, with the keys of `meshpde correct --json`.")
       .def("__repr__", [](const PyCorrectionResult& c) {
         return fmt::format("<CorrectionResult moved_vertices={} max_displacement={:.4g} new_self_intersections={}>",
@@ -608,7 +547,8 @@ them). Answers equal interpolate(..., solver="direct") to rounding.)doc")
           py::gil_scoped_release release;
           r = correct_vessel(mesh, c.params);
         }
-        return wrap(std::move(r), c);
+        if (!r.converged) throw SolverError("the correction's solve did not converge: " + r.solver_message);
+        return wrap(mesh.positions(), mesh.triangles(), std::move(r), c);
       },
       py::arg("V"), py::arg("F"), py::arg("vertices"), py::arg("moves"), py::arg("options"));
 

@@ -178,31 +178,7 @@ py::dict with_units_warning(py::dict report, const std::string& warning) {
 }
 
 py::dict report_to_python(const MeshReport& r) {
-  py::dict j;
-  j["vertices"] = r.vertices;
-  j["faces"] = r.faces;
-  j["edges"] = r.edges;
-  j["boundary_edges"] = r.boundary_edges;
-  j["boundary_loops"] = r.boundary_loops;
-  j["nonmanifold_edges"] = r.nonmanifold_edges;
-  j["nonmanifold_vertices"] = r.nonmanifold_vertices;
-  j["components"] = r.components;
-  j["degenerate_faces"] = r.degenerate_faces;
-  j["duplicate_vertices"] = r.duplicate_vertices;
-  j["unreferenced_vertices"] = r.unreferenced_vertices;
-  j["orientation_consistent"] = r.orientation_consistent;
-  j["inconsistent_edges"] = r.inconsistent_edges;
-  j["euler_characteristic"] = r.euler_characteristic;
-  j["area"] = r.area;
-  j["signed_volume"] = r.signed_volume;
-  j["min_angle_deg"] = r.min_angle_deg;
-  j["max_angle_deg"] = r.max_angle_deg;
-  j["area_ratio"] = r.area_ratio;
-  j["mean_edge_length"] = r.mean_edge_length;
-  j["bbox_min"] = py::make_tuple(r.bbox_min.x(), r.bbox_min.y(), r.bbox_min.z());
-  j["bbox_max"] = py::make_tuple(r.bbox_max.x(), r.bbox_max.y(), r.bbox_max.z());
-  j["warnings"] = r.warnings;
-  return j;
+  return json_to_python(to_json(r));
 }
 
 py::tuple vec3(const Eigen::Vector3d& v) {
@@ -215,23 +191,7 @@ py::tuple matrix3(const Eigen::Matrix3d& m) {
 }
 
 py::dict volume_report_to_python(const VolumeReport& r) {
-  const auto& vec = vec3;
-  py::dict j;
-  j["kind"] = "volume";
-  j["dims"] = py::make_tuple(r.dims[0], r.dims[1], r.dims[2]);
-  j["spacing"] = vec(r.spacing);
-  j["origin"] = vec(r.origin);
-  j["direction"] = matrix3(r.direction);
-  j["frame"] = "LPS";
-  j["orientation"] = r.orientation;
-  j["oblique"] = r.oblique;
-  j["bbox_min"] = vec(r.bbox_min);
-  j["bbox_max"] = vec(r.bbox_max);
-  j["min"] = r.min;
-  j["max"] = r.max;
-  j["mean"] = r.mean;
-  j["nonfinite"] = r.nonfinite;
-  return j;
+  return json_to_python(to_json(r));
 }
 
 #ifdef MESHPDE_HAVE_MEDICAL
@@ -275,19 +235,6 @@ py::dict dicom_info_to_python(const std::filesystem::path& path) {
   return j;
 }
 #endif
-
-Colormap parse_colormap(const std::string& name) {
-  if (name == "viridis") return Colormap::Viridis;
-  if (name == "coolwarm") return Colormap::Coolwarm;
-  throw InputError(fmt::format("colormap: expected 'viridis' or 'coolwarm', got '{}'", name));
-}
-
-int parse_up(const std::string& up) {
-  if (up == "x") return 0;
-  if (up == "y") return 1;
-  if (up == "z") return 2;
-  throw InputError(fmt::format("up: expected 'x', 'y' or 'z', got '{}'", up));
-}
 
 py::tuple generated(const GeneratedMesh& g) {
   return py::make_tuple(to_numpy(Eigen::MatrixXd(g.V)), to_numpy(g.F));
@@ -585,7 +532,7 @@ Units of V.)doc",
         o.height = height;
         o.azimuth_deg = azimuth;
         o.elevation_deg = elevation;
-        o.up_axis = parse_up(up);
+        o.up_axis = parse_up_axis(up);
         o.zoom = zoom;
         if (!center.is_none()) o.center = Eigen::Vector3d(vector_arg(center, "center", 3));
         o.wireframe = wireframe;

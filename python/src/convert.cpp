@@ -214,4 +214,8 @@ void check_interrupt() {
   if (PyErr_CheckSignals() != 0) throw py::error_already_set();
 }
 
+py::dict json_to_python(const std::string& text) {
+  return py::module_::import("json").attr("loads")(text).cast<py::dict>();
+}
+
 }  // namespace meshpde::python

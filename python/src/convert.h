@@ -65,6 +65,9 @@ py::array_t<int> to_numpy(const std::vector<int>& v);
 
 /// scipy.sparse.csr_matrix of an Eigen sparse matrix (any storage order).
 py::object to_csr(const Eigen::SparseMatrix<double>& A);
+
+/// A JSON object made by the library (a report) as a dict, through Python's json module.
+py::dict json_to_python(const std::string& text);
 /// scipy.sparse.csr_matrix over these arrays (sorted rows; not copied).
 py::object csr_from_arrays(const py::array_t<double>& data, const py::array_t<int>& indices,
                            const py::array_t<int>& indptr, std::size_t rows, std::size_t cols);

@@ -78,7 +78,10 @@ def test_a_correction_holds_the_labelled_caps(pipe):
     cap = np.unique(F[labels == 3])  # the cap at z = 0
     assert np.abs(held.displacement[cap]).max() == 0
     assert np.abs(loose.displacement[cap]).max() > 0.01
-    assert held.to_dict()["caps"] == {"rule": "labels", "held_vertices": 507}
+    caps = held.to_dict()["caps"]  # as `meshpde correct --json` reports them
+    assert (caps["rule"], caps["held_vertices"], caps["label_array"]) == ("labels", 507, None)
+    assert 3 in [c["label"] for c in caps["caps"]]
+    assert sum(c["vertices"] for c in caps["caps"]) == 507  # the two ends' caps, apart
     # By shape, without the labels.
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")

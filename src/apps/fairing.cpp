@@ -65,45 +65,43 @@ FairResult fair(const Mesh& mesh, const std::vector<int>& fixed, const FairParam
   FairResult r;
   r.before = triangle_quality(mesh.positions(), F, free_faces);
   const double g1 = p.order == 1 ? 1.0 : 0.0, g2 = p.order == 2 ? 1.0 : 0.0;
-  if (!p.regularize && p.solver != SteadySolver::Iterative) {
+  if (!p.regularize) {
     std::vector<int> free;
     for (int v = 0; v < nv; ++v)
       if (!is_fixed[v]) free.push_back(v);
     const MeshOperators mo = build_mesh_operators(mesh, p.laplacian);
     r.laplacian = mo.kind;
     r.laplacian_reason = mo.reason;
-    SteadySolveResult s =
-        solve_steady(mo.mesh, mo.ops, PdeCoefficients{.g0 = 0, .g1 = g1, .g2 = g2}, free, mesh.positions(), p.solver);
+    SteadySolveResult s = solve_steady(mo.mesh, mo.ops, PdeCoefficients{.g0 = 0, .g1 = g1, .g2 = g2}, free,
+                                       mesh.positions(), p.solver, kAutoGlobalFromFreeVertices, p.cg);
     r.V = std::move(s.values);
     r.solver = s.solver;
     r.worst_residual = s.relative_residual;
     r.cg_iterations = s.iterations;
+    r.converged = s.converged;
+    r.message = s.message;
     r.after = triangle_quality(r.V, F, free_faces);
     return r;
   }
+  // Regularized: backward Euler steps, each on area-weighted operators of the current
+  // surface.
   Mesh current = mesh;
-  const int rounds = p.regularize ? p.steps : 1;
+  const int rounds = p.steps;
+  r.solver = SteadySolver::Iterative;
   for (int k = 0; k < rounds; ++k) {
     OperatorOptions oo;
-    double mean_area = 1;
-    if (p.regularize) {
-      oo.face_weights = face_areas(current);
-      mean_area = oo.face_weights.mean();
-      if (mean_area > 0) oo.face_weights /= mean_area;
-    }
+    oo.face_weights = face_areas(current);
+    const double mean_area = oo.face_weights.mean();
+    if (mean_area > 0) oo.face_weights /= mean_area;
     MeshOperators mo;
-    if (p.regularize) {
-      mo.mesh = current;
-      mo.ops = build_operators(current, oo);
-      mo.reason = "area-weighted cotangent operators of the regularization";
-    } else {
-      mo = build_mesh_operators(current, p.laplacian);
-    }
+    mo.mesh = current;
+    mo.ops = build_operators(current, oo);
+    mo.reason = "area-weighted cotangent operators of the regularization";
     r.laplacian = mo.kind;
     r.laplacian_reason = mo.reason;
     // Damping acts on M (length^2): dividing by the mean area makes dt and damping
     // unit-free, so the same parameters work for a bunny in metres or a vessel in mm.
-    const double b1 = p.regularize ? p.damping / (mean_area > 0 ? mean_area : 1.0) : 0.0;
+    const double b1 = p.damping / (mean_area > 0 ? mean_area : 1.0);
     const PdeCoefficients c{.alpha = 0, .b1 = b1, .b2 = 0, .g0 = 0, .g1 = g1, .g2 = g2};
     PdeSession s(mo.mesh, mo.ops, 3, c, DomainOptions{.seed_rings = 0});
     s.cg_options = p.cg;
@@ -115,10 +113,14 @@ FairResult fair(const Mesh& mesh, const std::vector<int>& fixed, const FairParam
     for (int v = 0; v < nv; ++v)
       if (!is_fixed[v]) free.push_back(v);
     s.activate(free);
-    const StepResult sr = p.regularize ? s.step(p.dt) : s.solve_steady();
-    if (!sr.cg.converged()) throw SolverError(fmt::format("fairing solve {}: {}", k + 1, sr.cg.message));
+    const StepResult sr = s.step(p.dt);
     r.cg_iterations += sr.cg.iterations;
     r.worst_residual = std::max(r.worst_residual, sr.cg.relative_residual);
+    if (!sr.cg.converged()) {  // stop at the last good surface; the caller reports it
+      r.converged = false;
+      r.message = fmt::format("step {} of {}: {}", k + 1, rounds, sr.cg.message);
+      break;
+    }
     Positions next = s.values();
     for (int v = 0; v < nv; ++v)
       if (is_fixed[v]) next.row(v) = mesh.positions().row(v);  // exactly unchanged

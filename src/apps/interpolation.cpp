@@ -10,7 +10,6 @@
 #include "meshpde/apps/selection.h"
 #include "meshpde/core/errors.h"
 #include "meshpde/operators/connection.h"
-#include "meshpde/pde/pde_session.h"
 #include "meshpde/solvers/direct.h"
 
 namespace meshpde {
@@ -19,38 +18,21 @@ namespace {
 
 Field solve_scalar_like(const Mesh& mesh, const FemOperators& ops, int m,
                         const std::vector<InterpolationConstraint>& cons, const InterpolationParams& p, CgResult& cg,
-                        SteadySolver& used, const std::vector<Eigen::VectorXd>* values = nullptr) {
-  if (p.solver != SteadySolver::Iterative) {
-    std::vector<char> held(mesh.num_vertices(), 0);
-    Field u = Field::Zero(mesh.num_vertices(), m);
-    for (std::size_t k = 0; k < cons.size(); ++k) {
-      held[cons[k].vertex] = 1;
-      u.row(cons[k].vertex) = (values ? (*values)[k] : cons[k].value).transpose();
-    }
-    std::vector<int> free;
-    for (int v = 0; v < mesh.num_vertices(); ++v)
-      if (!held[v] && ops.mass[v] > 0) free.push_back(v);
-    SteadySolveResult s = solve_steady(mesh, ops, PdeCoefficients{.g0 = 0, .g1 = p.g1, .g2 = p.g2}, free, u, p.solver);
-    used = s.solver;
-    cg = CgResult{.status = CgStatus::Converged,
-                  .iterations = s.iterations,
-                  .relative_residual = s.relative_residual,
-                  .message = {}};
-    return std::move(s.values);
+                        SteadySolver& used) {
+  std::vector<char> held(mesh.num_vertices(), 0);
+  Field u = Field::Zero(mesh.num_vertices(), m);
+  for (const auto& c : cons) {
+    held[c.vertex] = 1;
+    u.row(c.vertex) = c.value.transpose();
   }
-  used = SteadySolver::Iterative;
-  PdeSession s(mesh, ops, m, PdeCoefficients{.alpha = 0, .b1 = 0, .b2 = 0, .g0 = 0, .g1 = p.g1, .g2 = p.g2},
-               DomainOptions{.seed_rings = 0});
-  s.cg_options = p.cg;
-  s.activate_all();
-  for (std::size_t k = 0; k < cons.size(); ++k) {
-    const Eigen::VectorXd& v = values ? (*values)[k] : cons[k].value;
-    s.constrain(cons[k].vertex, std::span<const double>(v.data(), static_cast<std::size_t>(v.size())));
-  }
-  const StepResult r = s.solve_steady();
-  cg = r.cg;
-  if (!r.cg.converged()) throw SolverError(fmt::format("interpolation: {}", r.cg.message));
-  return s.values();
+  std::vector<int> free;
+  for (int v = 0; v < mesh.num_vertices(); ++v)
+    if (!held[v] && ops.mass[v] > 0) free.push_back(v);
+  SteadySolveResult s = solve_steady(mesh, ops, PdeCoefficients{.g0 = 0, .g1 = p.g1, .g2 = p.g2}, free, u, p.solver,
+                                     kAutoGlobalFromFreeVertices, p.cg);
+  used = s.solver;
+  cg = s.cg();
+  return std::move(s.values);
 }
 
 }  // namespace
@@ -87,7 +69,6 @@ InterpolationResult interpolate(const Mesh& mesh, const FemOperators& ops, Field
   // Connection-aware: directions through the connection Laplacian, magnitudes as a scalar.
   const Connection conn = build_connection(mesh);
   std::vector<InterpolationConstraint> mags;
-  std::vector<Eigen::VectorXd> mag_values;
   Eigen::VectorXd dir_fixed = Eigen::VectorXd::Zero(2 * nv);
   for (const auto& c : cons) {
     const Eigen::Vector3d v = c.value;
@@ -99,6 +80,7 @@ InterpolationResult interpolate(const Mesh& mesh, const FemOperators& ops, Field
     mags.push_back({c.vertex, Eigen::VectorXd::Constant(1, t.norm())});
   }
   const Field magnitude = solve_scalar_like(mesh, ops, 1, mags, p, r.cg, r.solver);
+  if (!r.cg.converged()) return r;  // the caller reports it; the directions would not help
   // Kt for directions: g1 L + g2 L D L on the 2-vectors, solved directly on free DOFs.
   const Eigen::SparseMatrix<double> L = connection_laplacian(mesh, conn, ops.Kii, ops.Kij);
   Eigen::SparseMatrix<double> D2(2 * nv, 2 * nv);

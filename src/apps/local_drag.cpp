@@ -10,7 +10,6 @@
 
 #include "../core/index_map.h"
 #include "meshpde/core/errors.h"
-#include "meshpde/pde/pde_session.h"
 #include "meshpde/solvers/direct.h"
 #include "meshpde/solvers/ordering.h"
 #include "meshpde/solvers/refinement.h"
@@ -26,36 +25,21 @@ DragResult drag_vertex(const Mesh& mesh, const FemOperators& ops, const DragPara
   if (ops.mass[p.vertex] <= 0) throw InputError(fmt::format("handle vertex {} has no incident area", p.vertex));
   DragResult r;
   r.region = region_around(mesh, p.vertex, RegionSpec{.radius = p.radius, .rings = p.radius > 0 ? 0 : p.rings});
-  if (p.solver != SteadySolver::Iterative) {
-    r.region.erase(std::remove(r.region.begin(), r.region.end(), p.vertex), r.region.end());
-    std::vector<int> free;
-    for (int v : r.region)
-      if (ops.mass[v] > 0) free.push_back(v);
-    Field held = Field::Zero(mesh.num_vertices(), 3);
-    held.row(p.vertex) = p.displacement.transpose();
-    SteadySolveResult s =
-        solve_steady(mesh, ops, PdeCoefficients{.g0 = 0, .g1 = p.g1, .g2 = p.g2}, free, held, p.solver);
-    r.displacement = std::move(s.values);
-    r.solver = s.solver;
-    r.cg = CgResult{.status = CgStatus::Converged,
-                    .iterations = s.iterations,
-                    .relative_residual = s.relative_residual,
-                    .message = {}};
-    // Reaction at the handle: row of Kt applied to the solution (steady: no inertia).
-    for (int c = 0; c < 3; ++c) {
-      auto d = [&](int j) { return r.displacement(j, c); };
-      r.reaction[c] = p.g1 * stiffness_row(mesh, ops, p.vertex, d) + p.g2 * bilaplacian_row(mesh, ops, p.vertex, d);
-    }
-  } else {
-    PdeSession s(mesh, ops, 3, PdeCoefficients{.alpha = 0, .b1 = 0, .b2 = 0, .g1 = p.g1, .g2 = p.g2},
-                 DomainOptions{.seed_rings = 0});
-    s.cg_options = p.cg;
-    s.activate(r.region);
-    s.constrain(p.vertex, std::span<const double>(p.displacement.data(), 3));
-    r.region.erase(std::remove(r.region.begin(), r.region.end(), p.vertex), r.region.end());
-    r.cg = s.solve_steady().cg;
-    r.displacement = s.values();
-    r.reaction = s.reaction_forces().row(0).transpose();
+  r.region.erase(std::remove(r.region.begin(), r.region.end(), p.vertex), r.region.end());
+  std::vector<int> free;
+  for (int v : r.region)
+    if (ops.mass[v] > 0) free.push_back(v);
+  Field held = Field::Zero(mesh.num_vertices(), 3);
+  held.row(p.vertex) = p.displacement.transpose();
+  SteadySolveResult s = solve_steady(mesh, ops, PdeCoefficients{.g0 = 0, .g1 = p.g1, .g2 = p.g2}, free, held, p.solver,
+                                     kAutoGlobalFromFreeVertices, p.cg);
+  r.displacement = std::move(s.values);
+  r.solver = s.solver;
+  r.cg = s.cg();
+  // Reaction at the handle: row of Kt applied to the solution (steady: no inertia).
+  for (int c = 0; c < 3; ++c) {
+    auto d = [&](int j) { return r.displacement(j, c); };
+    r.reaction[c] = p.g1 * stiffness_row(mesh, ops, p.vertex, d) + p.g2 * bilaplacian_row(mesh, ops, p.vertex, d);
   }
   r.V = mesh.positions() + r.displacement;
   const double scale = p.displacement.norm();

@@ -7,7 +7,6 @@
 #include <fstream>
 #include <sstream>
 
-#include "meshpde/apps/local_drag.h"
 #include "meshpde/core/errors.h"
 
 namespace meshpde {

@@ -13,12 +13,10 @@
 #include <sstream>
 #include <unordered_map>
 
-#include "meshpde/apps/local_drag.h"
 #include "meshpde/core/errors.h"
 #include "meshpde/mesh/geodesic_distance.h"
 #include "meshpde/mesh/topology.h"
 #include "meshpde/operators/laplacian.h"
-#include "meshpde/pde/pde_session.h"
 #include "meshpde/pde/steady_direct.h"
 
 namespace meshpde {
@@ -27,6 +25,10 @@ CorrectionMethod parse_correction_method(const std::string& text) {
   if (text == "fem") return CorrectionMethod::Fem;
   if (text == "springs") return CorrectionMethod::Springs;
   throw InputError(fmt::format("unknown correction method '{}' (expected fem or springs)", text));
+}
+
+const char* to_string(CorrectionMethod method) {
+  return method == CorrectionMethod::Springs ? "springs" : "fem";
 }
 
 namespace {
@@ -818,27 +820,14 @@ Field fem_solve_local(const Mesh& mesh, const CorrectionParams& p, const FemProb
       return std::move(g->values);
     }
   if (r.solver != SteadySolver::Direct) {  // static and unguided (validate() made sure)
-    SteadySolveResult sr;
-    if (r.solver == SteadySolver::Global) {
-      sr = solve_steady(s.mo.mesh, s.mo.ops, coef, s.free, held, SteadySolver::Global);
-    } else {
-      PdeSession cg(s.mo.mesh, s.mo.ops, 3, PdeCoefficients{.alpha = 0, .b1 = 0, .b2 = 0, .g1 = coef.g1, .g2 = coef.g2},
-                    DomainOptions{.seed_rings = 0});
-      cg.cg_options = p.cg;
-      cg.activate(s.free);
-      for (const auto& h : problem.held) {
-        const Eigen::Vector3d x = held.row(h.vertex).transpose();
-        cg.constrain(h.vertex, std::span<const double>(x.data(), 3));
-      }
-      const StepResult step = cg.solve_steady();
-      if (!step.cg.converged())
-        throw SolverError(fmt::format("the iterative solve did not converge: {}", step.cg.message));
-      sr.values = cg.values();
-      sr.iterations = step.cg.iterations;
-      sr.relative_residual = step.cg.relative_residual;
-    }
+    SteadySolveResult sr =
+        solve_steady(s.mo.mesh, s.mo.ops, coef, s.free, held, r.solver, kAutoGlobalFromFreeVertices, p.cg);
     r.relative_residual = std::max(r.relative_residual, sr.relative_residual);
-    return sr.values;
+    if (!sr.converged) {
+      r.converged = false;
+      r.solver_message = sr.message;
+    }
+    return std::move(sr.values);
   }
   const SteadyDirectSolver solver(s.mo.mesh, s.mo.ops, coef, s.free, SparseCholesky::Backend::Auto,
                                   extra.maxCoeff() > 0 ? extra : Eigen::VectorXd());

@@ -7,6 +7,7 @@
 #include <cctype>
 #include <cmath>
 #include <limits>
+#include <nlohmann/json.hpp>
 
 #include "meshpde/core/errors.h"
 
@@ -210,6 +211,27 @@ VolumeReport describe(const Volume& v) {
     r.mean = sum / static_cast<double>(finite);
   }
   return r;
+}
+
+std::string to_json(const VolumeReport& r) {
+  const auto vec = [](const Eigen::Vector3d& v) { return nlohmann::json{v.x(), v.y(), v.z()}; };
+  nlohmann::json rows = nlohmann::json::array();
+  for (int i = 0; i < 3; ++i) rows.push_back(vec(r.direction.row(i).transpose()));
+  const nlohmann::json j = {{"kind", "volume"},
+                            {"dims", {r.dims[0], r.dims[1], r.dims[2]}},
+                            {"spacing", vec(r.spacing)},
+                            {"origin", vec(r.origin)},
+                            {"direction", rows},
+                            {"frame", "LPS"},
+                            {"orientation", r.orientation},
+                            {"oblique", r.oblique},
+                            {"bbox_min", vec(r.bbox_min)},
+                            {"bbox_max", vec(r.bbox_max)},
+                            {"min", r.min},
+                            {"max", r.max},
+                            {"mean", r.mean},
+                            {"nonfinite", r.nonfinite}};
+  return j.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
 }
 
 }  // namespace meshpde

@@ -50,14 +50,12 @@ struct Registrar {
   Registrar() {
     register_mesh_format(vtk_format("VTK XML PolyData", ".vtp"));
     register_mesh_format(vtk_format("legacy VTK PolyData", ".vtk"));
-    register_volume_format(volume_format("MetaImage", {".mha", ".mhd"},
-                                         [](const std::filesystem::path& p, std::size_t n) {
-                                           return detail::read_metaimage(p, n);
-                                         }));
-    register_volume_format(volume_format("NIfTI-1", {".nii", ".nii.gz"},
-                                         [](const std::filesystem::path& p, std::size_t n) {
-                                           return detail::read_nifti(p, n);
-                                         }));
+    register_volume_format(
+        volume_format("MetaImage", {".mha", ".mhd"},
+                      [](const std::filesystem::path& p, std::size_t n) { return detail::read_metaimage(p, n); }));
+    register_volume_format(
+        volume_format("NIfTI-1", {".nii", ".nii.gz"},
+                      [](const std::filesystem::path& p, std::size_t n) { return detail::read_nifti(p, n); }));
     register_volume_format(volume_format("NRRD", {".nrrd", ".nhdr"}, detail::read_nrrd));
     VolumeFileFormat dicom;
     dicom.name = "DICOM series";  // no suffix: .dcm files are recognized, as folders are

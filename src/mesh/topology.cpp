@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <nlohmann/json.hpp>
 #include <numeric>
 
 namespace meshpde {
@@ -268,6 +269,34 @@ MeshReport analyze(const Mesh& mesh, const ShapeWarningThresholds& thresholds) {
                     "operators where that is badly shaped)",
                     r.min_angle_deg, r.area_ratio));
   return r;
+}
+
+std::string to_json(const MeshReport& r) {
+  const auto vec = [](const Eigen::Vector3d& v) { return nlohmann::json{v.x(), v.y(), v.z()}; };
+  const nlohmann::json j = {{"vertices", r.vertices},
+                            {"faces", r.faces},
+                            {"edges", r.edges},
+                            {"boundary_edges", r.boundary_edges},
+                            {"boundary_loops", r.boundary_loops},
+                            {"nonmanifold_edges", r.nonmanifold_edges},
+                            {"nonmanifold_vertices", r.nonmanifold_vertices},
+                            {"components", r.components},
+                            {"degenerate_faces", r.degenerate_faces},
+                            {"duplicate_vertices", r.duplicate_vertices},
+                            {"unreferenced_vertices", r.unreferenced_vertices},
+                            {"orientation_consistent", r.orientation_consistent},
+                            {"inconsistent_edges", r.inconsistent_edges},
+                            {"euler_characteristic", r.euler_characteristic},
+                            {"area", r.area},
+                            {"signed_volume", r.signed_volume},
+                            {"min_angle_deg", r.min_angle_deg},
+                            {"max_angle_deg", r.max_angle_deg},
+                            {"area_ratio", r.area_ratio},
+                            {"mean_edge_length", r.mean_edge_length},
+                            {"bbox_min", vec(r.bbox_min)},
+                            {"bbox_max", vec(r.bbox_max)},
+                            {"warnings", r.warnings}};
+  return j.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
 }
 
 }  // namespace meshpde

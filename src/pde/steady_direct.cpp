@@ -448,7 +448,8 @@ std::optional<SteadySolveResult> try_multigrid_solve(const Mesh& mesh, const Fem
 }
 
 SteadySolveResult solve_steady(const Mesh& mesh, const FemOperators& ops, const PdeCoefficients& coefficients,
-                               const std::vector<int>& free, const Field& u, SteadySolver solver, int global_from) {
+                               const std::vector<int>& free, const Field& u, SteadySolver solver, int global_from,
+                               const CgOptions& iterative) {
   int probe = 0;
   if (solver == SteadySolver::Auto) {
     if (auto_tries_multigrid(mesh, coefficients, free, global_from))
@@ -465,8 +466,25 @@ SteadySolveResult solve_steady(const Mesh& mesh, const FemOperators& ops, const 
     r.relative_residual = direct.last_relative_residual();
     return r;
   }
-  if (solver != SteadySolver::Global)
-    throw InputError("solve_steady takes the direct or the global solver (Jacobi-CG runs through PdeSession)");
+  if (solver == SteadySolver::Iterative) {
+    // Jacobi-CG on the free set as the session's domain: every other vertex is held at
+    // its value in u; the free rows of u are the starting guess.
+    PdeSession session(
+        mesh, ops, static_cast<int>(u.cols()),
+        PdeCoefficients{
+            .alpha = 0, .b1 = 0, .b2 = 0, .g0 = coefficients.g0, .g1 = coefficients.g1, .g2 = coefficients.g2},
+        DomainOptions{.seed_rings = 0});
+    session.cg_options = iterative;
+    session.set_values(u);
+    session.activate(free);
+    const StepResult step = session.solve_steady();
+    r.values = session.values();
+    r.iterations = step.cg.iterations;
+    r.relative_residual = step.cg.relative_residual;
+    r.converged = step.cg.converged();
+    r.message = step.cg.message;
+    return r;
+  }
   if (!(coefficients.g2 > 0) || coefficients.g0 != 0)
     throw InputError(
         fmt::format("the global solver needs a bi-Laplacian term (g2 > 0) and no g0 term (g2 = {}, g0 = {}); "
@@ -474,9 +492,10 @@ SteadySolveResult solve_steady(const Mesh& mesh, const FemOperators& ops, const 
                     coefficients.g2, coefficients.g0));
   const GlobalBilaplacianResult g = solve_global_bilaplacian(
       mesh, ops, free, u, GlobalBilaplacianParams{.g1 = coefficients.g1, .g2 = coefficients.g2, .tolerance = 1e-10});
+  r.converged = g.converged;
   if (!g.converged)
-    throw SolverError(fmt::format("the global solver stopped after {} iterations at relative residual {:.2g}",
-                                  g.iterations, g.relative_residual));
+    r.message = fmt::format("the global solver stopped after {} iterations at relative residual {:.2g}", g.iterations,
+                            g.relative_residual);
   r.values = g.values;
   r.iterations = g.iterations;
   r.relative_residual = g.relative_residual;

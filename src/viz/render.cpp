@@ -12,6 +12,19 @@
 
 namespace meshpde {
 
+Colormap parse_colormap(const std::string& name) {
+  if (name == "viridis") return Colormap::Viridis;
+  if (name == "coolwarm") return Colormap::Coolwarm;
+  throw InputError(fmt::format("unknown colormap '{}' (expected viridis or coolwarm)", name));
+}
+
+int parse_up_axis(const std::string& name) {
+  if (name == "x") return 0;
+  if (name == "y") return 1;
+  if (name == "z") return 2;
+  throw InputError(fmt::format("unknown up axis '{}' (expected x, y or z)", name));
+}
+
 Eigen::Vector3d colormap(Colormap map, double t) {
   // Anchor colours sampled from the published colormaps, linearly interpolated.
   static const double viridis[11][3] = {{0.267, 0.005, 0.329}, {0.283, 0.141, 0.458}, {0.254, 0.265, 0.530},

@@ -282,8 +282,9 @@ int write_seeds(const fs::path& root) {
 #ifdef MESHPDE_FUZZ_EDITOR
   {
     // A saved session: a correction made, another undone, a tissue brush, no image.
-    cli::EditorPage page(cli::PageSink{.text = [](std::string) {}, .binary = [](std::string) {}}, nullptr, Space::RAS);
-    cli::Loaded l;
+    editor::EditorPage page(editor::PageSink{.text = [](std::string) {}, .binary = [](std::string) {}}, nullptr,
+                            Space::RAS);
+    editor::Loaded l;
     l.data = m;
     l.name = "small.vtp";
     page.load(l);

@@ -185,7 +185,7 @@ int dicom(const std::uint8_t* data, std::size_t size) {
 // A page's sink that checks every frame: text frames are JSON objects with a "type",
 // errors carry a message and none is an internal error (an exception that is not
 // meshpde's, which the page reports instead of crashing); binary frames have a tag.
-cli::PageSink checking_sink() {
+editor::PageSink checking_sink() {
   return {.text =
               [](std::string s) {
                 const auto j = nlohmann::json::parse(s, nullptr, false);
@@ -203,9 +203,9 @@ cli::PageSink checking_sink() {
 }
 
 // A small sphere, the page's mesh at the start of every input.
-const cli::Loaded& small_sphere() {
-  static const cli::Loaded l = [] {
-    cli::Loaded out;
+const editor::Loaded& small_sphere() {
+  static const editor::Loaded l = [] {
+    editor::Loaded out;
     const GeneratedMesh g = icosphere(2, 10.0);
     out.data.V = g.V;
     out.data.F = g.F;
@@ -217,7 +217,7 @@ const cli::Loaded& small_sphere() {
 
 // A small oblique volume around the sphere (its signed distance), so that slices and
 // image-guided corrections are fuzzed too.
-std::shared_ptr<const cli::EditorImage> small_image() {
+std::shared_ptr<const editor::EditorImage> small_image() {
   static const auto image = [] {
     Volume v;
     v.dims = {9, 7, 5};
@@ -228,7 +228,7 @@ std::shared_ptr<const cli::EditorImage> small_image() {
       for (int j = 0; j < v.dims[1]; ++j)
         for (int i = 0; i < v.dims[0]; ++i)
           v.values.push_back(static_cast<float>(v.index_to_lps(Eigen::Vector3d(i, j, k)).norm() - 10.0));
-    auto out = std::make_shared<cli::EditorImage>();
+    auto out = std::make_shared<editor::EditorImage>();
     out->volume = std::make_shared<const Volume>(v);
     out->edges = std::make_shared<const Volume>(gradient_magnitude(v, 1.0));
     out->low = -5;
@@ -243,7 +243,7 @@ std::shared_ptr<const cli::EditorImage> small_image() {
 // fresh page on a small sphere with a volume beside it, a frame after each.
 int editor_message(const std::uint8_t* data, std::size_t size) {
   return guarded([&] {
-    cli::EditorPage page(checking_sink(), small_image(), Space::LPS);
+    editor::EditorPage page(checking_sink(), small_image(), Space::LPS);
     page.load(small_sphere());
     const std::string text = bytes(data, size);
     std::size_t at = 0;
@@ -263,9 +263,9 @@ int editor_upload(const std::uint8_t* data, std::size_t size) {
     if (size == 0) return;
     static const char* kNames[] = {"up.obj", "up.off", "up.ply",     "up.stl",
                                    "up.vtp", "up.vtk", "series.zip", "session.meshpde"};
-    cli::EditorPage page(checking_sink(), nullptr, Space::LPS);
+    editor::EditorPage page(checking_sink(), nullptr, Space::LPS);
     const char* name = kNames[data[0] % 8];
-    if (cli::is_volume_upload(name)) {  // a DICOM series zipped
+    if (editor::is_volume_upload(name)) {  // a DICOM series zipped
       page.upload_image(bytes(data + 1, size - 1), name);
       return;
     }

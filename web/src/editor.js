@@ -1,4 +1,4 @@
-// The meshpde browser editor. Draws what the server sends (see cli/serve.cpp for
+// The meshpde browser editor. Draws what the server sends (see editor/editor_server.cpp for
 // the wire format) and turns mouse gestures into requests; all numerics run on the
 // server. window.meshpde exposes the state for tests and for the curious.
 import * as THREE from 'three';

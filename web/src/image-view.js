@@ -3,7 +3,7 @@
 // with window/level and the mesh's cut line on each; and a 2D view of one slice where
 // the cut line can be dragged to correct the wall in that plane.
 //
-// The server sends slices on demand (the "SLC " frame, cli/editor_page.h) as 8-bit
+// The server sends slices on demand (the "SLC " frame, editor/editor_page.h) as 8-bit
 // pixels after window/level; the page never holds the volume. One request per plane
 // is in flight at a time, and the newest slider position wins.
 import * as THREE from 'three';

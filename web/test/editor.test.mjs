@@ -1482,7 +1482,7 @@ try {
   await page.check('input[name=paint-kind][value=scalar]');
 
   // A paint click right after a poke's release: the value shows and the surface is at
-  // rest (the server ends the probe at once: DragSession.ANewToolEndsThePokeAtOnce).
+  // rest (the server ends the probe at once: EditorSession.ANewToolEndsThePokeAtOnce).
   {
     const atRest = await positions(page);
     await page.check('input[name=tool][value=poke]');

@@ -74,10 +74,15 @@ struct FairResult {
       SteadySolver::Iterative;  ///< the solver that ran: Direct or Global (Auto resolved); Iterative for CG
   LaplacianKind laplacian = LaplacianKind::Cotan;  ///< the operators of the static solve
   std::string laplacian_reason;                    ///< why Auto chose them
+  /// False when an iterative solve stopped short of its tolerance (Global or Iterative,
+  /// or a regularization step's CG): V is then the last iterate (regularized: the
+  /// surface before the step that failed), and `message` says where it stopped.
+  bool converged = true;
+  std::string message;
 };
 
 /// \throw InputError if nothing is fixed, a fixed index is out of range, or order is not 1 or 2;
-///        SolverError if a solve breaks down.
+///        SolverError if a solve breaks down (not for non-convergence: FairResult::converged).
 FairResult fair(const Mesh& mesh, const std::vector<int>& fixed, const FairParams& params);
 
 }  // namespace meshpde

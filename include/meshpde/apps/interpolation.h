@@ -57,9 +57,11 @@ struct InterpolationParams {
 };
 
 struct InterpolationResult {
-  Field values;                                ///< #V x 1 or #V x 3
-  CgResult cg;                                 ///< of the (last) solve: iterations (0 for direct) and relative residual
-  SteadySolver solver = SteadySolver::Direct;  ///< the solver of the (scalar or magnitude) solve: Auto resolved
+  Field values;  ///< #V x 1 or #V x 3
+  /// Of the (last) solve: iterations (0 for direct) and relative residual; not
+  /// converged() when an iterative solver stopped short (values: its last iterate).
+  CgResult cg;
+  SteadySolver solver = SteadySolver::Direct;      ///< the solver of the (scalar or magnitude) solve: Auto resolved
   LaplacianKind laplacian = LaplacianKind::Cotan;  ///< the operators used (overloads without `ops`)
   std::string laplacian_reason;                    ///< why Auto chose them
 };

@@ -41,7 +41,7 @@ struct DragResult {
   int moved_vertices = 0;                              ///< |d| > 1e-6 |displacement|
   double max_displacement = 0;                         ///< largest |d|
   Eigen::Vector3d reaction = Eigen::Vector3d::Zero();  ///< force holding the handle
-  CgResult cg;
+  CgResult cg;  ///< not converged(): an iterative solver stopped short (its last iterate is given)
   SteadySolver solver = SteadySolver::Iterative;  ///< the solver that ran (Auto resolved)
 };
 

@@ -27,26 +27,14 @@
 // the same correction (docs/vessel-correction.md). The solve runs on a copy of the
 // region and six rings around it: its cost follows the region, not the mesh.
 //
-// Method Springs (the thesis's, as a baseline, as we read it). Rings of neighbours
-// are visited breadth first from the handle up to the level of influence; each
-// vertex is moved once, towards the equilibrium of eq. 12.1 with its already-placed
-// neighbours held:
-//     m p'' + gamma p' = c sum_i (|p_i - p| - l_i) / |p_i - p| (p_i - p)
-// (the spring pulls towards its rest length l_i; the sign in the thesis's printed
-// equation is reversed), integrated in the overdamped limit until the net spring
-// force falls below c * max(1e-4 |d|, 0.1 viscosity * mean rest length) ("stable"):
-// each ring is left that much stretched, so the motion decays ring by ring, faster
-// with more viscosity. Its region is counted in rings, so its result changes with
-// the resolution, and nothing stops it from pushing the wall through itself.
-// `dynamic` is the thesis's dynamic version (its section 13.3): eq. 12.1 integrated
-// with its inertia from rest (semi-implicit Euler, a tenth of the vertex's period
-// sqrt(m / (c n)) a step, gamma = 2 viscosity sqrt(m c n): viscosity 1 damps the
-// vertex critically between its n springs, 0 leaves it ringing until the step limit).
-// With an image (`image.cube_size` >= 3, the thesis's direction cube) a force of
-// c n 0.006 |d| pulls each vertex towards the strongest voxel of the cube around it,
-// inside the integration (eq. 13.7's image step, read as a force: an overdamped step
-// moves the vertex 0.003 |d| towards it), and "stable" is the springs and the image
-// in balance.
+// Method Springs (the thesis's, as a baseline, as we read it): rings of neighbours
+// visited breadth first from the handle up to the level of influence, each vertex
+// moved once towards the equilibrium of the thesis's eq. 12.1 (springs to its
+// already-placed neighbours, overdamped), or with `dynamic` integrated with its inertia
+// (its section 13.3); with an image, its direction cube (eq. 13.7) as a force inside
+// the integration. Its region is counted in rings, so its result changes with the
+// resolution, and nothing stops it from pushing the wall through itself. The details
+// of our reading: docs/vessel-correction.md, "The thesis's method".
 //
 // Self-intersections. Triangles touching moved vertices are checked against the
 // mesh with a BVH built once (mesh/self_intersections.h). When a Fem correction
@@ -66,9 +54,8 @@
 // that edge in the same PDE (its lambda M_i part joins the matrix), with
 // lambda = weight * (g2 (pi/L)^4 + g1 (pi/L)^2), L the region radius: weight 1
 // pulls as hard as the region's slowest bending mode resists; the default 30
-// lets edges win down to about L/2.3. (Measured on aorta-closed-6k dented 2.5 mm
-// and corrected over 9 mm: weight 1, 10, 30, 100 leave a mean |phi| of 0.21,
-// 0.10, 0.05, 0.05 mm of the dent's 0.25.) Along the normal the nearest ridge of
+// lets edges win down to about L/2.3 (docs/vessel-correction.md has the measured
+// choice). Along the normal the nearest ridge of
 // E at least half as strong as the strongest in reach is taken, not the
 // strongest: bright neighbours (spine, kidneys) must not capture the wall. A few
 // fixed-point passes search again from the moved positions.
@@ -81,6 +68,7 @@
 #include <vector>
 
 #include "meshpde/image/volume.h"
+#include "meshpde/mesh/caps.h"
 #include "meshpde/mesh/mesh.h"
 #include "meshpde/mesh/regions.h"
 #include "meshpde/mesh/self_intersections.h"
@@ -97,6 +85,7 @@ namespace meshpde {
 enum class CorrectionMethod { Fem, Springs };
 /// "fem" or "springs". \throw InputError otherwise.
 CorrectionMethod parse_correction_method(const std::string& text);
+const char* to_string(CorrectionMethod method);
 
 /// How a Fem correction's region of radius R ends (`--boundary`).
 ///  - Smooth (default): the region is the surface within distance R of the handles,
@@ -304,6 +293,10 @@ struct CorrectionResult {
   double condition_estimate = 0;  ///< largest cond_1 of the scaled system (SteadyDirectSolver::conditioning)
   double error_bound = 0;         ///< largest estimated relative error of a solve
   std::string accuracy_warning;   ///< set when a solve cannot promise 1e-5 relative accuracy
+  /// False when an iterative solve (solver Global or Iterative) stopped short of its
+  /// tolerance: the displacement is its last iterate; `solver_message` says where.
+  bool converged = true;
+  std::string solver_message;
   /// Set when the region holds nothing but the handles (a radius below about one edge
   /// length): only the handles move, the wall around them does not follow.
   std::string region_warning;
@@ -314,6 +307,26 @@ struct CorrectionResult {
   int pulled_vertices = 0;
   double time_ms = 0;
 };
+
+/// How the caller found the caps a correction holds, for its report.
+struct CorrectionCaps {
+  std::string rule = "labels";  ///< the rule's name (CapRule: labels, auto, off)
+  std::string label_array;      ///< the face-label array read (ModelFaceID, ...); empty: none
+  std::vector<Cap> caps;        ///< the caps found (mesh/caps.h)
+};
+
+/// A correction's report as one JSON object: the keys of `meshpde correct --json`
+/// (moved_vertices, max_displacement, region_vertices, new_self_intersections, time_ms,
+/// method, boundary, dynamic, laplacian, laplacian_reason, relative_residual,
+/// condition_estimate, error_bound, accuracy_warning and region_warning (null when
+/// none), applied_fraction, substeps, intersection_action, handles, handle_radius,
+/// handle_points (each handle's vertex and displacement, and for a point its triangle,
+/// barycentric coordinates and position), solver, units, caps {rule, label_array,
+/// held_vertices, caps}, and image {pulled_vertices, mean_edge_before,
+/// mean_edge_after, space} when guided). Python's CorrectionResult.to_dict() is the
+/// same object. V and F: the surface the handles were given on (before the correction).
+std::string correction_report_json(const Positions& V, const Triangles& F, const CorrectionParams& params,
+                                   const CorrectionResult& result, const CorrectionCaps& caps = {});
 
 /// One correction of `mesh` (the input is not modified).
 /// \throw InputError for bad handles, region or stiffness; SolverError on a breakdown.

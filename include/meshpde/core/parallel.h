@@ -37,8 +37,7 @@ class ThreadLimit {
 namespace detail {
 // The OpenMP side of for_row_ranges (parallel.cpp): f(context, begin, end, part) on
 // every thread's range; returns the number of parts.
-int run_row_ranges(std::ptrdiff_t n, int threads, void (*f)(void*, std::ptrdiff_t, std::ptrdiff_t, int),
-                   void* context);
+int run_row_ranges(std::ptrdiff_t n, int threads, void (*f)(void*, std::ptrdiff_t, std::ptrdiff_t, int), void* context);
 }  // namespace detail
 
 /// Runs f(begin, end, part) on [0, n) cut into one contiguous range per thread, part

@@ -86,6 +86,11 @@ struct VolumeReport {
 /// Geometry and value range of a volume.
 VolumeReport describe(const Volume& volume);
 
+/// The report as one JSON object ("kind": "volume", "frame": "LPS", the fields above;
+/// vectors as [x, y, z], the direction as its rows): what `meshpde info --json` prints
+/// of a volume and Python's meshpde.info returns.
+std::string to_json(const VolumeReport& report);
+
 /// The volume smoothed by a Gaussian of standard deviation `sigma_mm` (per axis in
 /// voxels: sigma_mm / spacing; edges clamped). sigma_mm = 0 returns a copy.
 Volume gaussian_smooth(const Volume& volume, double sigma_mm);

@@ -57,6 +57,10 @@ struct ShapeWarningThresholds {
 
 MeshReport analyze(const Mesh& mesh, const ShapeWarningThresholds& thresholds = {});
 
+/// The report as one JSON object, keyed by the field names above (bbox_min and bbox_max
+/// as [x, y, z]): what `meshpde info --json` prints and Python's meshpde.info returns.
+std::string to_json(const MeshReport& report);
+
 /// Mean length of the unique edges (0 for a mesh without edges).
 double mean_edge_length(const Mesh& mesh);
 

@@ -31,7 +31,7 @@ namespace meshpde {
 ///    where it does not; Direct on everything else. The measured rule: docs/solvers-measurements.md,
 ///    "Auto: which steady solver, by size and by mesh";
 ///  - Direct: SteadyDirectSolver, a sparse Cholesky factor of Kt_FF;
-///  - Iterative: Jacobi-CG through PdeSession::solve_steady, no factorization memory,
+///  - Iterative: Jacobi-CG (PdeSession::solve_steady), no factorization memory,
 ///    iteration counts that grow like h^-4;
 ///  - Global: CG preconditioned by the surface multigrid or the Laplacian factor, chosen
 ///    per mesh (pde/global_bilaplacian.h, Preconditioner::Auto), to a relative residual
@@ -70,6 +70,18 @@ struct SteadySolveResult {
   /// Auto on a large problem: the multigrid's iterations before it finished (Global) or
   /// was given up for the direct solve (Direct); 0 where Auto did not try it.
   int multigrid_probe_iterations = 0;
+  /// False when an iterative solver (Global, Iterative) stopped short of its tolerance:
+  /// `values` then hold its last iterate and `message` says where it stopped. A direct
+  /// solve always converges (it throws SolverError when it cannot factor).
+  bool converged = true;
+  std::string message;  ///< set when not converged
+  /// The same as a CG status (Converged or MaxIterations), as the applications report it.
+  CgResult cg() const {
+    return CgResult{.status = converged ? CgStatus::Converged : CgStatus::MaxIterations,
+                    .iterations = iterations,
+                    .relative_residual = relative_residual,
+                    .message = message};
+  }
 };
 
 /// Auto's try (needs g2 > 0, g0 = 0): the global solver with the surface multigrid to
@@ -83,15 +95,19 @@ std::optional<SteadySolveResult> try_multigrid_solve(const Mesh& mesh, const Fem
                                                      const Field& u, int* probe_iterations = nullptr,
                                                      const SurfaceMultigridParams& multigrid = {});
 
-/// The steady problem with the held values of u (its free rows are ignored) by Direct
-/// or Global, or as Auto decides (auto_tries_multigrid with `global_from`, then
-/// try_multigrid_solve, else Direct); for Iterative, use PdeSession::solve_steady,
-/// which also takes a domain.
-/// \throw InputError for Iterative, or for Global with g2 <= 0 or g0 != 0;
-///        SolverError when Global does not converge, or as SteadyDirectSolver.
+/// The steady problem Kt_FF u_F = -Kt_FH u_H with the held values of u (every vertex
+/// not in `free`), by the solver asked for: Direct, Global (relative residual 1e-10),
+/// Iterative (Jacobi-CG with `iterative`'s tolerance and cap, started from u's free
+/// rows; the others ignore them), or as Auto decides (auto_tries_multigrid with
+/// `global_from`, then try_multigrid_solve, else Direct). The one entry point of every
+/// steady solve of the applications. Non-convergence of Global or Iterative is the
+/// result's `converged`, not an exception.
+/// \throw InputError for Global with g2 <= 0 or g0 != 0; SolverError as
+///        SteadyDirectSolver, or for an operator that is not positive definite on the
+///        free set.
 SteadySolveResult solve_steady(const Mesh& mesh, const FemOperators& ops, const PdeCoefficients& coefficients,
                                const std::vector<int>& free, const Field& u, SteadySolver solver,
-                               int global_from = kAutoGlobalFromFreeVertices);
+                               int global_from = kAutoGlobalFromFreeVertices, const CgOptions& iterative = {});
 
 /// Kt_FF = g0 M_FF + g1 K_FF + g2 (K_SF)^T D_S K_SF (+ diag(extra_diagonal) on the free
 /// rows when given, #V values), rows and columns in the order of `free`: the principal

@@ -99,9 +99,9 @@ RefinedSolve pcg_refined_solve(const Eigen::MatrixXd& b, Solve&& solve, Multiply
   CgWorkspace w;
   w.r = out.residual;
   Field x = out.x;
-  const CgResult cg = block_pcg([&](const Field& P, Field& Q) { Q = multiply(Eigen::MatrixXd(P)); },
-                                [&](const Field& R, Field& Z) { Z = solve(Eigen::MatrixXd(R)); }, Field(b), x, options,
-                                w);
+  const CgResult cg =
+      block_pcg([&](const Field& P, Field& Q) { Q = multiply(Eigen::MatrixXd(P)); },
+                [&](const Field& R, Field& Z) { Z = solve(Eigen::MatrixXd(R)); }, Field(b), x, options, w);
   out.steps = cg.iterations;
   out.x = x;
   out.residual = b - multiply(out.x);

@@ -21,6 +21,10 @@ struct Image {
 };
 
 enum class Colormap { Viridis, Coolwarm };
+/// "viridis" or "coolwarm". \throw InputError otherwise.
+Colormap parse_colormap(const std::string& name);
+/// The up axis by name: "x" 0, "y" 1, "z" 2. \throw InputError otherwise.
+int parse_up_axis(const std::string& name);
 
 struct RenderOptions {
   int width = 960;
