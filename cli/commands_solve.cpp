@@ -125,22 +125,7 @@ void tissue_fields(const Mesh& mesh, const MeshData& d, const CorrectArgs& a, do
   tissue_option(d, a.mesh, "--mass", a.mass, p.tissue.mass, p.tissue.mass_field);
   tissue_option(d, a.mesh, "--elasticity", a.elasticity, p.tissue.elasticity, p.tissue.elasticity_field);
   tissue_option(d, a.mesh, "--viscosity", a.viscosity, p.tissue.viscosity, p.tissue.viscosity_field);
-  for (const auto& b : a.brushes) {
-    try {
-      TissueProperty property = TissueProperty::Stiffness;
-      std::string spec = b;
-      if (const auto colon = b.find(':');
-          colon != std::string::npos && std::isalpha(static_cast<unsigned char>(b[0]))) {
-        property = parse_tissue_property(b.substr(0, colon));
-        spec = b.substr(colon + 1);
-      }
-      Brush brush = parse_brush(mesh, spec);
-      brush.radius /= mm_per_unit;
-      paint_tissue(mesh, p, property, brush);
-    } catch (const InputError& e) {
-      throw InputError(fmt::format("--brush {}: {}", b, e.what()));
-    }
-  }
+  for (const auto& b : a.brushes) paint_tissue(mesh, p, b, mm_per_unit);
 }
 
 void run_correct(const CorrectArgs& a) {

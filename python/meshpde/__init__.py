@@ -203,14 +203,14 @@ def interpolate(V, F, vertices, values, *, kind=None, method="componentwise", g1
 
 
 def _correction_options(*, radius, rings, method, g1, g2, laplacian, stiffness, dynamic, steps, mass, elasticity,
-                        viscosity, allow_intersections, max_substeps, image, space, image_weight, image_sigma,
+                        viscosity, brushes, allow_intersections, max_substeps, image, space, image_weight, image_sigma,
                         search_radius, cube, passes, solver, units, boundary, caps, face_labels, points, handle_radius):
     """The options of ``correct`` and ``CorrectionSession.apply`` as the extension takes them (by name only)."""
     return dict(units=units, radius=radius, rings=rings, method=method, boundary=boundary, g1=g1, g2=g2,
                 points=points, handle_radius=handle_radius,
                 laplacian=laplacian,
                 stiffness=stiffness, dynamic=dynamic, steps=steps, mass=mass, elasticity=elasticity, viscosity=viscosity,
-                allow_intersections=allow_intersections, max_substeps=max_substeps, image=image, space=space,
+                brushes=brushes, allow_intersections=allow_intersections, max_substeps=max_substeps, image=image, space=space,
                 image_weight=image_weight, image_sigma=image_sigma, search_radius=search_radius, cube=cube,
                 passes=passes, solver=solver, caps=caps, face_labels=face_labels)
 
@@ -243,6 +243,9 @@ _CORRECT_DOC = """
     0.1, 0.9, 0.6) instead of the static solve; each of the three is a number in [0, 1]
     or an (n,) array of them, one per vertex (elasticity then weighs the static solve
     too, relative to its largest value).
+    brushes: tissue brushes painted in order over those, each "[PROPERTY:]V:RADIUS:VALUE"
+    as ``meshpde correct --brush`` takes it (PROPERTY stiffness, the default, mass,
+    elasticity or viscosity; V a vertex index or "@X,Y,Z"; RADIUS in mm).
     allow_intersections: do not split or limit a correction that would make the
     surface intersect itself (default False); max_substeps: the guard's smallest step
     is 1 / max_substeps of the displacement (default 8; 1 only limits the one-shot field). A
@@ -269,13 +272,13 @@ _CORRECT_DOC = """
 
 
 def correct(V, F, vertices=None, moves=None, *, points=None, handle_radius=-1.0, radius=0.0, rings=0, method="fem", g1=0.0, g2=1.0, laplacian="auto",
-            stiffness=None, dynamic=False, steps=50, mass=0.1, elasticity=0.9, viscosity=0.6,
+            stiffness=None, dynamic=False, steps=50, mass=0.1, elasticity=0.9, viscosity=0.6, brushes=None,
             allow_intersections=False, max_substeps=8, image=None, space="lps", image_weight=30.0, image_sigma=1.0,
             search_radius=3.0, cube=0, passes=4, solver="auto", units="mm", boundary="smooth", caps="labels",
             face_labels=None):
     return _meshpde._correct(V, F, vertices, moves, _correction_options(
         radius=radius, rings=rings, method=method, g1=g1, g2=g2, laplacian=laplacian, stiffness=stiffness,
-        dynamic=dynamic, steps=steps, mass=mass, elasticity=elasticity, viscosity=viscosity,
+        dynamic=dynamic, steps=steps, mass=mass, elasticity=elasticity, viscosity=viscosity, brushes=brushes,
         allow_intersections=allow_intersections, max_substeps=max_substeps, image=image, space=space,
         image_weight=image_weight, image_sigma=image_sigma, search_radius=search_radius, cube=cube, passes=passes,
         solver=solver, units=units, boundary=boundary, caps=caps, face_labels=face_labels, points=points,
@@ -292,13 +295,13 @@ class CorrectionSession(_meshpde._CorrectionSession):
     """
 
     def apply(self, vertices=None, moves=None, *, points=None, handle_radius=-1.0, radius=0.0, rings=0, method="fem", g1=0.0, g2=1.0, laplacian="auto",
-              stiffness=None, dynamic=False, steps=50, mass=0.1, elasticity=0.9, viscosity=0.6,
+              stiffness=None, dynamic=False, steps=50, mass=0.1, elasticity=0.9, viscosity=0.6, brushes=None,
               allow_intersections=False, max_substeps=8, image=None, space="lps", image_weight=30.0,
               image_sigma=1.0, search_radius=3.0, cube=0, passes=4, solver="auto", units="mm", boundary="smooth",
               caps="labels", face_labels=None):
         return self._apply(vertices, moves, _correction_options(
             radius=radius, rings=rings, method=method, g1=g1, g2=g2, laplacian=laplacian, stiffness=stiffness,
-            dynamic=dynamic, steps=steps, mass=mass, elasticity=elasticity, viscosity=viscosity,
+            dynamic=dynamic, steps=steps, mass=mass, elasticity=elasticity, viscosity=viscosity, brushes=brushes,
             allow_intersections=allow_intersections, max_substeps=max_substeps, image=image, space=space,
             image_weight=image_weight, image_sigma=image_sigma, search_radius=search_radius, cube=cube,
             passes=passes, solver=solver, units=units, boundary=boundary, caps=caps, face_labels=face_labels,

@@ -249,6 +249,16 @@ CorrectionOptions correction_options(const Mesh& mesh, const py::handle& vertice
   tissue("mass", p.tissue.mass, p.tissue.mass_field);
   tissue("elasticity", p.tissue.elasticity, p.tissue.elasticity_field);
   tissue("viscosity", p.tissue.viscosity, p.tissue.viscosity_field);
+  // Tissue brushes, "[PROPERTY:]V:RADIUS:VALUE" as `meshpde correct --brush` takes them,
+  // painted in order over the fields above.
+  if (const py::object v = get("brushes"); !v.is_none()) {
+    if (py::isinstance<py::str>(v) || !py::isinstance<py::sequence>(v))
+      throw InputError("brushes: expected a list of '[PROPERTY:]V:RADIUS:VALUE' strings");
+    for (const py::handle b : py::reinterpret_borrow<py::sequence>(v)) {
+      if (!py::isinstance<py::str>(b)) throw InputError("brushes: expected a list of '[PROPERTY:]V:RADIUS:VALUE' strings");
+      paint_tissue(mesh, p, b.cast<std::string>(), millimetres_per(p.units));
+    }
+  }
   if (const py::object v = get("caps"); !v.is_none()) c.caps.rule = v.cast<std::string>();
   Eigen::VectorXi labels;
   if (const py::object v = get("face_labels"); !v.is_none()) {

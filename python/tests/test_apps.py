@@ -397,3 +397,23 @@ def test_geodesic_distance_is_the_unrolled_straight_line_on_a_cylinder():
     assert np.all(np.isinf(d[exact > 2.1]))
     with pytest.raises(IndexError):
         meshpde.geodesic_distance(V, F, [len(V)])
+
+
+def test_tissue_brushes_as_the_command_line_takes_them():
+    # brushes=["[PROPERTY:]V:RADIUS:VALUE", ...]: the library parses them for both front ends.
+    V, F = meshpde.generate.tube(radius=5.0, length=60.0, rings=50, segments=32)
+    handle = int(np.argmin(np.linalg.norm(V - [5.0, 0.0, 30.0], axis=1)))
+    plain = meshpde.correct(V, F, [handle], [(1.0, 0.0, 0.0)], radius=10.0)
+    ones = meshpde.correct(V, F, [handle], [(1.0, 0.0, 0.0)], radius=10.0, brushes=["0:1000:1"])
+    assert np.abs(ones.displacement - plain.displacement).max() <= 1e-12
+    stiff = meshpde.correct(V, F, [handle], [(1.0, 0.0, 0.0)], radius=10.0, brushes=["@5,0,33:3:5"])
+    assert np.abs(stiff.displacement - plain.displacement).max() > 1e-3
+    # A tissue brush over the whole mesh is the scalar option.
+    scalar = meshpde.correct(V, F, [handle], [(1.0, 0.0, 0.0)], radius=10.0, dynamic=True, steps=10, mass=0.3)
+    brushed = meshpde.correct(V, F, [handle], [(1.0, 0.0, 0.0)], radius=10.0, dynamic=True, steps=10,
+                              brushes=["mass:0:1000:0.3"])
+    assert np.abs(brushed.displacement - scalar.displacement).max() <= 1e-12
+    with pytest.raises(meshpde.InputError, match="brush 'bogus:0:1:1'"):
+        meshpde.correct(V, F, [handle], [(1.0, 0.0, 0.0)], radius=10.0, brushes=["bogus:0:1:1"])
+    with pytest.raises(meshpde.InputError, match="a list of"):
+        meshpde.correct(V, F, [handle], [(1.0, 0.0, 0.0)], radius=10.0, brushes="0:1:1")

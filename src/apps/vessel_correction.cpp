@@ -5,6 +5,7 @@
 #include <Eigen/Geometry>
 #include <Eigen/LU>
 #include <algorithm>
+#include <cctype>
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -13,6 +14,7 @@
 #include <sstream>
 #include <unordered_map>
 
+#include "meshpde/apps/selection.h"
 #include "meshpde/core/errors.h"
 #include "meshpde/mesh/geodesic_distance.h"
 #include "meshpde/mesh/topology.h"
@@ -974,6 +976,23 @@ void paint_tissue(const Mesh& mesh, CorrectionParams& params, TissueProperty pro
                                                                  : t.viscosity;
   if (field.size() == 0) field = Eigen::VectorXd::Constant(mesh.num_vertices(), scalar);
   apply_brush(mesh, field, brush);
+}
+
+void paint_tissue(const Mesh& mesh, CorrectionParams& params, const std::string& text, double millimetres_per_unit) {
+  try {
+    TissueProperty property = TissueProperty::Stiffness;
+    std::string spec = text;
+    if (const auto colon = text.find(':');
+        colon != std::string::npos && !text.empty() && std::isalpha(static_cast<unsigned char>(text[0]))) {
+      property = parse_tissue_property(text.substr(0, colon));
+      spec = text.substr(colon + 1);
+    }
+    Brush brush = parse_brush(mesh, spec);
+    brush.radius /= millimetres_per_unit;
+    paint_tissue(mesh, params, property, brush);
+  } catch (const InputError& e) {
+    throw InputError(fmt::format("brush '{}': {}", text, e.what()));
+  }
 }
 
 CorrectionRegion correction_region(const Mesh& mesh, const CorrectionParams& p) {

@@ -251,6 +251,14 @@ inline constexpr double kHandleRadiusFraction = 0.25;
 /// one band leaves the rest as the scalar option says.
 /// \throw InputError for a bad brush, or a tissue value outside [0, 1].
 void paint_tissue(const Mesh& mesh, CorrectionParams& params, TissueProperty property, const Brush& brush);
+/// Paints a brush given as text, "[PROPERTY:]V:RADIUS:VALUE" (PROPERTY stiffness,
+/// mass, elasticity or viscosity, default stiffness; V a vertex index or @X,Y,Z in the
+/// mesh's coordinates; RADIUS in millimetres, like every length a user gives, so
+/// `millimetres_per_unit` (units.h: millimetres_per) converts it to the mesh's units),
+/// as `meshpde correct --brush` and Python's `brushes=` take it.
+/// \throw InputError naming the brush for a malformed one, as paint_tissue.
+void paint_tissue(const Mesh& mesh, CorrectionParams& params, const std::string& brush,
+                  double millimetres_per_unit = 1.0);
 
 /// A Fem correction solves on a copy of its region and this many rings around it
 /// (mesh/regions.h's copy_region), so its cost follows the region, not the mesh. The
