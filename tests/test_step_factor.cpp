@@ -34,9 +34,9 @@ TEST(StepFactor, SolvesTheAssembledStepMatrixAndStepsAsCgDoes) {
   Eigen::MatrixXd b = Eigen::MatrixXd::Zero(n, 3);
   for (int r = 0; r < n; ++r)
     for (int s = 0; s < n; ++s)
-      b.row(r) += At.coeff(factor->vertices()[static_cast<std::size_t>(r)],
-                           factor->vertices()[static_cast<std::size_t>(s)]) *
-                  x.row(s);
+      b.row(r) +=
+          At.coeff(factor->vertices()[static_cast<std::size_t>(r)], factor->vertices()[static_cast<std::size_t>(s)]) *
+          x.row(s);
   EXPECT_LT((factor->solve(b) - x).cwiseAbs().maxCoeff(), 1e-10 * x.cwiseAbs().maxCoeff());
   // Two sessions, one stepping with the factor, one with CG to 1e-13: the same steps.
   PdeSession with(mesh, ops, 1, c), without(mesh, ops, 1, c);

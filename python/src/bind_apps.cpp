@@ -255,7 +255,8 @@ CorrectionOptions correction_options(const Mesh& mesh, const py::handle& vertice
     if (py::isinstance<py::str>(v) || !py::isinstance<py::sequence>(v))
       throw InputError("brushes: expected a list of '[PROPERTY:]V:RADIUS:VALUE' strings");
     for (const py::handle b : py::reinterpret_borrow<py::sequence>(v)) {
-      if (!py::isinstance<py::str>(b)) throw InputError("brushes: expected a list of '[PROPERTY:]V:RADIUS:VALUE' strings");
+      if (!py::isinstance<py::str>(b))
+        throw InputError("brushes: expected a list of '[PROPERTY:]V:RADIUS:VALUE' strings");
       paint_tissue(mesh, p, b.cast<std::string>(), millimetres_per(p.units));
     }
   }
