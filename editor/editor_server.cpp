@@ -18,6 +18,8 @@
 //
 // A page's protocol (its requests, frames, uploads and saves; the wire format) is
 // editor_page.h's EditorPage.
+#include "editor_server.h"
+
 #include <fmt/format.h>
 #include <malloc.h>
 
@@ -38,7 +40,6 @@
 #include <thread>
 
 #include "editor_page.h"
-#include "editor_server.h"
 #include "meshpde/core/errors.h"
 #include "meshpde/image/volume.h"
 #include "meshpde/mesh/units.h"
@@ -49,7 +50,6 @@ namespace {
 
 using Hdl = int;  // a page's connection id
 namespace fs = std::filesystem;
-
 
 // Percent-decodes a URL path; nullopt for malformed escapes or a NUL byte.
 std::optional<std::string> url_decode(const std::string& s) {
@@ -463,7 +463,6 @@ std::string default_web_root() {
   }
   return MESHPDE_WEB_ROOT;
 }
-
 
 void serve(const EditorServerOptions& options) {
   if (options.port < 0 || options.port > 65535)
