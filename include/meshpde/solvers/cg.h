@@ -188,34 +188,24 @@ CgResult block_pcg_impl(Apply& apply, Precondition& precondition, const Field& b
   // sums r'r into sums[0, m), and for Jacobi z = D^-1 r and r'z into sums[m, 2m) in
   // the same pass (the haptic steps' solves are small and frequent).
   auto sweep = [&](bool step) {
-    if constexpr (kJacobi) {
-      const double* Dinv = precondition.inverse_diagonal.data();
-      cg_reduce<M, 2>(n, m, opt, w.partial, sums, [&](std::ptrdiff_t begin, std::ptrdiff_t end, double* acc) {
-        for (std::ptrdiff_t i = begin; i < end; ++i)
-          for (Eigen::Index c = 0; c < m; ++c) {
-            const Eigen::Index k = i * m + c;
-            if (step) {
-              X[k] += alpha[c] * P[k];
-              R[k] -= alpha[c] * Q[k];
-            }
+    constexpr int K = kJacobi ? 2 : 1;
+    const double* Dinv = nullptr;
+    if constexpr (kJacobi) Dinv = precondition.inverse_diagonal.data();
+    cg_reduce<M, K>(n, m, opt, w.partial, sums, [&](std::ptrdiff_t begin, std::ptrdiff_t end, double* acc) {
+      for (std::ptrdiff_t i = begin; i < end; ++i)
+        for (Eigen::Index c = 0; c < m; ++c) {
+          const Eigen::Index k = i * m + c;
+          if (step) {
+            X[k] += alpha[c] * P[k];
+            R[k] -= alpha[c] * Q[k];
+          }
+          acc[c] += R[k] * R[k];
+          if constexpr (kJacobi) {
             Z[k] = Dinv[i] * R[k];
-            acc[c] += R[k] * R[k];
             acc[m + c] += R[k] * Z[k];
           }
-      });
-    } else {
-      cg_reduce<M, 1>(n, m, opt, w.partial, sums, [&](std::ptrdiff_t begin, std::ptrdiff_t end, double* acc) {
-        for (std::ptrdiff_t i = begin; i < end; ++i)
-          for (Eigen::Index c = 0; c < m; ++c) {
-            const Eigen::Index k = i * m + c;
-            if (step) {
-              X[k] += alpha[c] * P[k];
-              R[k] -= alpha[c] * Q[k];
-            }
-            acc[c] += R[k] * R[k];
-          }
-      });
-    }
+        }
+    });
   };
   // Any other preconditioner: z = M^-1 r, then r'z into sums[m, 2m).
   auto precondition_rz = [&] {
