@@ -81,14 +81,32 @@ std::map<std::string, Eigen::VectorXd> displacement_fields(const DragResult& r) 
   return {{"displacement", r.displacement.rowwise().norm()}};
 }
 
+// The library's defaults (CorrectionParams), which the options start from and show.
+const CorrectionParams& correction_defaults() {
+  static const CorrectionParams d;
+  return d;
+}
+
+std::string number_text(double x) {
+  return fmt::format("{:g}", x);
+}
+
 struct CorrectArgs {
-  std::string mesh, out, method = "fem", boundary = "smooth", laplacian = "auto", stiffness, image, series, space,
-                         solver = "auto", units = "mm", caps = "labels";
+  std::string mesh, out, method = to_string(correction_defaults().method),
+                         boundary = to_string(correction_defaults().boundary),
+                         laplacian = to_string(correction_defaults().laplacian), stiffness, image, series, space,
+                         solver = to_string(correction_defaults().solver), units = "mm", caps = "labels";
   std::vector<std::string> vertices, points, moves, brushes;
-  double handle_radius = -1;
-  int rings = 0, steps = 50, cube = 0, passes = 4;
-  double radius = 0, g1 = 0, g2 = 1, tol = 1e-10, image_weight = 30.0, image_sigma = 1.0, search = 3.0;
-  std::string mass = "0.1", elasticity = "0.9", viscosity = "0.6";  // a number or a vertex field's name
+  double handle_radius = correction_defaults().handle_radius;
+  int rings = 0, steps = correction_defaults().steps, cube = correction_defaults().image.cube_size,
+      passes = correction_defaults().image.passes;
+  double radius = 0, g1 = correction_defaults().g1, g2 = correction_defaults().g2,
+         tol = correction_defaults().cg.tolerance, image_weight = correction_defaults().image.weight,
+         image_sigma = kEdgeSigmaMm, search = correction_defaults().image.search_radius;
+  // A number or a vertex field's name.
+  std::string mass = number_text(correction_defaults().tissue.mass),
+              elasticity = number_text(correction_defaults().tissue.elasticity),
+              viscosity = number_text(correction_defaults().tissue.viscosity);
   bool json = false, dynamic = false, allow_intersections = false;
 };
 
@@ -180,7 +198,7 @@ void run_correct(const CorrectArgs& a) {
     VolumeReadOptions options;
     options.series = a.series;
     const Volume volume = read_volume(a.image, options);
-    p.image.edges = std::make_shared<const Volume>(gradient_magnitude(volume, a.image_sigma));
+    p.image.edges = edge_map(volume, a.image_sigma);
 #else
     throw InputError("--image needs meshpde built with meshpde::medical (VTK)");
 #endif

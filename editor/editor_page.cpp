@@ -236,7 +236,7 @@ Loaded generated(const std::string& requested) {
 std::shared_ptr<const EditorImage> prepare_editor_image(Volume volume, const std::string& name) {
   auto image = std::make_shared<EditorImage>();
   image->volume = std::make_shared<const Volume>(std::move(volume));
-  image->edges = std::make_shared<const Volume>(gradient_magnitude(*image->volume, 1.0));
+  image->edges = edge_map(*image->volume);
   const auto q = volume_quantiles(*image->volume, {0.0, 0.01, 0.99, 1.0});
   image->min = q[0];
   image->low = q[1];

@@ -276,7 +276,7 @@ CorrectionOptions correction_options(const Mesh& mesh, const py::handle& vertice
     p.solver = solver_arg(c.solver);
   }
   if (const py::object image = get("image"); !image.is_none()) {
-    double sigma = 1.0;
+    double sigma = kEdgeSigmaMm;
     num("image_sigma", sigma);
     const std::string space = get("space").is_none() ? "lps" : get("space").cast<std::string>();
     p.image.space = parse_space(space);
@@ -286,7 +286,7 @@ CorrectionOptions correction_options(const Mesh& mesh, const py::handle& vertice
     integer("passes", p.image.passes);
     Volume volume = volume_arg(image);
     py::gil_scoped_release release;
-    p.image.edges = std::make_shared<const Volume>(gradient_magnitude(volume, sigma));
+    p.image.edges = edge_map(volume, sigma);
   }
   return c;
 }
@@ -546,6 +546,38 @@ them). Answers equal interpolate(..., solver="direct") to rounding.)doc")
         return fmt::format("<CorrectionResult moved_vertices={} max_displacement={:.4g} new_self_intersections={}>",
                            c.r.moved_vertices, c.r.max_displacement, c.r.new_self_intersections);
       });
+
+  // The library's defaults of a correction's options (CorrectionParams), under the names
+  // correct() and CorrectionSession.apply() take: their signatures show the same values,
+  // which a test checks against this.
+  m.def("_correction_defaults", [] {
+    const CorrectionParams d;
+    py::dict o;
+    o["units"] = to_string(d.units);
+    o["radius"] = d.radius;
+    o["rings"] = d.rings;
+    o["method"] = to_string(d.method);
+    o["boundary"] = to_string(d.boundary);
+    o["handle_radius"] = d.handle_radius;
+    o["g1"] = d.g1;
+    o["g2"] = d.g2;
+    o["laplacian"] = to_string(d.laplacian);
+    o["dynamic"] = d.dynamic;
+    o["steps"] = d.steps;
+    o["mass"] = d.tissue.mass;
+    o["elasticity"] = d.tissue.elasticity;
+    o["viscosity"] = d.tissue.viscosity;
+    o["allow_intersections"] = !d.prevent_intersections;
+    o["max_substeps"] = d.max_substeps;
+    o["image_weight"] = d.image.weight;
+    o["image_sigma"] = kEdgeSigmaMm;
+    o["search_radius"] = d.image.search_radius;
+    o["cube"] = d.image.cube_size;
+    o["passes"] = d.image.passes;
+    o["solver"] = to_string(d.solver);
+    o["space"] = std::string(d.image.space == Space::LPS ? "lps" : "ras");
+    return o;
+  });
 
   m.def(
       "_correct",

@@ -417,3 +417,15 @@ def test_tissue_brushes_as_the_command_line_takes_them():
         meshpde.correct(V, F, [handle], [(1.0, 0.0, 0.0)], radius=10.0, brushes=["bogus:0:1:1"])
     with pytest.raises(meshpde.InputError, match="a list of"):
         meshpde.correct(V, F, [handle], [(1.0, 0.0, 0.0)], radius=10.0, brushes="0:1:1")
+
+
+@pytest.mark.parametrize("function", ["correct", "CorrectionSession.apply"])
+def test_the_correction_defaults_shown_are_the_librarys(function):
+    # The signatures show the defaults; the library (CorrectionParams) owns them.
+    import inspect
+    f = meshpde.correct if function == "correct" else meshpde.CorrectionSession.apply
+    shown = {k: p.default for k, p in inspect.signature(f).parameters.items() if p.default is not inspect.Parameter.empty}
+    library = meshpde._meshpde._correction_defaults()
+    assert set(library) <= set(shown), set(library) - set(shown)
+    differ = {k: (shown[k], v) for k, v in library.items() if shown[k] != v}
+    assert not differ, differ

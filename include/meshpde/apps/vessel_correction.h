@@ -180,8 +180,15 @@ enum class TissueProperty { Stiffness, Mass, Elasticity, Viscosity };
 TissueProperty parse_tissue_property(const std::string& text);
 const char* to_string(TissueProperty property);
 
+/// Gaussian scale (mm) of the edge map made from an image by edge_map(): the default of
+/// `meshpde correct --image-sigma`, Python's image_sigma and the editor's images.
+inline constexpr double kEdgeSigmaMm = 1.0;
+/// The edge map E of an image for ImageGuidance::edges: the magnitude of its gradient
+/// after a Gaussian of sigma_mm (gradient_magnitude(), image/volume.h), in the image's grid.
+std::shared_ptr<const Volume> edge_map(const Volume& image, double sigma_mm = kEdgeSigmaMm);
+
 struct ImageGuidance {
-  std::shared_ptr<const Volume> edges;  ///< edge map E (gradient_magnitude of the image); null: off
+  std::shared_ptr<const Volume> edges;  ///< edge map E (edge_map() of the image); null: off
   Space space = Space::LPS;             ///< frame of the mesh coordinates
   double weight = 30.0;                 ///< pull strength, relative to the region's slowest mode (see above)
   double search_radius = 3.0;           ///< mm searched along the normal, each way, for an edge
