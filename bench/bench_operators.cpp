@@ -25,7 +25,7 @@ struct Fixture {
     GeneratedMesh g = icosphere(level);
     g.V /= mean_edge_length(Mesh(g.V, g.F));
     mesh = Mesh(g.V, g.F);
-    ops = build_operators(mesh);
+    ops = build_cotan_operators(mesh);
     rows.resize(mesh.num_vertices());
     std::iota(rows.begin(), rows.end(), 0);
   }

@@ -103,7 +103,7 @@ int main(int argc, char** argv) {
     GeneratedMesh g = icosphere(level, 1.0);
     g.V /= mean_edge_length(Mesh(g.V, g.F));
     const Mesh mesh(g.V, g.F);
-    const FemOperators ops = build_operators(mesh);
+    const FemOperators ops = build_cotan_operators(mesh);
     nlohmann::json j;
     j["vertices"] = mesh.num_vertices();
     int handle = 0;
@@ -192,7 +192,7 @@ int main(int argc, char** argv) {
       const auto t2 = clock_type::now();
       Field held = Field::Zero(mesh.num_vertices(), 3);
       for (int v : fixed) held.row(v) = dented.row(v);
-      const FemOperators dops = build_operators(dented_mesh);
+      const FemOperators dops = build_cotan_operators(dented_mesh);
       const SteadyDirectSolver eigen(dented_mesh, dops,
                                      PdeCoefficients{.g0 = 0, .g1 = c == 1 ? 1.0 : 0.0, .g2 = c == 2 ? 1.0 : 0.0}, free,
                                      SparseCholesky::Backend::Eigen);

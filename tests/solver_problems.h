@@ -44,7 +44,7 @@ struct GlobalProblem {
 
 inline GlobalProblem global_problem(int level) {
   GlobalProblem g{make(icosphere(level)), {}, {}, {}};
-  g.ops = build_operators(g.mesh);
+  g.ops = build_cotan_operators(g.mesh);
   int handle = 0;
   g.mesh.positions().col(2).maxCoeff(&handle);
   g.u = Field::Zero(g.mesh.num_vertices(), 3);
@@ -61,7 +61,7 @@ inline GlobalProblem stretched_global_problem(int level) {
   Positions X = g.mesh.positions();
   X.col(0) *= 8;
   GlobalProblem s{Mesh(X, g.mesh.triangles()), {}, g.u, g.free};
-  s.ops = build_operators(s.mesh);
+  s.ops = build_cotan_operators(s.mesh);
   return s;
 }
 

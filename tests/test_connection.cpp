@@ -28,7 +28,7 @@ TEST(Connection, AConstantFieldOnAFlatMeshIsParallelAndHarmonic) {
     }
   }
   const Mesh mesh = test::make(g);
-  const FemOperators ops = build_operators(mesh);
+  const FemOperators ops = build_cotan_operators(mesh);
   const Connection c = build_connection(mesh);
   const Eigen::Vector3d v(std::cos(0.3), std::sin(0.3), 0.0);
   Eigen::VectorXd x(2 * mesh.num_vertices());

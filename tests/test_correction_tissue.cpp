@@ -154,7 +154,7 @@ TEST(Vessel, PerVertexTissueEntersTheDynamicsAsTheModelSays) {
   const double e_max = t.elasticity_field.maxCoeff();
   OperatorOptions o;
   o.face_weights = vertex_to_face_average(m, t.elasticity_field / e_max);
-  const FemOperators ops = build_operators(m, o);
+  const FemOperators ops = build_cotan_operators(m, o);
   const Eigen::SparseMatrix<double> K = stiffness_matrix(m, ops);
   const Eigen::VectorXd D = ops.mass.cwiseInverse();
   const double s = p.g2 * std::pow(M_PI / p.radius, 4) + p.g1 * std::pow(M_PI / p.radius, 2);

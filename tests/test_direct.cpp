@@ -42,7 +42,7 @@ using namespace meshpde::test;
 
 TEST(Direct, BackendsAgreeReuseTheAnalysisAndRejectIndefinite) {
   const Mesh m = make(icosphere(4));
-  const FemOperators ops = build_operators(m);
+  const FemOperators ops = build_cotan_operators(m);
   Eigen::SparseMatrix<double> A = stiffness_matrix(m, ops) + mass_matrix(ops);  // SPD
   const Eigen::MatrixXd B = Eigen::MatrixXd::Random(m.num_vertices(), 3);
   SparseCholesky eig(SparseCholesky::Backend::Eigen);
@@ -76,7 +76,7 @@ TEST(Direct, BackendsAgreeReuseTheAnalysisAndRejectIndefinite) {
 // right-hand side of the wrong height, CHOLMOD in a build without it.
 TEST(Direct, EveryBackendRefusesBadRequestsInWords) {
   const Mesh m = make(icosphere(2));
-  const FemOperators ops = build_operators(m);
+  const FemOperators ops = build_cotan_operators(m);
   const Eigen::SparseMatrix<double> A = stiffness_matrix(m, ops) + mass_matrix(ops);
   auto refused = [](auto&& call, const char* words) {
     try {
@@ -111,7 +111,7 @@ TEST(Direct, PivotRatioIsTheSmallestOverTheLargestPivot) {
   // matrix this close to singular factors without a complaint, and the ratio shows it.
   // K + M of a mesh is far from that.
   const Mesh m = make(icosphere(4));
-  const FemOperators ops = build_operators(m);
+  const FemOperators ops = build_cotan_operators(m);
   const Eigen::SparseMatrix<double> KM = stiffness_matrix(m, ops) + mass_matrix(ops);
   const Eigen::Index n = KM.rows();
   Eigen::SparseMatrix<double> diag(n, n), near_singular(n, n);
@@ -143,7 +143,7 @@ TEST(Direct, PivotRatioIsTheSmallestOverTheLargestPivot) {
 TEST(Direct, SteadySolveMatchesConjugateGradientsAndReusesItsFactor) {
   Mesh m;
   if (!test::load_data("bunny-3k.off", m)) return;
-  const FemOperators ops = build_operators(m);
+  const FemOperators ops = build_cotan_operators(m);
   const std::vector<InterpolationConstraint> cons = {{10, Eigen::VectorXd::Constant(1, 1.0)},
                                                      {1000, Eigen::VectorXd::Constant(1, -2.0)},
                                                      {2500, Eigen::VectorXd::Constant(1, 0.5)}};
@@ -175,7 +175,7 @@ TEST(Direct, WrittenOutSweepsMatchCholmodsOwnOnOneAndTwoThreads) {
   // two separate spheres (a forest: the split falls between the trees), and the
   // bi-Laplacian of a sphere with a cap held (larger supernodes).
   const Mesh one = make(icosphere(6)), two = two_spheres(5), cap = make(icosphere(5));
-  const FemOperators o1 = build_operators(one), o2 = build_operators(two), o3 = build_operators(cap);
+  const FemOperators o1 = build_cotan_operators(one), o2 = build_cotan_operators(two), o3 = build_cotan_operators(cap);
   std::vector<int> free;
   for (int v = 0; v < cap.num_vertices(); ++v)
     if (cap.positions()(v, 2) > -0.9) free.push_back(v);
@@ -212,7 +212,7 @@ TEST(Direct, AFloatingPartIsNamed) {
   // Two separate spheres; only the first has a held vertex.
   const Mesh m = two_spheres(2);
   const int second = m.num_vertices() / 2;  // the first vertex of sphere 2
-  const FemOperators ops = build_operators(m);
+  const FemOperators ops = build_cotan_operators(m);
   std::vector<int> free;
   for (int v = 1; v < m.num_vertices(); ++v) free.push_back(v);
   try {
@@ -316,7 +316,7 @@ TEST(Direct, ConditioningEstimateMatchesTheTrueConditionNumber) {
   // inverse: the estimate is a lower bound within a factor of 3 (Higham's experience).
   const GeneratedMesh g = icosphere(2);
   const Mesh mesh(g.V, g.F);
-  const FemOperators ops = build_operators(mesh);
+  const FemOperators ops = build_cotan_operators(mesh);
   std::vector<int> free;
   for (int v = 1; v < mesh.num_vertices(); ++v)
     if (mesh.positions()(v, 2) > -0.5) free.push_back(v);
@@ -337,7 +337,7 @@ TEST(Direct, ConditioningEstimateMatchesTheTrueConditionNumber) {
 
 TEST(Direct, LeadingBlockSolvesMatchFreshFactorizationsOfTheBlocks) {
   const Mesh mesh = make(icosphere(6));
-  const FemOperators ops = build_operators(mesh);
+  const FemOperators ops = build_cotan_operators(mesh);
   int top = 0;
   mesh.positions().col(2).maxCoeff(&top);
   const std::vector<int> order = nested_dissection_order(mesh, geodesic_ball(mesh, top, 0.6));
@@ -378,7 +378,7 @@ TEST(Direct, LeadingBlockSolvesMatchFreshFactorizationsOfTheBlocks) {
 TEST(Direct, SplitFactorMatchesOneFactorOfTheWholeAndRefusesCoupledParts) {
   if (!SplitCholesky::available()) GTEST_SKIP() << "built without CHOLMOD: no split factor";
   const Mesh mesh = make(icosphere(6));
-  const FemOperators ops = build_operators(mesh);
+  const FemOperators ops = build_cotan_operators(mesh);
   const NestedDissection nd = nested_dissection(mesh, ordering_region(mesh));
   ASSERT_GT(nd.parts[0], 1000u);
   ASSERT_GT(nd.parts[1], 1000u);

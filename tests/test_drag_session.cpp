@@ -66,7 +66,7 @@ Field session_field(const Mesh& mesh, const DragSession& s, const Eigen::MatrixX
 TEST(DragSession, UpdatesAreTheDirectSolveAndLinearInTheHandle) {
   const GeneratedMesh g = icosphere(4);
   const Mesh mesh(g.V, g.F);
-  const FemOperators ops = build_operators(mesh);
+  const FemOperators ops = build_cotan_operators(mesh);
   int handle = 0;
   mesh.positions().col(2).maxCoeff(&handle);
   DragSession s(mesh, ops, {handle}, DragSessionParams{.radius = 0.6});
@@ -96,7 +96,7 @@ TEST(DragSession, UpdatesAreTheDirectSolveAndLinearInTheHandle) {
 TEST(DragSession, AddedHandlesAndGrownRegionsMatchFreshFactorizations) {
   const GeneratedMesh g = icosphere(4);
   const Mesh mesh(g.V, g.F);
-  const FemOperators ops = build_operators(mesh);
+  const FemOperators ops = build_cotan_operators(mesh);
   int h0 = 0;
   mesh.positions().col(2).maxCoeff(&h0);
   DragSession s(mesh, ops, {h0}, DragSessionParams{.radius = 0.7, .margin = true});
@@ -155,7 +155,7 @@ TEST(DragSession, LargeRegionsFactoredOnTwoThreadsMatchFreshFactorizations) {
   // the nested dissection at once) for the set-up, an added handle and a growth.
   const GeneratedMesh g = icosphere(6);
   const Mesh mesh(g.V, g.F);
-  const FemOperators ops = build_operators(mesh);
+  const FemOperators ops = build_cotan_operators(mesh);
   int h0 = 0;
   mesh.positions().col(2).maxCoeff(&h0);
   DragSession s(mesh, ops, {h0}, DragSessionParams{.radius = 0.6});
@@ -191,7 +191,7 @@ TEST(DragSession, LargeRegionsFactoredOnTwoThreadsMatchFreshFactorizations) {
 TEST(DragSession, ShrunkRegionsReuseTheFactorAndMatchFreshFactorizations) {
   const GeneratedMesh g = icosphere(4);
   const Mesh mesh(g.V, g.F);
-  const FemOperators ops = build_operators(mesh);
+  const FemOperators ops = build_cotan_operators(mesh);
   int h0 = 0;
   mesh.positions().col(2).maxCoeff(&h0);
   DragSession s(mesh, ops, {h0}, DragSessionParams{.radius = 0.7, .margin = true, .inner_margin = true});
@@ -246,7 +246,7 @@ TEST(DragSession, ShrunkRegionsReuseTheFactorAndMatchFreshFactorizations) {
 TEST(DragSession, BadRequestsAreRefused) {
   const GeneratedMesh g = icosphere(3);
   const Mesh mesh(g.V, g.F);
-  const FemOperators ops = build_operators(mesh);
+  const FemOperators ops = build_cotan_operators(mesh);
   EXPECT_THROW(DragSession(mesh, ops, {}, DragSessionParams{.rings = 3}), InputError);
   EXPECT_THROW(DragSession(mesh, ops, {0, 0}, DragSessionParams{.rings = 3}), InputError);
   EXPECT_THROW(DragSession(mesh, ops, {mesh.num_vertices()}, DragSessionParams{.rings = 3}), InputError);

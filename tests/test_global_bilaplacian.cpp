@@ -57,10 +57,10 @@ TEST(GlobalBilaplacian, IterationsStayFlatUnderRefinementAndMatchTheDirectSolve)
   }
   // 16x the vertices from level 3 to 5; Jacobi-CG would need about 4x the iterations.
   EXPECT_LE(iterations[2], 2 * iterations[0]) << iterations[0] << " -> " << iterations[2];
-  EXPECT_THROW(solve_global_bilaplacian(make(icosphere(1)), build_operators(make(icosphere(1))), {0},
+  EXPECT_THROW(solve_global_bilaplacian(make(icosphere(1)), build_cotan_operators(make(icosphere(1))), {0},
                                         Field::Zero(42, 1), GlobalBilaplacianParams{.g2 = 0}),
                InputError);
-  EXPECT_THROW(solve_global_bilaplacian(make(icosphere(1)), build_operators(make(icosphere(1))), {0},
+  EXPECT_THROW(solve_global_bilaplacian(make(icosphere(1)), build_cotan_operators(make(icosphere(1))), {0},
                                         Field::Zero(42, 1), GlobalBilaplacianParams{.probe_iterations = 0}),
                InputError);
 }
@@ -70,7 +70,7 @@ TEST(GlobalBilaplacian, AFloatingPartIsNamed) {
   // it, and with either preconditioner the error names a vertex there.
   const Mesh m = two_spheres(3);
   const int second = m.num_vertices() / 2;  // sphere 2: vertices second .. 2 second - 1
-  const FemOperators ops = build_operators(m);
+  const FemOperators ops = build_cotan_operators(m);
   std::vector<int> free;
   for (int v = 1; v < m.num_vertices(); ++v) free.push_back(v);
   Field u = Field::Zero(m.num_vertices(), 1);
@@ -232,7 +232,7 @@ TEST(GlobalBilaplacian, AppsGetTheDirectSolversAnswerFromIt) {
   // SteadySolver::Global in interpolation, static drags and fairing: CG with the Auto
   // preconditioner to 1e-10, the same answer as the sparse Cholesky solve.
   const Mesh m = make(icosphere(4));
-  const FemOperators ops = build_operators(m);
+  const FemOperators ops = build_cotan_operators(m);
   const std::vector<InterpolationConstraint> cons = {{0, Eigen::VectorXd::Constant(1, 1.0)},
                                                      {700, Eigen::VectorXd::Constant(1, -2.0)},
                                                      {2000, Eigen::VectorXd::Constant(1, 0.5)}};
@@ -291,7 +291,7 @@ TEST(GlobalBilaplacian, AutoKeepsTheMultigridWhereItConvergesAndSolvesDirectlyEl
   // A well-shaped mesh with the size rule's threshold given lower: the multigrid
   // converges, Auto keeps it, and its answer is the direct one's.
   const Mesh m = make(icosphere(4));
-  const FemOperators ops = build_operators(m);
+  const FemOperators ops = build_cotan_operators(m);
   std::vector<int> free;
   for (int v = 0; v < m.num_vertices(); ++v)
     if (m.positions()(v, 2) > -0.8) free.push_back(v);

@@ -71,7 +71,7 @@ Eigen::Vector3d full_matrix_reaction(const Mesh& m, const FemOperators& ops, con
 
 TEST(Haptics, ForceOpposesIndentationGrowsWithDepthAndVanishesAtRest) {
   const Mesh m = unit_edge_icosphere(4);
-  const FemOperators ops = build_operators(m);
+  const FemOperators ops = build_cotan_operators(m);
   for (const HapticParams& params : both_solvers()) {
     SCOPED_TRACE(name(params));
     HapticSession h(m, ops, params);
@@ -94,7 +94,7 @@ TEST(Haptics, ForceOpposesIndentationGrowsWithDepthAndVanishesAtRest) {
 
 TEST(Haptics, SettledForceMatchesAnIndependentFullMatrixSolve) {
   const Mesh m = unit_edge_icosphere(4);
-  const FemOperators ops = build_operators(m);
+  const FemOperators ops = build_cotan_operators(m);
   for (const HapticParams& params : both_solvers()) {
     SCOPED_TRACE(name(params));
     HapticSession h(m, ops, params);
@@ -117,7 +117,7 @@ TEST(Haptics, SettledForceMatchesAnIndependentFullMatrixSolve) {
 
 TEST(Haptics, DomainGrowsWithIndentationAndShrinksAfterRelease) {
   const Mesh m = unit_edge_icosphere(5);
-  const FemOperators ops = build_operators(m);
+  const FemOperators ops = build_cotan_operators(m);
   for (const HapticParams& params : both_solvers()) {
     SCOPED_TRACE(name(params));
     HapticSession h(m, ops, params);
@@ -140,7 +140,7 @@ TEST(Haptics, DomainGrowsWithIndentationAndShrinksAfterRelease) {
 
 TEST(Haptics, ServoThreadStepsAndCountsMisses) {
   const Mesh m = unit_edge_icosphere(4);
-  const FemOperators ops = build_operators(m);
+  const FemOperators ops = build_cotan_operators(m);
   HapticSession h(m, ops, HapticParams{.rate_hz = 500});
   h.touch(3);
   h.start();
@@ -161,7 +161,7 @@ TEST(Haptics, ServoThreadStepsAndCountsMisses) {
 
 TEST(Haptics, DefaultStepToleranceTracksATightSolve) {
   const Mesh m = unit_edge_icosphere(5);
-  const FemOperators ops = build_operators(m);
+  const FemOperators ops = build_cotan_operators(m);
   HapticParams tight;
   tight.cg.tolerance = 1e-10;
   tight.cg.max_iterations = 5000;
@@ -204,7 +204,7 @@ TEST(Haptics, DefaultStepToleranceTracksATightSolve) {
 // full-mesh one.
 TEST(Haptics, BackgroundFactorsTakeOverTheStepsAndSettleToTheFullMeshForce) {
   const Mesh m = unit_edge_icosphere(4);
-  const FemOperators ops = build_operators(m);
+  const FemOperators ops = build_cotan_operators(m);
   const HapticParams params;  // Factored, built in the background
   ASSERT_EQ(params.solver, HapticSolver::Factored);
   HapticSession h(m, ops, params);
@@ -241,7 +241,7 @@ TEST(Haptics, BackgroundFactorsTakeOverTheStepsAndSettleToTheFullMeshForce) {
 
 TEST(Haptics, LogKeepsTheLastSamplesInOrder) {
   const Mesh m = unit_edge_icosphere(2);
-  const FemOperators ops = build_operators(m);
+  const FemOperators ops = build_cotan_operators(m);
   HapticParams params;
   params.max_log = 10;
   HapticSession h(m, ops, params);

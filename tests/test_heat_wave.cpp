@@ -18,7 +18,7 @@ using test::make;
 
 TEST(HeatWave, HeatWithoutSourcesConservesTheMassWeightedTotal) {
   const Mesh m = make(icosphere(4));
-  const FemOperators ops = build_operators(m);
+  const FemOperators ops = build_cotan_operators(m);
   std::mt19937 rng(2);
   std::uniform_real_distribution<double> u01(0, 1);
   PropagationParams p{.equation = Propagation::Heat, .dt = 1e-3, .steps = 50, .diffusivity = 0.7};
@@ -32,7 +32,7 @@ TEST(HeatWave, HeatWithoutSourcesConservesTheMassWeightedTotal) {
 
 TEST(HeatWave, FixedSourceHoldsItsValueAndFluxAddsHeat) {
   const Mesh m = make(icosphere(3));
-  const FemOperators ops = build_operators(m);
+  const FemOperators ops = build_cotan_operators(m);
   PropagationParams p{.equation = Propagation::Heat, .dt = 1e-2, .steps = 20};
   p.fixed = {{0, 2.5}};
   const PropagationResult r = propagate(m, ops, p);
@@ -49,7 +49,7 @@ TEST(HeatWave, FixedSourceHoldsItsValueAndFluxAddsHeat) {
 
 TEST(HeatWave, UndampedWaveEnergyDriftIsTheBackwardEulerPrediction) {
   const Mesh m = make(icosphere(4));
-  const FemOperators ops = build_operators(m);
+  const FemOperators ops = build_cotan_operators(m);
   PropagationParams p{.equation = Propagation::Wave, .dt = 1e-3, .steps = 1000, .wave_speed = 1.0};
   p.initial = 0.01 * m.positions().col(2);  // Y_1: w^2 = c^2 l (l + 1) = 2 on the unit sphere
   std::vector<double> energy;
@@ -70,7 +70,7 @@ TEST(HeatWave, UndampedWaveEnergyDriftIsTheBackwardEulerPrediction) {
 
 TEST(HeatWave, DampedWaveEnergyDecaysMonotonically) {
   const Mesh m = make(icosphere(3));
-  const FemOperators ops = build_operators(m);
+  const FemOperators ops = build_cotan_operators(m);
   PropagationParams p{.equation = Propagation::Wave, .dt = 5e-3, .steps = 400, .wave_speed = 1.0, .damping = 0.5};
   p.initial_velocity = Eigen::VectorXd::Zero(m.num_vertices());
   p.initial_velocity[3] = 1.0;
@@ -90,7 +90,7 @@ TEST(HeatWave, DampedWaveEnergyDecaysMonotonically) {
 TEST(Heat, SphericalHarmonicsDecayAtTheAnalyticRate) {
   const Mesh m = make(icosphere(5));  // 10,242 vertices
   ASSERT_GE(m.num_vertices(), 10000);
-  const FemOperators ops = build_operators(m);
+  const FemOperators ops = build_cotan_operators(m);
   const auto& V = m.positions();
   for (int l = 1; l <= 3; ++l) {
     SCOPED_TRACE(l);

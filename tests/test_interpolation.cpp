@@ -34,7 +34,7 @@ InterpolationConstraint con(int v, std::initializer_list<double> x) {
 TEST(Interpolation, ExactAtConstraintsForEveryMix) {
   Mesh m;
   if (!test::load_data("bunny-3k.off", m)) return;
-  const FemOperators ops = build_operators(m);
+  const FemOperators ops = build_cotan_operators(m);
   const std::vector<InterpolationConstraint> cons = {con(10, {1.0}), con(1000, {-2.0}), con(2500, {0.5})};
   for (const auto& [g1, g2] : {std::pair{1.0, 0.0}, {0.0, 1.0}, {1.0, 0.1}}) {
     const auto r = interpolate(m, ops, FieldKind::Scalar, cons, InterpolationParams{.g1 = g1, .g2 = g2});
@@ -56,7 +56,7 @@ TEST(Interpolation, ExactAtConstraintsForEveryMix) {
 
 TEST(Interpolation, BilaplacianReproducesLinearFields) {
   const Mesh m = make(plane_grid(14, 14));
-  const FemOperators ops = build_operators(m);
+  const FemOperators ops = build_cotan_operators(m);
   std::vector<InterpolationConstraint> cons;
   for (int i = 0; i < m.num_vertices(); ++i) {
     const Eigen::RowVector3d p = m.positions().row(i);
@@ -70,7 +70,7 @@ TEST(Interpolation, BilaplacianReproducesLinearFields) {
 TEST(Interpolation, TangentFieldsAreTangent) {
   Mesh m;
   if (!test::load_data("bunny-3k.off", m)) return;
-  const FemOperators ops = build_operators(m);
+  const FemOperators ops = build_cotan_operators(m);
   const Eigen::MatrixX3d N = vertex_normals(m);
   std::vector<InterpolationConstraint> cons;
   for (int v : {100, 800, 1600, 3000}) {
@@ -122,7 +122,7 @@ TEST(Interpolation, ConnectionHolonomyAroundLatitudeLoops) {
 
 TEST(Interpolation, ConnectionKeepsMagnitudesWhereComponentwiseCollapses) {
   const Mesh m = make(icosphere(4));
-  const FemOperators ops = build_operators(m);
+  const FemOperators ops = build_cotan_operators(m);
   // Two "eastward" unit vectors at opposite points of the equator.
   const int a = nearest(m, {1, 0, 0}), b = nearest(m, {-1, 0, 0}), mid = nearest(m, {0, 1, 0});
   const std::vector<InterpolationConstraint> cons = {con(a, {0, 1, 0}), con(b, {0, -1, 0})};
@@ -231,13 +231,13 @@ void random_edits(const Mesh& mesh, const FemOperators& ops, FieldKind kind, con
 
 TEST(InterpolationSolver, HundredRandomEditsEqualAFreshSolveAfterEach) {
   const Mesh sphere = make(icosphere(3));  // 642 vertices
-  const FemOperators ops = build_operators(sphere);
+  const FemOperators ops = build_cotan_operators(sphere);
   int factorizations = 0;
   random_edits(sphere, ops, FieldKind::Scalar, InterpolationParams{.g1 = 0, .g2 = 1}, 64, 1, factorizations);
   EXPECT_LE(factorizations, 2) << "the edits were not made by updates";
   // The other fields and mixes on a coarser sphere (162 vertices).
   const Mesh coarse = make(icosphere(2));
-  const FemOperators coarse_ops = build_operators(coarse);
+  const FemOperators coarse_ops = build_cotan_operators(coarse);
   random_edits(coarse, coarse_ops, FieldKind::Scalar, InterpolationParams{.g1 = 1, .g2 = 0}, 64, 2, factorizations);
   EXPECT_LE(factorizations, 2);
   random_edits(coarse, coarse_ops, FieldKind::Scalar, InterpolationParams{.g1 = 1, .g2 = 0.1}, 64, 3, factorizations);
@@ -262,7 +262,7 @@ TEST(InterpolationSolver, EqualsAFreshSolveOnRealAndIrregularMeshesWithBoundary)
   // condition number 2e10, and two fresh solves with different orderings would agree to
   // about 1e-8 only: conditioning, not the kept factor).
   const Mesh plane = make(test::jittered_plane(30, 0.15, 8));
-  random_edits(plane, build_operators(plane), FieldKind::Scalar, InterpolationParams{.g1 = 0, .g2 = 1}, 64, 9,
+  random_edits(plane, build_cotan_operators(plane), FieldKind::Scalar, InterpolationParams{.g1 = 0, .g2 = 1}, 64, 9,
                factorizations, 50);
 }
 

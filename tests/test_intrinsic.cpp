@@ -56,7 +56,7 @@ TEST(Intrinsic, EqualsCotanOnADelaunayMesh) {
   const IntrinsicOperators io = build_intrinsic_delaunay_operators(m);
   EXPECT_EQ(io.stats.flips, 0);
   EXPECT_EQ(io.stats.mollify_delta, 0.0);
-  const FemOperators ops = build_operators(m);
+  const FemOperators ops = build_cotan_operators(m);
   const Eigen::SparseMatrix<double> diff = stiffness_matrix(io.operator_mesh, io.ops) - stiffness_matrix(m, ops);
   EXPECT_LE(max_abs(diff), 1e-12 * ops.Kii.maxCoeff());
   EXPECT_LE((io.ops.mass - ops.mass).cwiseAbs().maxCoeff(), 1e-14 * ops.mass.maxCoeff());
@@ -76,12 +76,12 @@ TEST(Intrinsic, OneFlipGivesTheCotanOperatorOfTheOtherDiagonal) {
   const IntrinsicOperators io = build_intrinsic_delaunay_operators(bad, exact);
   EXPECT_EQ(io.stats.non_delaunay_edges_before, 1);
   EXPECT_EQ(io.stats.flips, 2);  // once on each sheet of the tufted cover
-  const FemOperators ref = build_operators(good);
+  const FemOperators ref = build_cotan_operators(good);
   EXPECT_LE(max_abs(stiffness_matrix(io.operator_mesh, io.ops) - stiffness_matrix(good, ref)),
             1e-12 * ref.Kii.maxCoeff());
   EXPECT_LE((io.ops.mass - ref.mass).cwiseAbs().maxCoeff(), 1e-12);
   // The plain cotangent operator of the bad split has a positive off-diagonal entry.
-  EXPECT_GT(build_operators(bad).Kij.maxCoeff(), 0.0);
+  EXPECT_GT(build_cotan_operators(bad).Kij.maxCoeff(), 0.0);
 }
 
 TEST(Intrinsic, LinearPrecisionAndMMatrixOnAFlatSliverMesh) {
@@ -98,7 +98,7 @@ TEST(Intrinsic, LinearPrecisionAndMMatrixOnAFlatSliverMesh) {
   const Mesh m = make(g);
   const IntrinsicOperators io = build_intrinsic_delaunay_operators(m);
   EXPECT_GT(io.stats.non_delaunay_edges_before, 0);
-  EXPECT_GT(build_operators(m).Kij.maxCoeff(), 0.0);  // the plain operator is not an M-matrix here
+  EXPECT_GT(build_cotan_operators(m).Kij.maxCoeff(), 0.0);  // the plain operator is not an M-matrix here
   check_m_matrix(m, io, "jittered plane");
   Field u(m.num_vertices(), 1);
   for (int i = 0; i < m.num_vertices(); ++i) u(i, 0) = 2 * g.V(i, 0) - 3 * g.V(i, 1) + 1;

@@ -51,7 +51,7 @@ std::vector<int> free_above(const Mesh& m, double z) {
 
 TEST(Multigrid, CycleIsSymmetricPositiveDefiniteAndApplyIsTheBilaplacian) {
   const Mesh m = make(icosphere(5));
-  const FemOperators ops = build_operators(m);
+  const FemOperators ops = build_cotan_operators(m);
   const std::vector<int> free = free_above(m, -0.9);
   const int n = static_cast<int>(free.size());
   for (const auto smoother :
@@ -143,7 +143,7 @@ TEST(Multigrid, TheDefaultCoarsestLevelIsOneFactor) {
   }
   // A negative size is refused (0, the default, is what the loop above used).
   const Mesh m = make(icosphere(3));
-  const FemOperators ops = build_operators(m);
+  const FemOperators ops = build_cotan_operators(m);
   EXPECT_THROW(BilaplacianMultigrid(m, ops, free_above(m, 0), 0, 1, SurfaceMultigridParams{.coarsest_unknowns = -1}),
                InputError);
 }
@@ -172,7 +172,7 @@ TEST(Multigrid, HierarchyFollowsTheFreeRegionNotTheMesh) {
   // A cap of a 41k-vertex sphere: the hierarchy holds the cap's vertices only, and the
   // solve equals the region's direct solve.
   const Mesh m = make(icosphere(6));
-  const FemOperators ops = build_operators(m);
+  const FemOperators ops = build_cotan_operators(m);
   int handle = 0;
   m.positions().col(2).maxCoeff(&handle);
   std::vector<int> free;
@@ -197,7 +197,7 @@ TEST(Multigrid, HierarchyFollowsTheFreeRegionNotTheMesh) {
 
 TEST(Multigrid, BadRequestsAreRefusedInWords) {
   const Mesh m = make(icosphere(4));
-  const FemOperators ops = build_operators(m);
+  const FemOperators ops = build_cotan_operators(m);
   std::vector<int> all(static_cast<std::size_t>(m.num_vertices()));
   for (int v = 0; v < m.num_vertices(); ++v) all[static_cast<std::size_t>(v)] = v;
   EXPECT_THROW(BilaplacianMultigrid(m, ops, std::vector<int>{1, 2, 1}, 0, 1), InputError);
@@ -234,7 +234,7 @@ TEST(Multigrid, RealMeshesConvergeToTheFactorSolvesAnswer) {
     SCOPED_TRACE(name);
     const MeshData d = read_mesh(test::data_dir() / name);
     const Mesh m(d.V, d.F);
-    const FemOperators ops = build_operators(m);
+    const FemOperators ops = build_cotan_operators(m);
     int handle = 0;
     m.positions().col(2).maxCoeff(&handle);
     Field u = Field::Zero(m.num_vertices(), 3);

@@ -20,7 +20,7 @@ namespace {
 
 /// max |K + L| / max |L| with L from an independent cotangent formula.
 double k_vs_cotan(const Mesh& m, CotanFormula formula = CotanFormula::Angles) {
-  const FemOperators ops = build_operators(m);
+  const FemOperators ops = build_cotan_operators(m);
   const Eigen::SparseMatrix<double> K = stiffness_matrix(m, ops);
   const Eigen::SparseMatrix<double> L = cotan_laplacian(m, formula);
   const Eigen::SparseMatrix<double> diff = K + L;
@@ -36,7 +36,7 @@ void check_identities(const Mesh& m, const std::string& name, double intrinsic_t
   SCOPED_TRACE(name);
   EXPECT_LE(k_vs_cotan(m), 1e-12);
   EXPECT_LE(k_vs_cotan(m, CotanFormula::EdgeLengths), intrinsic_tol);
-  const FemOperators ops = build_operators(m);
+  const FemOperators ops = build_cotan_operators(m);
   // K 1 = 0 (relative to the diagonal's scale).
   const Field ones = Field::Ones(m.num_vertices(), 1);
   EXPECT_LE(apply_stiffness(m, ops, ones).cwiseAbs().maxCoeff(), 1e-12 * ops.Kii.cwiseAbs().maxCoeff());
@@ -62,7 +62,7 @@ TEST(Operators, ElementMatrixMatchesHandComputedRightTriangle) {
   Triangles F(1, 3);
   F << 0, 1, 2;
   const Mesh m(V, F);
-  const FemOperators ops = build_operators(m);
+  const FemOperators ops = build_cotan_operators(m);
   EXPECT_NEAR(ops.Kii[0], 1.0, 1e-15);
   EXPECT_NEAR(ops.Kii[1], 0.5, 1e-15);
   EXPECT_NEAR(ops.Kij[m.find_slot(0, 1)], -0.5, 1e-15);
@@ -93,13 +93,13 @@ TEST(Operators, IdentitiesOnRealMeshes) {
 
 TEST(Operators, ScaleInvarianceAt1e8And1em8) {
   GeneratedMesh g = icosphere(3);
-  const FemOperators base = build_operators(make(g));
+  const FemOperators base = build_cotan_operators(make(g));
   for (const double s : {1e8, 1e-8}) {
     GeneratedMesh h = g;
     h.V *= s;
     const Mesh m = make(h);
     check_identities(m, "scaled");
-    const FemOperators ops = build_operators(m);
+    const FemOperators ops = build_cotan_operators(m);
     // K is dimensionless: unchanged by scaling. M scales with s^2.
     EXPECT_LE((ops.Kij - base.Kij).cwiseAbs().maxCoeff(), 1e-12 * base.Kij.cwiseAbs().maxCoeff());
     EXPECT_LE((ops.mass / (s * s) - base.mass).cwiseAbs().maxCoeff(), 1e-12 * base.mass.maxCoeff());
@@ -109,7 +109,7 @@ TEST(Operators, ScaleInvarianceAt1e8And1em8) {
 TEST(Operators, LinearPrecisionOnAPerturbedPlane) {
   const GeneratedMesh g = test::jittered_plane(10, 0.02, 7);
   const Mesh m = make(g);
-  const FemOperators ops = build_operators(m);
+  const FemOperators ops = build_cotan_operators(m);
   Field u(m.num_vertices(), 1);
   for (int i = 0; i < m.num_vertices(); ++i) u(i, 0) = 2 * g.V(i, 0) - 3 * g.V(i, 1) + 1;
   const Field Ku = apply_stiffness(m, ops, u);
@@ -121,7 +121,7 @@ TEST(Operators, LinearPrecisionOnAPerturbedPlane) {
 
 TEST(Operators, BilaplacianMatchesAssembledLMinvL) {
   const Mesh m = make(icosphere(3));
-  const FemOperators ops = build_operators(m);
+  const FemOperators ops = build_cotan_operators(m);
   const Eigen::SparseMatrix<double> L = cotan_laplacian(m);
   Eigen::SparseMatrix<double> Minv(m.num_vertices(), m.num_vertices());
   for (int i = 0; i < m.num_vertices(); ++i) Minv.insert(i, i) = 1.0 / ops.mass[i];
@@ -153,7 +153,7 @@ TEST(Operators, DegenerateGeometryNeverGivesNaN) {
   Triangles F(4, 3);
   F << 0, 1, 2, 1, 3, 4, 2, 2, 0, 5, 3, 1;
   const Mesh m(V, F);
-  const FemOperators ops = build_operators(m);
+  const FemOperators ops = build_cotan_operators(m);
   EXPECT_EQ(ops.degenerate_faces, 3);
   EXPECT_TRUE(ops.Kii.allFinite() && ops.Kij.allFinite() && ops.mass.allFinite());
   EXPECT_EQ(ops.mass[3], 0.0);
@@ -166,17 +166,17 @@ TEST(Operators, DegenerateGeometryNeverGivesNaN) {
 
 TEST(Operators, FaceWeightsScaleTheElementStiffness) {
   const Mesh m = make(icosphere(2));
-  const FemOperators base = build_operators(m);
+  const FemOperators base = build_cotan_operators(m);
   const FemOperators twice =
-      build_operators(m, OperatorOptions{.face_weights = Eigen::VectorXd::Constant(m.num_faces(), 2.0)});
+      build_cotan_operators(m, OperatorOptions{.face_weights = Eigen::VectorXd::Constant(m.num_faces(), 2.0)});
   EXPECT_LE((twice.Kij - 2 * base.Kij).cwiseAbs().maxCoeff(), 1e-14);
   EXPECT_EQ(twice.mass, base.mass);  // weights affect stiffness only
   // A per-vertex stiffness field averaged onto triangles.
   const Eigen::VectorXd field = Eigen::VectorXd::Constant(m.num_vertices(), 3.0);
-  const FemOperators three = build_operators(m, {.face_weights = vertex_to_face_average(m, field)});
+  const FemOperators three = build_cotan_operators(m, {.face_weights = vertex_to_face_average(m, field)});
   EXPECT_LE((three.Kii - 3 * base.Kii).cwiseAbs().maxCoeff(), 1e-13);
-  EXPECT_THROW(build_operators(m, {.face_weights = Eigen::VectorXd::Constant(3, 1.0)}), InputError);
-  EXPECT_THROW(build_operators(m, {.face_weights = Eigen::VectorXd::Constant(m.num_faces(), -1.0)}), InputError);
+  EXPECT_THROW(build_cotan_operators(m, {.face_weights = Eigen::VectorXd::Constant(3, 1.0)}), InputError);
+  EXPECT_THROW(build_cotan_operators(m, {.face_weights = Eigen::VectorXd::Constant(m.num_faces(), -1.0)}), InputError);
 }
 
 #include "meshpde/core/parallel.h"
@@ -187,7 +187,7 @@ TEST(Operators, ParallelAppliesEqualTheSerialOnesExactly) {
   // computed the same way, so one and two threads must agree bit for bit.
   const GeneratedMesh g = icosphere(6);  // 40,962 vertices
   const Mesh mesh(g.V, g.F);
-  const FemOperators ops = build_operators(mesh);
+  const FemOperators ops = build_cotan_operators(mesh);
   const int n = mesh.num_vertices();
   Field U(n, 3);
   for (int i = 0; i < n; ++i) U.row(i) << std::sin(0.01 * i), std::cos(0.02 * i), mesh.positions()(i, 2);

@@ -19,7 +19,7 @@ using test::unit_edge_icosphere;
 
 TEST(Pde, HeatConservesTheMassWeightedTotal) {
   const Mesh m = make(icosphere(3));
-  const FemOperators ops = build_operators(m);
+  const FemOperators ops = build_cotan_operators(m);
   PdeSession s(m, ops, 1, PdeCoefficients{.alpha = 0, .b1 = 1, .b2 = 0, .g1 = 1, .g2 = 0.1});
   s.cg_options.tolerance = 1e-13;
   std::mt19937 rng(1);
@@ -39,7 +39,7 @@ TEST(Pde, HeatConservesTheMassWeightedTotal) {
 
 TEST(Pde, ConstraintsAreAddedMovedAndReleasedBetweenSteps) {
   const Mesh m = make(icosphere(3));
-  const FemOperators ops = build_operators(m);
+  const FemOperators ops = build_cotan_operators(m);
   PdeSession s(m, ops, 3, PdeCoefficients{.alpha = 0.1, .b1 = 1, .b2 = 0, .g1 = 1, .g2 = 0.1});
   s.activate_all();
   const double a[3] = {0.1, 0, 0}, b[3] = {0, 0.2, -0.1};
@@ -83,7 +83,7 @@ TEST(Pde, ZeroAreaVerticesAreHeldFixed) {
   Triangles F(1, 3);
   F << 0, 1, 2;
   const Mesh m(V, F);
-  const FemOperators ops = build_operators(m);
+  const FemOperators ops = build_cotan_operators(m);
   PdeSession s(m, ops, 1);
   s.activate_all();
   EXPECT_EQ(s.domain().num_free(), 3);
@@ -96,7 +96,7 @@ constexpr int kDomainTestLevel = test::kSanitized ? 4 : 5;
 
 TEST(Pde, SelfAdjustingDomainGrowsUnderAPokeAndShrinksAfterRelease) {
   const Mesh m = unit_edge_icosphere(kDomainTestLevel);
-  const FemOperators ops = build_operators(m);
+  const FemOperators ops = build_cotan_operators(m);
   PdeSession s(m, ops, 3, PdeCoefficients{.alpha = 1, .b1 = 1, .b2 = 0.01, .g0 = 1, .g1 = 0, .g2 = 100},
                DomainOptions{.self_adjusting = true, .rest_value = 1e-4, .rest_rate = 1e-3});
   s.cg_options.tolerance = 1e-8;
@@ -126,7 +126,7 @@ TEST(Pde, SelfAdjustingDomainGrowsUnderAPokeAndShrinksAfterRelease) {
 // gives what a tight CG gives; on any other free set, or another dt, the step is CG.
 TEST(Pde, StepFactorGivesTheCgStepAndIsUsedOnlyOnItsFreeSetAndStep) {
   const Mesh m = unit_edge_icosphere(4);
-  const FemOperators ops = build_operators(m);
+  const FemOperators ops = build_cotan_operators(m);
   const PdeCoefficients c{.alpha = 0.01, .b1 = 0.2, .b2 = 1e-3, .g0 = 1, .g1 = 0, .g2 = 81};
   PdeSession direct(m, ops, 3, c), cg(m, ops, 3, c);
   cg.cg_options.tolerance = 1e-13;
@@ -171,7 +171,7 @@ TEST(Pde, StepFactorGivesTheCgStepAndIsUsedOnlyOnItsFreeSetAndStep) {
 // with set_free_set() after every step reproduces a self-adjusting session exactly.
 TEST(Pde, ProposedDomainChangesAppliedLaterReproduceTheSelfAdjustingDomain) {
   const Mesh m = unit_edge_icosphere(kDomainTestLevel);
-  const FemOperators ops = build_operators(m);
+  const FemOperators ops = build_cotan_operators(m);
   const PdeCoefficients c{.alpha = 1, .b1 = 1, .b2 = 0.01, .g0 = 1, .g1 = 0, .g2 = 100};
   const DomainOptions d{.self_adjusting = true, .rest_value = 1e-4, .rest_rate = 1e-3};
   DomainOptions manual_options = d;
@@ -215,7 +215,7 @@ TEST(Pde, ProposedDomainChangesAppliedLaterReproduceTheSelfAdjustingDomain) {
 // surface follows the on-time trajectory instead of drifting on stale velocities.
 TEST(Pde, LateStepsStayAccurateToTheLateTolerance) {
   const Mesh m = unit_edge_icosphere(4);
-  const FemOperators ops = build_operators(m);
+  const FemOperators ops = build_cotan_operators(m);
   auto run = [&](bool late) {
     PdeSession s(m, ops, 3, PdeCoefficients{.alpha = 1e-2, .b1 = 0.2, .b2 = 1e-3, .g0 = 1, .g1 = 0, .g2 = 81});
     s.activate_all();
@@ -255,7 +255,7 @@ TEST(Pde, LocalizedPokeOnAHalfMillionVertexMeshMatchesAFullSolve) {
   if (!test::kSanitized) {
     ASSERT_GE(m.num_vertices(), 500000);
   }
-  const FemOperators ops = build_operators(m);
+  const FemOperators ops = build_cotan_operators(m);
   const PdeCoefficients c{.alpha = 1, .b1 = 1, .b2 = 0.01, .g0 = 1, .g1 = 0, .g2 = 100};
   const DomainOptions local{.self_adjusting = true, .rest_value = 1e-7, .rest_rate = 1e-6};
   PdeSession a(m, ops, 3, c, local), b(m, ops, 3, c);
@@ -282,7 +282,7 @@ TEST(Pde, LocalizedPokeOnAHalfMillionVertexMeshMatchesAFullSolve) {
 
 TEST(Step, ReactionForceEqualsAssembledBackwardEulerRow) {
   const Mesh m = make(icosphere(3));
-  const FemOperators ops = build_operators(m);
+  const FemOperators ops = build_cotan_operators(m);
   const PdeCoefficients c{.alpha = 1.0, .b1 = 0.5, .b2 = 0.01, .g0 = 0.1, .g1 = 0.3, .g2 = 0.2};
   PdeSession s(m, ops, 1, c);
   s.cg_options.tolerance = 1e-13;

@@ -41,7 +41,7 @@ using namespace meshpde::test;
 TEST(Steady, BilaplacianReproducesLinearFieldsExactly) {
   const GeneratedMesh g = test::jittered_plane(16, 0.015, 11);
   const Mesh m = make(g);
-  const FemOperators ops = build_operators(m);
+  const FemOperators ops = build_cotan_operators(m);
   PdeSession s(m, ops, 1, PdeCoefficients{.alpha = 0, .b1 = 0, .b2 = 0, .g1 = 0, .g2 = 1},
                DomainOptions{.seed_rings = 0});
   s.cg_options.tolerance = 1e-13;
@@ -69,7 +69,7 @@ TEST(Steady, BilaplacianReproducesLinearFieldsExactly) {
 
 TEST(Steady, HarmonicInterpolationObeysTheMaximumPrinciple) {
   const Mesh m = make(plane_grid(20, 20));  // right triangles: Delaunay, cotangent weights >= 0
-  const FemOperators ops = build_operators(m);
+  const FemOperators ops = build_cotan_operators(m);
   PdeSession s(m, ops, 1, PdeCoefficients{.alpha = 0, .b1 = 0, .b2 = 0, .g1 = 1, .g2 = 0},
                DomainOptions{.seed_rings = 0});
   std::mt19937 rng(5);
@@ -96,7 +96,7 @@ TEST(Steady, HarmonicInterpolationObeysTheMaximumPrinciple) {
 
 TEST(Steady, ReactionForcesEqualAssembledRows) {
   const Mesh m = make(icosphere(3));
-  const FemOperators ops = build_operators(m);
+  const FemOperators ops = build_cotan_operators(m);
   const PdeCoefficients c{.alpha = 0, .b1 = 0, .b2 = 0, .g0 = 0.2, .g1 = 0.7, .g2 = 0.4};
   PdeSession s(m, ops, 3, c, DomainOptions{.seed_rings = 0});
   s.cg_options.tolerance = 1e-12;
@@ -130,7 +130,7 @@ TEST(Steady, AssembledMatrixIsThePrincipalBlockOfTheWholeMeshProduct) {
   // order; every column's row indices strictly increasing (CHOLMOD and the leading-block
   // factors read them so).
   const Mesh m = bumpy_sphere(5);
-  const FemOperators ops = build_operators(m);
+  const FemOperators ops = build_cotan_operators(m);
   const PdeCoefficients c{.g0 = 0.3, .g1 = 0.7, .g2 = 1.1};
   const Eigen::SparseMatrix<double> K = stiffness_matrix(m, ops);
   Eigen::SparseMatrix<double> D(m.num_vertices(), m.num_vertices());
@@ -168,7 +168,7 @@ TEST(Steady, EverySolverRunsThroughSolveSteadyAndNonConvergenceIsAStatus) {
   // problem every application solves, by each solver through the one entry point.
   const auto g = icosphere(3);
   const Mesh mesh(g.V, g.F);
-  const FemOperators ops = build_operators(mesh);
+  const FemOperators ops = build_cotan_operators(mesh);
   Field u = Field::Zero(mesh.num_vertices(), 3);
   std::vector<int> free;
   for (int v = 0; v < mesh.num_vertices(); ++v) {

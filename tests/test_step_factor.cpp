@@ -15,7 +15,7 @@ using namespace meshpde;
 
 TEST(StepFactor, SolvesTheAssembledStepMatrixAndStepsAsCgDoes) {
   const Mesh mesh = test::make(icosphere(3));
-  const FemOperators ops = build_operators(mesh);
+  const FemOperators ops = build_cotan_operators(mesh);
   const PdeCoefficients c{.alpha = 1.0, .b1 = 0.5, .b2 = 0.01, .g0 = 0.1, .g1 = 0.3, .g2 = 0.2};
   const double dt = 1e-2;
   std::vector<int> free;

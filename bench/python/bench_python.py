@@ -12,7 +12,7 @@ Rounds alternate Python and C++ loops; the figure is the median over rounds.
 
 python_stiffness_s_655k: meshpde.stiffness(V, F) on the 655k icosphere (argument
 checks, connectivity, operators, scipy.sparse.csr_matrix) against the C++ time of
-Mesh + build_operators + stiffness_matrix on the same arrays (target <= 1.3x); best
+Mesh + build_cotan_operators + stiffness_matrix on the same arrays (target <= 1.3x); best
 of five each, interleaved (the first calls of a process pay for fresh pages).
 """
 import argparse

@@ -264,7 +264,7 @@ void haptic_figures(const BenchOptions& options, nlohmann::json& j) {
   if (std::filesystem::exists(igea)) {
     const int haptic_steps = options.quick ? 1000 : 10000;
     auto haptic = [&](const Mesh& mesh, const std::string& tag) {
-      const FemOperators ops = build_operators(mesh);
+      const FemOperators ops = build_cotan_operators(mesh);
       const int v = mesh.num_vertices() / 3;
       Eigen::Vector3d n = Eigen::Vector3d::Zero();
       for (int w : mesh.neighbors(v)) n += (mesh.positions().row(w) - mesh.positions().row(v)).transpose();
@@ -645,7 +645,7 @@ nlohmann::json run_standard_benchmarks(const BenchOptions& options) {
   progress("icosphere level 8 (655k vertices): build");
   auto t0 = clock_type::now();
   const Mesh big = unit_edge_icosphere(8);
-  const FemOperators big_ops = build_operators(big);
+  const FemOperators big_ops = build_cotan_operators(big);
   j["build_655k_s"] = seconds_since(t0);
   const int nv = big.num_vertices();
   const auto S = static_cast<double>(big.neighbors().size());
@@ -776,7 +776,7 @@ nlohmann::json run_standard_benchmarks(const BenchOptions& options) {
       // The same region on a mesh of a quarter the size (164k, same edge length): the
       // set-up follows the region, not the mesh.
       const Mesh mid = unit_edge_icosphere(7);
-      const FemOperators mid_ops = build_operators(mid);
+      const FemOperators mid_ops = build_cotan_operators(mid);
       int h = 0;
       mid.positions().col(2).maxCoeff(&h);
       std::size_t mid_region = 0;
@@ -912,7 +912,7 @@ nlohmann::json run_standard_benchmarks(const BenchOptions& options) {
     progress("global bi-Laplacian on " + tag);
     const GeneratedMesh g = icosphere(level);
     const Mesh m(g.V, g.F);
-    const FemOperators o = build_operators(m);
+    const FemOperators o = build_cotan_operators(m);
     int handle = 0;
     m.positions().col(2).maxCoeff(&handle);
     Field u = Field::Zero(vertices, 3);
@@ -1043,7 +1043,7 @@ nlohmann::json run_standard_benchmarks(const BenchOptions& options) {
       GeneratedMesh g{d.V, d.F, {}};
       for (int k = 0; k < 4; ++k) g = subdivide_midpoint(g.V, g.F);
       const Mesh m(g.V, g.F);
-      const FemOperators o = build_operators(m);
+      const FemOperators o = build_cotan_operators(m);
       const auto [handle, u, free] = top_drag(m, mean_edge_length(m));
       using Preconditioner = GlobalBilaplacianParams::Preconditioner;
       const TimedGlobalResolve resolve = timed_global_resolve(m, o, free, u, handle);
@@ -1093,7 +1093,7 @@ nlohmann::json run_standard_benchmarks(const BenchOptions& options) {
 
   progress("poke on 10k (level 5)");
   const Mesh small = unit_edge_icosphere(5);
-  const FemOperators small_ops = build_operators(small);
+  const FemOperators small_ops = build_cotan_operators(small);
   const PokeFigures p10 = poke(small, small_ops, steps, false);
   progress("poke on 10k with the whole mesh active (baseline)");
   const PokeFigures p10full = poke(small, small_ops, std::min(steps, 200), true);
@@ -1131,7 +1131,7 @@ nlohmann::json run_standard_benchmarks(const BenchOptions& options) {
       MeshData d = read_mesh(bunny);
       const double tl = seconds_since(ta);
       Mesh m(std::move(d.V), std::move(d.F));
-      const FemOperators o = build_operators(m);
+      const FemOperators o = build_cotan_operators(m);
       total = std::min(total, seconds_since(ta));
       load = std::min(load, tl);
     }

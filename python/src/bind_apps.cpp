@@ -364,7 +364,7 @@ void bind_apps(py::module_& m) {
       "wave_energy",
       [](const py::handle& V, const py::handle& F, const py::handle& u, const py::handle& ut, double speed) {
         const Mesh mesh = mesh_arg(V, F);
-        const FemOperators ops = build_operators(mesh);
+        const FemOperators ops = build_cotan_operators(mesh);
         return wave_energy(mesh, ops, vector_arg(u, "u", mesh.num_vertices()),
                            vector_arg(ut, "ut", mesh.num_vertices()), speed);
       },

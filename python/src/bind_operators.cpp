@@ -31,7 +31,7 @@ Operators operators_of(const py::handle& V, const py::handle& F, const std::stri
   const LaplacianKind kind = parse_laplacian_kind(laplacian);
   py::gil_scoped_release release;
   if (kind == LaplacianKind::Cotan)
-    o.cotan = build_operators(o.mesh);
+    o.cotan = build_cotan_operators(o.mesh);
   else
     o.kinds = build_mesh_operators(o.mesh, kind);
   return o;

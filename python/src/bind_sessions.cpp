@@ -40,7 +40,7 @@ struct PyPdeSession {
 
   PyPdeSession(const py::handle& V, const py::handle& F, int components, const PdeCoefficients& c,
                const DomainOptions& d)
-      : mesh(mesh_arg(V, F)), ops(build_operators(mesh)) {
+      : mesh(mesh_arg(V, F)), ops(build_cotan_operators(mesh)) {
     if (components < 1) throw InputError(fmt::format("components: expected >= 1, got {}", components));
     s = std::make_unique<PdeSession>(mesh, ops, components, c, d);
   }
@@ -315,7 +315,7 @@ or `rings` rings of neighbours; held at zero outside.)doc")
                        double g1, double g2, bool margin, bool inner_margin) {
              auto p = std::make_unique<PyDragSession>();
              p->mesh = mesh_arg(V, F);
-             p->ops = build_operators(p->mesh);
+             p->ops = build_cotan_operators(p->mesh);
              const std::vector<int> h = vertices_arg(handles, "handles", p->mesh.num_vertices());
              DragSessionParams q{
                  .radius = radius, .rings = rings, .g1 = g1, .g2 = g2, .margin = margin, .inner_margin = inner_margin};
@@ -382,7 +382,7 @@ first solve and kept. Returns (u, info).)doc")
                        double tolerance, int max_iterations, const std::string& preconditioner) {
              auto p = std::make_unique<PyGlobalSolver>();
              p->mesh = mesh_arg(V, F);
-             p->ops = build_operators(p->mesh);
+             p->ops = build_cotan_operators(p->mesh);
              GlobalBilaplacianParams q;
              q.g1 = g1;
              q.g2 = g2;
@@ -452,7 +452,7 @@ first solve and kept. Returns (u, info).)doc")
         py::gil_scoped_release release;
         const auto t = std::chrono::steady_clock::now();
         const Mesh mesh(P, T);
-        const Eigen::SparseMatrix<double> K = stiffness_matrix(mesh, build_operators(mesh));
+        const Eigen::SparseMatrix<double> K = stiffness_matrix(mesh, build_cotan_operators(mesh));
         const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
         return K.nonZeros() > 0 ? s : -1.0;
       },

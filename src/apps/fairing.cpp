@@ -95,7 +95,7 @@ FairResult fair(const Mesh& mesh, const std::vector<int>& fixed, const FairParam
     if (mean_area > 0) oo.face_weights /= mean_area;
     MeshOperators mo;
     mo.mesh = current;
-    mo.ops = build_operators(current, oo);
+    mo.ops = build_cotan_operators(current, oo);
     mo.reason = "area-weighted cotangent operators of the regularization";
     r.laplacian = mo.kind;
     r.laplacian_reason = mo.reason;

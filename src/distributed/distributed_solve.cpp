@@ -123,7 +123,7 @@ DistributedResult solve_held(const MeshPart& part, const std::vector<char>& held
   const Mesh& mesh = part.mesh;
   // The local operators: rows of the owned vertices are whole (the part holds every
   // triangle around them); the ghosts' rows are not used.
-  const FemOperators ops = build_operators(mesh);
+  const FemOperators ops = build_cotan_operators(mesh);
   Objects o;
   o.g1 = p.g1;
   o.g2 = p.g2;

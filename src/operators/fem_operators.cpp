@@ -34,7 +34,7 @@ Eigen::VectorXd vertex_to_face_average(const Mesh& mesh, const Eigen::VectorXd& 
   return w;
 }
 
-FemOperators build_operators(const Mesh& mesh, const OperatorOptions& options) {
+FemOperators build_cotan_operators(const Mesh& mesh, const OperatorOptions& options) {
   const int nv = mesh.num_vertices(), nf = mesh.num_faces();
   const bool weighted = options.face_weights.size() > 0;
   if (weighted) {

@@ -55,7 +55,7 @@ MeshOperators build_mesh_operators(const Mesh& mesh, LaplacianKind kind, const E
     OperatorOptions o;
     if (vertex_weights.size()) o.face_weights = vertex_to_face_average(mesh, vertex_weights);
     out.mesh = mesh;
-    out.ops = build_operators(mesh, o);
+    out.ops = build_cotan_operators(mesh, o);
   }
   return out;
 }

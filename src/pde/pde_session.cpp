@@ -11,7 +11,82 @@
 
 namespace meshpde {
 
-PdeSession::PdeSession(const Mesh& mesh, const FemOperators& ops, int components, PdeCoefficients coefficients,
+namespace detail {
+
+// The solve's local system: A then its ring in local numbering, with CSR rows
+// restricted to A + ring (exact for CG directions, which vanish outside A). Built once
+// per solve so the CG iterations run on contiguous memory.
+struct PdeLocalSystem {
+  std::vector<int> off, nbr;
+  std::vector<double> w, kii, mass, inv_mass;
+  std::vector<double> p, k, t, kt;  // local fields, (n + ring) x m
+};
+
+}  // namespace detail
+
+struct PdeSession::Impl {
+  Impl(const Mesh& mesh, const FemOperators& ops, int components, PdeCoefficients coefficients, DomainOptions domain);
+
+  // What PdeSession's methods do (pde_session.h documents them).
+  void set_coefficients(const PdeCoefficients& c);
+  void set_values(const Field& u, bool as_rest);
+  void set_velocities(const Field& v);
+  void set_rest(const Field& rest);
+  void activate(std::span<const int> vertices);
+  void activate_all();
+  void activate_rings(int v, int k);
+  void deactivate_all();
+  DomainChange propose_domain_change();
+  void set_free_set(std::span<const int> free, std::span<const int> to_rest);
+  void constrain(int v, std::span<const double> value);
+  void release(int v);
+  StepResult step(double dt, const Field* f);
+  StepResult solve_steady(const Field* f);
+  void set_step_factor(std::shared_ptr<const StepFactor> factor);
+  bool step_factor_applies(double dt) const;
+
+  enum class Mode { Step, Steady };
+  // y(rows) = Kt w(rows), reading w on rows and two rings beyond; uses scratch t_, k_.
+  void apply_Kt_free(const double* w, double* y);
+  StepResult solve(Mode mode, double dt, const Field* f);
+  void adjust_domain(StepResult& r);  // applies propose_domain_change(), counting into r
+  double jacobi(int v, double cM, double cK);
+  void free_vertex(int v);
+  void build_local_system();
+  void apply_local(const double* P, double* Y, double cM, double cK);
+
+  const Mesh& mesh_;
+  const FemOperators& ops_;
+  int m_;
+  PdeCoefficients coef_;
+  DomainOptions dopt_;
+  ActiveDomain domain_;
+  CgOptions cg_options;  // PdeSession::cg_options, copied in before each solve
+  Field u_, v_, rest_;
+  // Constraints: list, target values (row-aligned), per-vertex slot.
+  std::vector<int> cons_;
+  Field cons_target_;
+  std::vector<int> cons_pos_;
+  Field reaction_;
+  // Scratch, full size, kept zero outside the domain.
+  Field k_full_, t_full_, kt_full_;  // scratch for the right-hand side (global numbering)
+  Eigen::VectorXd kdk_diag_;         // lazily computed (NaN = not yet)
+  std::vector<int> rest_count_;
+  std::vector<int> ring_rows_;  // A followed by A+1, rebuilt per solve
+  CgWorkspace ws_;
+  detail::PdeLocalSystem local_;
+  Field rhs_, sol_;  // per-solve right-hand side and iterate, kept to avoid allocations
+  Eigen::VectorXd inv_diag_;
+  std::vector<unsigned> visit_mark_;  // activate_rings' visit stamps, one per vertex
+  unsigned visit_stamp_ = 0;
+  std::vector<int> ring_seen_;  // activate_rings' breadth-first order
+  std::vector<int> local_id_;   // vertex -> local index, -1 outside (kept -1 between solves)
+  std::shared_ptr<const StepFactor> factor_;
+  std::vector<int> factor_row_;  // vertex -> row of the step factor, -1 outside it
+  Eigen::MatrixXd factor_rhs_;
+};
+
+PdeSession::Impl::Impl(const Mesh& mesh, const FemOperators& ops, int components, PdeCoefficients coefficients,
                        DomainOptions domain)
     : mesh_(mesh), ops_(ops), m_(components), coef_(coefficients), dopt_(domain), domain_(mesh) {
   if (components < 1) throw InputError(fmt::format("a field needs at least one component, got {}", components));
@@ -35,7 +110,7 @@ PdeSession::PdeSession(const Mesh& mesh, const FemOperators& ops, int components
   rest_count_.assign(nv, 0);
 }
 
-void PdeSession::set_coefficients(const PdeCoefficients& c) {
+void PdeSession::Impl::set_coefficients(const PdeCoefficients& c) {
   for (double x : {c.alpha, c.b1, c.b2, c.g0, c.g1, c.g2})
     if (!(x >= 0) || !std::isfinite(x))
       throw InputError(
@@ -44,7 +119,7 @@ void PdeSession::set_coefficients(const PdeCoefficients& c) {
   coef_ = c;
 }
 
-void PdeSession::set_values(const Field& u, bool as_rest) {
+void PdeSession::Impl::set_values(const Field& u, bool as_rest) {
   if (u.rows() != u_.rows() || u.cols() != m_)
     throw InputError(fmt::format("values must be {} x {}, got {} x {}", u_.rows(), m_, u.rows(), u.cols()));
   if (!u.allFinite()) throw InputError("values contain NaN or infinity");
@@ -53,40 +128,40 @@ void PdeSession::set_values(const Field& u, bool as_rest) {
   if (as_rest) rest_ = u;
 }
 
-void PdeSession::set_velocities(const Field& v) {
+void PdeSession::Impl::set_velocities(const Field& v) {
   if (v.rows() != v_.rows() || v.cols() != m_)
     throw InputError(fmt::format("velocities must be {} x {}, got {} x {}", v_.rows(), m_, v.rows(), v.cols()));
   if (!v.allFinite()) throw InputError("velocities contain NaN or infinity");
   v_ = v;
 }
 
-void PdeSession::set_rest(const Field& rest) {
+void PdeSession::Impl::set_rest(const Field& rest) {
   if (rest.rows() != u_.rows() || rest.cols() != m_) throw InputError("rest state has the wrong shape");
   rest_ = rest;
 }
 
-void PdeSession::free_vertex(int v) {
+void PdeSession::Impl::free_vertex(int v) {
   if (ops_.mass[v] <= 0 || domain_.state(v) == VertexState::Constrained) return;  // zero-area: held fixed
   if (domain_.make_free(v)) rest_count_[v] = 0;
 }
 
-void PdeSession::activate(std::span<const int> vertices) {
+void PdeSession::Impl::activate(std::span<const int> vertices) {
   for (int v : vertices) {
     if (v < 0 || v >= mesh_.num_vertices()) throw InputError(fmt::format("vertex {} does not exist", v));
     free_vertex(v);
   }
 }
 
-void PdeSession::activate_all() {
+void PdeSession::Impl::activate_all() {
   for (int v = 0; v < mesh_.num_vertices(); ++v) free_vertex(v);
 }
 
-void PdeSession::deactivate_all() {
+void PdeSession::Impl::deactivate_all() {
   const std::vector<int> a(domain_.free_vertices().begin(), domain_.free_vertices().end());
   for (int v : a) domain_.make_frozen(v);
 }
 
-void PdeSession::activate_rings(int v, int k) {
+void PdeSession::Impl::activate_rings(int v, int k) {
   // Breadth-first search over k rings with a visit stamp (no allocation once the
   // scratch vectors have grown); cost follows the neighbourhood, not the mesh.
   if (++visit_stamp_ == 0) {  // wrapped around: clear the marks once
@@ -110,7 +185,7 @@ void PdeSession::activate_rings(int v, int k) {
     if (domain_.state(w) == VertexState::Frozen) free_vertex(w);
 }
 
-void PdeSession::constrain(int v, std::span<const double> value) {
+void PdeSession::Impl::constrain(int v, std::span<const double> value) {
   if (v < 0 || v >= mesh_.num_vertices()) throw InputError(fmt::format("vertex {} does not exist", v));
   if (static_cast<int>(value.size()) != m_)
     throw InputError(fmt::format("constraint at vertex {} has {} components, the field has {}", v, value.size(), m_));
@@ -135,7 +210,7 @@ void PdeSession::constrain(int v, std::span<const double> value) {
   activate_rings(v, dopt_.seed_rings);
 }
 
-void PdeSession::release(int v) {
+void PdeSession::Impl::release(int v) {
   if (v < 0 || v >= mesh_.num_vertices() || cons_pos_[v] < 0) return;
   const int p = cons_pos_[v], last = static_cast<int>(cons_.size()) - 1;
   cons_[p] = cons_[last];
@@ -150,7 +225,7 @@ void PdeSession::release(int v) {
   free_vertex(v);
 }
 
-double PdeSession::jacobi(int v, double cM, double cK) {
+double PdeSession::Impl::jacobi(int v, double cM, double cK) {
   double kdk = 0;
   if (coef_.g2 != 0) {
     if (std::isnan(kdk_diag_[v])) kdk_diag_[v] = bilaplacian_diagonal(mesh_, ops_, v);
@@ -159,7 +234,7 @@ double PdeSession::jacobi(int v, double cM, double cK) {
   return cM * ops_.mass[v] + cK * (coef_.g0 * ops_.mass[v] + coef_.g1 * ops_.Kii[v] + coef_.g2 * kdk);
 }
 
-void PdeSession::apply_Kt_free(const double* w, double* y) {
+void PdeSession::Impl::apply_Kt_free(const double* w, double* y) {
   const auto A = domain_.free_vertices();
   const int n = static_cast<int>(A.size());
   double* K = k_full_.data();
@@ -189,8 +264,8 @@ void PdeSession::apply_Kt_free(const double* w, double* y) {
   }
 }
 
-void PdeSession::build_local_system() {
-  LocalSystem& L = local_;
+void PdeSession::Impl::build_local_system() {
+  detail::PdeLocalSystem& L = local_;
   const int nl = static_cast<int>(ring_rows_.size());
   for (int k = 0; k < nl; ++k) local_id_[ring_rows_[k]] = k;
   L.off.assign(1, 0);
@@ -251,7 +326,7 @@ void local_stiffness(const std::vector<int>& off, const std::vector<int>& nbr, c
 }
 
 template <int M>
-void apply_local_impl(const PdeSession::LocalSystem& L, const PdeCoefficients& co, int n, int m_dyn, const double* P,
+void apply_local_impl(const detail::PdeLocalSystem& L, const PdeCoefficients& co, int n, int m_dyn, const double* P,
                       double* Y, double cM, double cK, double* p, double* k, double* t, double* kt) {
   const int m = M > 0 ? M : m_dyn;
   const int nl = static_cast<int>(L.kii.size());
@@ -278,8 +353,8 @@ void apply_local_impl(const PdeSession::LocalSystem& L, const PdeCoefficients& c
 
 }  // namespace
 
-void PdeSession::apply_local(const double* P, double* Y, double cM, double cK) {
-  LocalSystem& L = local_;
+void PdeSession::Impl::apply_local(const double* P, double* Y, double cM, double cK) {
+  detail::PdeLocalSystem& L = local_;
   const int n = domain_.num_free();
   if (m_ == 1)
     apply_local_impl<1>(L, coef_, n, 1, P, Y, cM, cK, L.p.data(), L.k.data(), L.t.data(), L.kt.data());
@@ -289,16 +364,16 @@ void PdeSession::apply_local(const double* P, double* Y, double cM, double cK) {
     apply_local_impl<0>(L, coef_, n, m_, P, Y, cM, cK, L.p.data(), L.k.data(), L.t.data(), L.kt.data());
 }
 
-StepResult PdeSession::step(double dt, const Field* f) {
+StepResult PdeSession::Impl::step(double dt, const Field* f) {
   if (!(dt > 0) || !std::isfinite(dt)) throw InputError(fmt::format("time step must be positive, got {}", dt));
   return solve(Mode::Step, dt, f);
 }
 
-StepResult PdeSession::solve_steady(const Field* f) {
+StepResult PdeSession::Impl::solve_steady(const Field* f) {
   return solve(Mode::Steady, 0.0, f);
 }
 
-StepResult PdeSession::solve(Mode mode, double dt, const Field* f) {
+StepResult PdeSession::Impl::solve(Mode mode, double dt, const Field* f) {
   if (f && (f->rows() != u_.rows() || f->cols() != m_))
     throw InputError(fmt::format("forcing must be {} x {}, got {} x {}", u_.rows(), m_, f->rows(), f->cols()));
   const auto A = domain_.free_vertices();
@@ -408,7 +483,7 @@ StepResult PdeSession::solve(Mode mode, double dt, const Field* f) {
   return r;
 }
 
-void PdeSession::set_step_factor(std::shared_ptr<const StepFactor> factor) {
+void PdeSession::Impl::set_step_factor(std::shared_ptr<const StepFactor> factor) {
   if (factor)
     for (int v : factor->vertices())
       if (v < 0 || v >= mesh_.num_vertices())
@@ -421,7 +496,7 @@ void PdeSession::set_step_factor(std::shared_ptr<const StepFactor> factor) {
     factor_row_[factor_->vertices()[k]] = static_cast<int>(k);
 }
 
-bool PdeSession::step_factor_applies(double dt) const {
+bool PdeSession::Impl::step_factor_applies(double dt) const {
   if (!factor_ || factor_->dt() != dt || !(factor_->coefficients() == coef_)) return false;
   const auto A = domain_.free_vertices();
   if (A.empty() || A.size() != factor_->vertices().size()) return false;
@@ -430,7 +505,7 @@ bool PdeSession::step_factor_applies(double dt) const {
   return true;  // as many free vertices as factor rows, each one of them: the same set
 }
 
-void PdeSession::set_free_set(std::span<const int> free, std::span<const int> to_rest) {
+void PdeSession::Impl::set_free_set(std::span<const int> free, std::span<const int> to_rest) {
   const int nv = mesh_.num_vertices();
   for (int v : free)
     if (v < 0 || v >= nv) throw InputError(fmt::format("vertex {} does not exist", v));
@@ -455,7 +530,7 @@ void PdeSession::set_free_set(std::span<const int> free, std::span<const int> to
     }
 }
 
-void PdeSession::adjust_domain(StepResult& r) {
+void PdeSession::Impl::adjust_domain(StepResult& r) {
   // Decided on the domain as it was after the step, then applied: the outcome does not
   // depend on the order of the free list, and a caller can apply the same proposal
   // later (propose_domain_change, set_free_set).
@@ -470,7 +545,7 @@ void PdeSession::adjust_domain(StepResult& r) {
   r.shrunk = static_cast<int>(change.shrink.size());
 }
 
-DomainChange PdeSession::propose_domain_change() {
+DomainChange PdeSession::Impl::propose_domain_change() {
   DomainChange change;
   double v_ref = 0, u_ref = 0;
   auto rate = [&](int i) { return v_.row(i).norm(); };
@@ -511,6 +586,96 @@ DomainChange PdeSession::propose_domain_change() {
     }
   }
   return change;
+}
+
+// ---- PdeSession: the state lives in Impl --------------------------------------------
+
+PdeSession::PdeSession(const Mesh& mesh, const FemOperators& ops, int components, PdeCoefficients coefficients,
+                       DomainOptions domain)
+    : impl_(std::make_unique<Impl>(mesh, ops, components, coefficients, domain)) {}
+PdeSession::PdeSession(PdeSession&&) noexcept = default;
+PdeSession& PdeSession::operator=(PdeSession&&) noexcept = default;
+PdeSession::~PdeSession() = default;
+
+int PdeSession::components() const {
+  return impl_->m_;
+}
+const PdeCoefficients& PdeSession::coefficients() const {
+  return impl_->coef_;
+}
+void PdeSession::set_coefficients(const PdeCoefficients& c) {
+  impl_->set_coefficients(c);
+}
+const DomainOptions& PdeSession::domain_options() const {
+  return impl_->dopt_;
+}
+void PdeSession::set_domain_options(const DomainOptions& d) {
+  impl_->dopt_ = d;
+}
+const Field& PdeSession::values() const {
+  return impl_->u_;
+}
+const Field& PdeSession::velocities() const {
+  return impl_->v_;
+}
+void PdeSession::set_values(const Field& u, bool as_rest) {
+  impl_->set_values(u, as_rest);
+}
+void PdeSession::set_velocities(const Field& v) {
+  impl_->set_velocities(v);
+}
+void PdeSession::set_rest(const Field& rest) {
+  impl_->set_rest(rest);
+}
+const ActiveDomain& PdeSession::domain() const {
+  return impl_->domain_;
+}
+void PdeSession::activate(std::span<const int> vertices) {
+  impl_->activate(vertices);
+}
+void PdeSession::activate_all() {
+  impl_->activate_all();
+}
+void PdeSession::activate_rings(int v, int k) {
+  impl_->activate_rings(v, k);
+}
+void PdeSession::deactivate_all() {
+  impl_->deactivate_all();
+}
+DomainChange PdeSession::propose_domain_change() {
+  return impl_->propose_domain_change();
+}
+void PdeSession::set_free_set(std::span<const int> free, std::span<const int> to_rest) {
+  impl_->set_free_set(free, to_rest);
+}
+void PdeSession::constrain(int v, std::span<const double> value) {
+  impl_->constrain(v, value);
+}
+void PdeSession::release(int v) {
+  impl_->release(v);
+}
+std::span<const int> PdeSession::constrained_vertices() const {
+  return impl_->cons_;
+}
+const Field& PdeSession::reaction_forces() const {
+  return impl_->reaction_;
+}
+StepResult PdeSession::step(double dt, const Field* f) {
+  impl_->cg_options = cg_options;
+  return impl_->step(dt, f);
+}
+StepResult PdeSession::solve_steady(const Field* f) {
+  impl_->cg_options = cg_options;
+  return impl_->solve_steady(f);
+}
+void PdeSession::set_step_factor(std::shared_ptr<const StepFactor> factor) {
+  impl_->set_step_factor(std::move(factor));
+}
+const std::shared_ptr<const StepFactor>& PdeSession::step_factor() const {
+  return impl_->factor_;
+}
+bool PdeSession::step_factor_applies(double dt) const {
+  return impl_->step_factor_applies(dt);
 }
 
 }  // namespace meshpde

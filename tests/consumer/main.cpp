@@ -13,7 +13,7 @@
 int main() {
   const auto g = meshpde::icosphere(2);
   const meshpde::Mesh mesh(g.V, g.F);
-  const auto ops = meshpde::build_operators(mesh);
+  const auto ops = meshpde::build_cotan_operators(mesh);
   const meshpde::Field ones = meshpde::Field::Ones(mesh.num_vertices(), 1);
   const double r = meshpde::apply_stiffness(mesh, ops, ones).cwiseAbs().maxCoeff();
   std::printf("%d vertices, K 1 = 0 up to %.1e\n", mesh.num_vertices(), r);

@@ -17,6 +17,7 @@
 
 #include "meshpde/mesh/mesh.h"
 #include "meshpde/operators/fem_operators.h"
+#include "meshpde/operators/laplacian.h"
 #include "meshpde/solvers/cg.h"
 
 namespace meshpde {
@@ -55,17 +56,19 @@ PropagationResult propagate(
 double wave_energy(const Mesh& mesh, const FemOperators& ops, const Eigen::VectorXd& u, const Eigen::VectorXd& ut,
                    double wave_speed);
 
-/// The same on plain (V, F) with the cotangent operators.
+/// The same on plain (V, F), on the operators of `laplacian` (build_mesh_operators; Auto
+/// as in every (V, F) form).
 inline PropagationResult propagate(
     const Positions& V, const Triangles& F, const PropagationParams& params,
-    const std::function<void(int, const Eigen::VectorXd&, const Eigen::VectorXd&)>& on_step = {}) {
-  const Mesh mesh(V, F);
-  return propagate(mesh, build_operators(mesh), params, on_step);
+    const std::function<void(int, const Eigen::VectorXd&, const Eigen::VectorXd&)>& on_step = {},
+    LaplacianKind laplacian = LaplacianKind::Auto) {
+  const MeshOperators mo = build_mesh_operators(Mesh(V, F), laplacian);
+  return propagate(mo.mesh, mo.ops, params, on_step);
 }
 inline double wave_energy(const Positions& V, const Triangles& F, const Eigen::VectorXd& u, const Eigen::VectorXd& ut,
-                          double wave_speed) {
-  const Mesh mesh(V, F);
-  return wave_energy(mesh, build_operators(mesh), u, ut, wave_speed);
+                          double wave_speed, LaplacianKind laplacian = LaplacianKind::Auto) {
+  const MeshOperators mo = build_mesh_operators(Mesh(V, F), laplacian);
+  return wave_energy(mo.mesh, mo.ops, u, ut, wave_speed);
 }
 
 }  // namespace meshpde

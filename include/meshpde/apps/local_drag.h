@@ -15,6 +15,7 @@
 #include "meshpde/mesh/mesh.h"
 #include "meshpde/mesh/regions.h"
 #include "meshpde/operators/fem_operators.h"
+#include "meshpde/operators/laplacian.h"
 #include "meshpde/pde/steady_direct.h"
 #include "meshpde/solvers/cg.h"
 
@@ -175,10 +176,13 @@ class DragSession {
   double residual_ = 0;
 };
 
-/// drag_vertex on plain (V, F) with the cotangent operators.
-inline DragResult drag_vertex(const Positions& V, const Triangles& F, const DragParams& params) {
-  const Mesh mesh(V, F);
-  return drag_vertex(mesh, build_operators(mesh), params);
+/// drag_vertex on plain (V, F), on the operators of `laplacian` (build_mesh_operators;
+/// Auto, the default of every (V, F) form, takes intrinsic Delaunay on badly shaped or
+/// non-manifold meshes and the cotangent ones otherwise).
+inline DragResult drag_vertex(const Positions& V, const Triangles& F, const DragParams& params,
+                              LaplacianKind laplacian = LaplacianKind::Auto) {
+  const MeshOperators mo = build_mesh_operators(Mesh(V, F), laplacian);
+  return drag_vertex(mo.mesh, mo.ops, params);
 }
 
 }  // namespace meshpde

@@ -40,7 +40,7 @@ CurvatureResult mean_curvature(const Mesh& mesh, CurvatureScale scale, Laplacian
 /// The same on plain (V, F): builds the mesh and its cotangent operators first.
 inline Eigen::VectorXd mean_curvature(const Positions& V, const Triangles& F, CurvatureScale scale) {
   const Mesh mesh(V, F);
-  return mean_curvature(mesh, build_operators(mesh), scale);
+  return mean_curvature(mesh, build_cotan_operators(mesh), scale);
 }
 
 }  // namespace meshpde

@@ -37,6 +37,11 @@ struct OperatorOptions {
   Eigen::VectorXd face_weights;
 };
 
+/// K and M of one Laplacian, whichever built them: the cotangent one on the input
+/// triangles (build_cotan_operators), the intrinsic Delaunay one on its own triangles
+/// (build_intrinsic_delaunay_operators, operators/intrinsic_delaunay.h), or the one a
+/// LaplacianKind names (build_mesh_operators, operators/laplacian.h, which keeps the
+/// mesh the operators' connectivity belongs to beside them).
 struct FemOperators {
   Eigen::VectorXd Kii;   ///< #V diagonal of K
   Eigen::VectorXd Kij;   ///< one value per CSR slot of Mesh::neighbors() (2 #E)
@@ -50,9 +55,13 @@ struct FemOperators {
   std::size_t bytes() const { return sizeof(double) * (Kii.size() + Kij.size() + mass.size()); }
 };
 
-/// Assembles K and M. \throw InputError if face_weights has the wrong length or a
-/// negative or non-finite entry.
-FemOperators build_operators(const Mesh& mesh, const OperatorOptions& options = {});
+/// Assembles the cotangent K and the lumped M on the mesh's own triangles. \throw
+/// InputError if face_weights has the wrong length or a negative or non-finite entry.
+FemOperators build_cotan_operators(const Mesh& mesh, const OperatorOptions& options = {});
+[[deprecated("build_operators is now build_cotan_operators")]] inline FemOperators build_operators(
+    const Mesh& mesh, const OperatorOptions& options = {}) {
+  return build_cotan_operators(mesh, options);
+}
 
 /// Area of each triangle (length^2); 0 for degenerate ones.
 Eigen::VectorXd face_areas(const Mesh& mesh);
@@ -119,19 +128,19 @@ void apply_bilaplacian_scalar(const Mesh& mesh, const FemOperators& ops, const d
 /// forms above). Shapes, units and signs as above.
 inline Field apply_stiffness(const Positions& V, const Triangles& F, const Field& U) {
   const Mesh mesh(V, F);
-  return apply_stiffness(mesh, build_operators(mesh), U);
+  return apply_stiffness(mesh, build_cotan_operators(mesh), U);
 }
 inline Field apply_bilaplacian(const Positions& V, const Triangles& F, const Field& U) {
   const Mesh mesh(V, F);
-  return apply_bilaplacian(mesh, build_operators(mesh), U);
+  return apply_bilaplacian(mesh, build_cotan_operators(mesh), U);
 }
 inline Eigen::SparseMatrix<double> stiffness_matrix(const Positions& V, const Triangles& F) {
   const Mesh mesh(V, F);
-  return stiffness_matrix(mesh, build_operators(mesh));
+  return stiffness_matrix(mesh, build_cotan_operators(mesh));
 }
 inline Eigen::SparseMatrix<double> mass_matrix(const Positions& V, const Triangles& F) {
   const Mesh mesh(V, F);
-  return mass_matrix(build_operators(mesh));
+  return mass_matrix(build_cotan_operators(mesh));
 }
 
 }  // namespace meshpde

@@ -34,6 +34,7 @@
 
 #include "meshpde/mesh/mesh.h"
 #include "meshpde/operators/fem_operators.h"
+#include "meshpde/operators/laplacian.h"
 #include "meshpde/solvers/direct.h"
 #include "meshpde/solvers/surface_multigrid.h"
 
@@ -131,12 +132,14 @@ GlobalBilaplacianResult solve_global_bilaplacian(const Mesh& mesh, const FemOper
                                                  const std::vector<int>& free, const Field& u,
                                                  const GlobalBilaplacianParams& params = {});
 
-/// The same on plain (V, F) with the cotangent operators.
+/// The same on plain (V, F), on the operators of `laplacian` (build_mesh_operators; Auto
+/// as in every (V, F) form).
 inline GlobalBilaplacianResult solve_global_bilaplacian(const Positions& V, const Triangles& F,
                                                         const std::vector<int>& free, const Field& u,
-                                                        const GlobalBilaplacianParams& params = {}) {
-  const Mesh mesh(V, F);
-  return solve_global_bilaplacian(mesh, build_operators(mesh), free, u, params);
+                                                        const GlobalBilaplacianParams& params = {},
+                                                        LaplacianKind laplacian = LaplacianKind::Auto) {
+  const MeshOperators mo = build_mesh_operators(Mesh(V, F), laplacian);
+  return solve_global_bilaplacian(mo.mesh, mo.ops, free, u, params);
 }
 
 }  // namespace meshpde

@@ -86,15 +86,19 @@ class PdeSession {
   PdeSession(const Mesh& mesh, const FemOperators& ops, int components, PdeCoefficients coefficients = {},
              DomainOptions domain = {});
 
-  int components() const { return m_; }
-  const PdeCoefficients& coefficients() const { return coef_; }
+  PdeSession(PdeSession&&) noexcept;
+  PdeSession& operator=(PdeSession&&) noexcept;
+  ~PdeSession();
+
+  int components() const;
+  const PdeCoefficients& coefficients() const;
   void set_coefficients(const PdeCoefficients& c);
-  const DomainOptions& domain_options() const { return dopt_; }
-  void set_domain_options(const DomainOptions& d) { dopt_ = d; }
+  const DomainOptions& domain_options() const;
+  void set_domain_options(const DomainOptions& d);
 
   /// Current values u (#V x m) and velocities u' (#V x m).
-  const Field& values() const { return u_; }
-  const Field& velocities() const { return v_; }
+  const Field& values() const;
+  const Field& velocities() const;
   /// Replaces values (and sets velocities to zero). Also the rest state when `as_rest`.
   void set_values(const Field& u, bool as_rest = true);
   /// Replaces velocities u' (e.g. an initial impulse for the wave equation).
@@ -103,7 +107,7 @@ class PdeSession {
   void set_rest(const Field& rest);
 
   // --- domain -----------------------------------------------------------------
-  const ActiveDomain& domain() const { return domain_; }
+  const ActiveDomain& domain() const;
   /// Frees the listed vertices (zero-area vertices are skipped: they stay fixed).
   void activate(std::span<const int> vertices);
   void activate_all();
@@ -128,10 +132,10 @@ class PdeSession {
   void constrain(int v, std::span<const double> value);
   /// Releases v: it becomes free (and keeps its current value and velocity).
   void release(int v);
-  std::span<const int> constrained_vertices() const { return cons_; }
+  std::span<const int> constrained_vertices() const;
   /// Reaction force at each constrained vertex, in constrained_vertices() order,
   /// from the last step or steady solve (#C x m).
-  const Field& reaction_forces() const { return reaction_; }
+  const Field& reaction_forces() const;
 
   // --- solves ---------------------------------------------------------------------
   /// One backward Euler step of size dt with optional forcing f (#V x m).
@@ -147,59 +151,15 @@ class PdeSession {
   /// on this session's mesh and operators (only its vertex numbers are checked).
   /// \throw InputError for a vertex the mesh does not have.
   void set_step_factor(std::shared_ptr<const StepFactor> factor);
-  const std::shared_ptr<const StepFactor>& step_factor() const { return factor_; }
+  const std::shared_ptr<const StepFactor>& step_factor() const;
   /// Whether a step of size dt now would use the step factor.
   bool step_factor_applies(double dt) const;
 
-  /// The solve's local system: A then its ring in local numbering, with CSR rows
-  /// restricted to A + ring (exact for CG directions, which vanish outside A). Built
-  /// once per solve so the CG iterations run on contiguous memory. (Public only so
-  /// the kernels in the implementation file can name it.)
-  struct LocalSystem {
-    std::vector<int> off, nbr;
-    std::vector<double> w, kii, mass, inv_mass;
-    std::vector<double> p, k, t, kt;  // local fields, (n + ring) x m
-  };
-
  private:
-  enum class Mode { Step, Steady };
-  // y(rows) = Kt w(rows), reading w on rows and two rings beyond; uses scratch t_, k_.
-  void apply_Kt_free(const double* w, double* y);
-  StepResult solve(Mode mode, double dt, const Field* f);
-  void adjust_domain(StepResult& r);  // applies propose_domain_change(), counting into r
-  double jacobi(int v, double cM, double cK);
-  void free_vertex(int v);
-
-  const Mesh& mesh_;
-  const FemOperators& ops_;
-  int m_;
-  PdeCoefficients coef_;
-  DomainOptions dopt_;
-  ActiveDomain domain_;
-  Field u_, v_, rest_;
-  // Constraints: list, target values (row-aligned), per-vertex slot.
-  std::vector<int> cons_;
-  Field cons_target_;
-  std::vector<int> cons_pos_;
-  Field reaction_;
-  // Scratch, full size, kept zero outside the domain.
-  Field k_full_, t_full_, kt_full_;  // scratch for the right-hand side (global numbering)
-  Eigen::VectorXd kdk_diag_;         // lazily computed (NaN = not yet)
-  std::vector<int> rest_count_;
-  std::vector<int> ring_rows_;  // A followed by A+1, rebuilt per solve
-  CgWorkspace ws_;
-  LocalSystem local_;
-  Field rhs_, sol_;  // per-solve right-hand side and iterate, kept to avoid allocations
-  Eigen::VectorXd inv_diag_;
-  std::vector<unsigned> visit_mark_;  // activate_rings' visit stamps, one per vertex
-  unsigned visit_stamp_ = 0;
-  std::vector<int> ring_seen_;  // activate_rings' breadth-first order
-  std::vector<int> local_id_;   // vertex -> local index, -1 outside (kept -1 between solves)
-  std::shared_ptr<const StepFactor> factor_;
-  std::vector<int> factor_row_;  // vertex -> row of the step factor, -1 outside it
-  Eigen::MatrixXd factor_rhs_;
-  void build_local_system();
-  void apply_local(const double* P, double* Y, double cM, double cK);
+  // The state (values, constraints, the domain) and the scratch of the solves, in the
+  // implementation file.
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
 };
 
 }  // namespace meshpde

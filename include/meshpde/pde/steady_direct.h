@@ -16,6 +16,7 @@
 
 #include "meshpde/mesh/mesh.h"
 #include "meshpde/operators/fem_operators.h"
+#include "meshpde/operators/laplacian.h"
 #include "meshpde/pde/pde_session.h"
 #include "meshpde/solvers/direct.h"
 #include "meshpde/solvers/surface_multigrid.h"
@@ -216,11 +217,13 @@ class SteadyDirectSolver {
   mutable double inverse_norm_1_ = -1;  // estimate of ||A^-1||_1, computed on demand
 };
 
-/// The same on plain (V, F) with the cotangent operators.
+/// The same on plain (V, F), on the operators of `laplacian` (build_mesh_operators; Auto
+/// as in every (V, F) form).
 inline SteadySolveResult solve_steady(const Positions& V, const Triangles& F, const PdeCoefficients& coefficients,
-                                      const std::vector<int>& free, const Field& u, SteadySolver solver) {
-  const Mesh mesh(V, F);
-  return solve_steady(mesh, build_operators(mesh), coefficients, free, u, solver);
+                                      const std::vector<int>& free, const Field& u, SteadySolver solver,
+                                      LaplacianKind laplacian = LaplacianKind::Auto) {
+  const MeshOperators mo = build_mesh_operators(Mesh(V, F), laplacian);
+  return solve_steady(mo.mesh, mo.ops, coefficients, free, u, solver);
 }
 
 }  // namespace meshpde
