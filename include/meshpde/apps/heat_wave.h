@@ -57,7 +57,7 @@ double wave_energy(const Mesh& mesh, const FemOperators& ops, const Eigen::Vecto
                    double wave_speed);
 
 /// The same on plain (V, F), on the operators of `laplacian` (build_mesh_operators; Auto
-/// as in every (V, F) form).
+/// as in the (V, F) form of every solve).
 inline PropagationResult propagate(
     const Positions& V, const Triangles& F, const PropagationParams& params,
     const std::function<void(int, const Eigen::VectorXd&, const Eigen::VectorXd&)>& on_step = {},

@@ -167,8 +167,8 @@ std::vector<InterpolationConstraint> parse_constraints(const Mesh& mesh, const s
 std::vector<InterpolationConstraint> parse_constraints(const std::function<int(const std::string&)>& vertex,
                                                        const std::string& text, int values, const std::string& name);
 
-/// The same on plain (V, F) (on the operators of params.laplacian, Auto by default, as
-/// in every (V, F) form).
+/// The same on plain (V, F) (on the operators of params.laplacian, Auto by default, as in
+/// the (V, F) form of every solve).
 inline InterpolationResult interpolate(const Positions& V, const Triangles& F, FieldKind kind,
                                        const std::vector<InterpolationConstraint>& constraints,
                                        const InterpolationParams& params = {}) {

@@ -177,8 +177,8 @@ class DragSession {
 };
 
 /// drag_vertex on plain (V, F), on the operators of `laplacian` (build_mesh_operators;
-/// Auto, the default of every (V, F) form, takes intrinsic Delaunay on badly shaped or
-/// non-manifold meshes and the cotangent ones otherwise).
+/// Auto, the default of the (V, F) form of every solve, takes intrinsic Delaunay on
+/// badly shaped or non-manifold meshes and the cotangent ones otherwise).
 inline DragResult drag_vertex(const Positions& V, const Triangles& F, const DragParams& params,
                               LaplacianKind laplacian = LaplacianKind::Auto) {
   const MeshOperators mo = build_mesh_operators(Mesh(V, F), laplacian);

@@ -133,7 +133,7 @@ GlobalBilaplacianResult solve_global_bilaplacian(const Mesh& mesh, const FemOper
                                                  const GlobalBilaplacianParams& params = {});
 
 /// The same on plain (V, F), on the operators of `laplacian` (build_mesh_operators; Auto
-/// as in every (V, F) form).
+/// as in the (V, F) form of every solve).
 inline GlobalBilaplacianResult solve_global_bilaplacian(const Positions& V, const Triangles& F,
                                                         const std::vector<int>& free, const Field& u,
                                                         const GlobalBilaplacianParams& params = {},

@@ -218,7 +218,7 @@ class SteadyDirectSolver {
 };
 
 /// The same on plain (V, F), on the operators of `laplacian` (build_mesh_operators; Auto
-/// as in every (V, F) form).
+/// as in the (V, F) form of every solve).
 inline SteadySolveResult solve_steady(const Positions& V, const Triangles& F, const PdeCoefficients& coefficients,
                                       const std::vector<int>& free, const Field& u, SteadySolver solver,
                                       LaplacianKind laplacian = LaplacianKind::Auto) {
