@@ -321,7 +321,7 @@ PyCorrectionResult wrap(const Positions& V, const Triangles& F, CorrectionResult
 // CorrectionSession with the mesh it owns.
 class PyCorrectionSession {
  public:
-  PyCorrectionSession(const py::handle& V, const py::handle& F) : session_(mesh_arg(V, F)) {}
+  PyCorrectionSession(const ArrayLike& V, const ArrayLike& F) : session_(mesh_arg(V, F)) {}
   PyCorrectionResult apply(const py::handle& vertices, const py::handle& moves, const py::dict& options) {
     const CorrectionOptions c = correction_options(session_.mesh(), vertices, moves, options);
     const Positions before = session_.mesh().positions();
@@ -341,8 +341,8 @@ class PyCorrectionSession {
 void bind_apps(py::module_& m) {
   m.def(
       "_heat",
-      [](const py::handle& V, const py::handle& F, const py::handle& sources, const py::handle& flux, double dt,
-         int steps, double diffusivity, const py::handle& initial, bool local, const std::string& laplacian,
+      [](const ArrayLike& V, const ArrayLike& F, const ArrayLike& sources, const ArrayLike& flux, double dt,
+         int steps, double diffusivity, const ArrayLike& initial, bool local, const std::string& laplacian,
          const py::object& callback) {
         return run_propagation(Propagation::Heat, V, F, sources, flux, py::none(), dt, steps, diffusivity, 1.0, 0.0,
                                initial, py::none(), local, laplacian, callback);
@@ -351,9 +351,9 @@ void bind_apps(py::module_& m) {
       py::arg("diffusivity"), py::arg("initial"), py::arg("local"), py::arg("laplacian"), py::arg("callback"));
   m.def(
       "_wave",
-      [](const py::handle& V, const py::handle& F, const py::handle& sources, const py::handle& flux,
-         const py::handle& impulses, double dt, int steps, double speed, double damping, const py::handle& initial,
-         const py::handle& initial_velocity, bool local, const std::string& laplacian, const py::object& callback) {
+      [](const ArrayLike& V, const ArrayLike& F, const ArrayLike& sources, const ArrayLike& flux,
+         const ArrayLike& impulses, double dt, int steps, double speed, double damping, const ArrayLike& initial,
+         const ArrayLike& initial_velocity, bool local, const std::string& laplacian, const py::object& callback) {
         return run_propagation(Propagation::Wave, V, F, sources, flux, impulses, dt, steps, 1.0, speed, damping,
                                initial, initial_velocity, local, laplacian, callback);
       },
@@ -362,7 +362,7 @@ void bind_apps(py::module_& m) {
       py::arg("local"), py::arg("laplacian"), py::arg("callback"));
   m.def(
       "wave_energy",
-      [](const py::handle& V, const py::handle& F, const py::handle& u, const py::handle& ut, double speed) {
+      [](const ArrayLike& V, const ArrayLike& F, const ArrayLike& u, const ArrayLike& ut, double speed) {
         const Mesh mesh = mesh_arg(V, F);
         const FemOperators ops = build_cotan_operators(mesh);
         return wave_energy(mesh, ops, vector_arg(u, "u", mesh.num_vertices()),
@@ -372,7 +372,7 @@ void bind_apps(py::module_& m) {
 
   m.def(
       "_fair",
-      [](const py::handle& V, const py::handle& F, const py::handle& fixed, int order, bool regularize, double dt,
+      [](const ArrayLike& V, const ArrayLike& F, const py::handle& fixed, int order, bool regularize, double dt,
          int steps, double damping, const std::string& solver, const std::string& laplacian) {
         const Mesh mesh = mesh_arg(V, F);
         const std::vector<int> held = selection_arg(mesh, fixed, "fixed");
@@ -413,7 +413,7 @@ void bind_apps(py::module_& m) {
 
   m.def(
       "_interpolate",
-      [](const py::handle& V, const py::handle& F, const py::handle& vertices, const py::handle& values,
+      [](const ArrayLike& V, const ArrayLike& F, const ArrayLike& vertices, const ArrayLike& values,
          const std::string& kind, const std::string& method, double g1, double g2, const std::string& solver,
          const std::string& laplacian) {
         const Mesh mesh = mesh_arg(V, F);
@@ -454,7 +454,7 @@ scalars, (n, 3) for displacements and tangent vectors (componentwise, projected)
 values at the same vertices cost one solve with the kept factor; added or removed
 vertices a small Schur complement against it (factored afresh after max_changes of
 them). Answers equal interpolate(..., solver="direct") to rounding.)doc")
-      .def(py::init([](const py::handle& V, const py::handle& F, const std::string& kind, double g1, double g2,
+      .def(py::init([](const ArrayLike& V, const ArrayLike& F, const std::string& kind, double g1, double g2,
                        const std::string& laplacian) {
              const FieldKind k = field_kind_arg(kind);
              InterpolationParams p;
@@ -469,7 +469,7 @@ them). Answers equal interpolate(..., solver="direct") to rounding.)doc")
            py::arg("laplacian") = "auto")
       .def(
           "set_value",
-          [](InterpolationSolver& s, int vertex, const py::handle& value) {
+          [](InterpolationSolver& s, int vertex, const ArrayLike& value) {
             const py::array_t<double> a = py::array_t<double, py::array::forcecast>::ensure(value);
             if (!a) throw InputError("value: expected a number or 3 numbers");
             Eigen::VectorXd x(a.size());
@@ -581,7 +581,7 @@ them). Answers equal interpolate(..., solver="direct") to rounding.)doc")
 
   m.def(
       "_correct",
-      [](const py::handle& V, const py::handle& F, const py::handle& vertices, const py::handle& moves,
+      [](const ArrayLike& V, const ArrayLike& F, const ArrayLike& vertices, const py::handle& moves,
          const py::dict& options) {
         const Mesh mesh = mesh_arg(V, F);
         const CorrectionOptions c = correction_options(mesh, vertices, moves, options);
@@ -596,7 +596,7 @@ them). Answers equal interpolate(..., solver="direct") to rounding.)doc")
       py::arg("V"), py::arg("F"), py::arg("vertices"), py::arg("moves"), py::arg("options"));
 
   py::class_<PyCorrectionSession>(m, "_CorrectionSession")
-      .def(py::init<const py::handle&, const py::handle&>(), py::arg("V"), py::arg("F"))
+      .def(py::init<const ArrayLike&, const ArrayLike&>(), py::arg("V"), py::arg("F"))
       .def("_apply", &PyCorrectionSession::apply, py::arg("vertices"), py::arg("moves"), py::arg("options"))
       .def(
           "undo", [](PyCorrectionSession& s) { s.session_.undo(); }, "Goes back one correction.")

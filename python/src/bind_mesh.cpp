@@ -265,7 +265,7 @@ void bind_mesh(py::module_& m) {
 
   m.def(
       "_write_mesh",
-      [](const std::filesystem::path& path, const py::handle& V, const py::handle& F, const py::handle& fields,
+      [](const std::filesystem::path& path, const ArrayLike& V, const ArrayLike& F, const py::handle& fields,
          bool binary, const py::handle& cells, const py::handle& space, const py::handle& field_data) {
         MeshData d;
         d.V = positions_arg(V);
@@ -288,7 +288,7 @@ void bind_mesh(py::module_& m) {
 
   m.def(
       "_refresh_normals",
-      [](const py::handle& V, const py::handle& F, const py::handle& fields, const py::handle& cells) {
+      [](const ArrayLike& V, const ArrayLike& F, const py::handle& fields, const py::handle& cells) {
         MeshData d;
         d.V = positions_arg(V);
         d.F = triangles_arg(F, d.V.rows());
@@ -301,7 +301,7 @@ void bind_mesh(py::module_& m) {
 
   m.def(
       "info",
-      [](const py::handle& V, const py::handle& F) -> py::dict {
+      [](const ArrayLike& V, const ArrayLike& F) -> py::dict {
         if (F.is_none()) {  // info(path): a mesh file, or a volume
           const auto path = V.cast<std::filesystem::path>();
           require_file(path);
@@ -355,7 +355,7 @@ regular grid), the files passed over ("skipped"), and with a single series its
 
   m.def(
       "check_units",
-      [](const py::handle& V, const py::handle& F, const std::string& units) -> py::dict {
+      [](const ArrayLike& V, const ArrayLike& F, const std::string& units) -> py::dict {
         const LengthUnit unit = parse_length_unit(units);
         const Mesh mesh = mesh_arg(V, F);
         const UnitsCheck c = check_units(mesh, unit);
@@ -384,7 +384,7 @@ as `correct(units=)` warns.)doc",
 
   m.def(
       "vertex_normals",
-      [](const py::handle& V, const py::handle& F, bool outward) {
+      [](const ArrayLike& V, const ArrayLike& F, bool outward) {
         const Mesh mesh = mesh_arg(V, F);
         return to_numpy(Eigen::MatrixXd(outward ? outward_vertex_normals(mesh) : vertex_normals(mesh)));
       },
@@ -396,7 +396,7 @@ closed mesh whatever its triangles' orientation. Zero rows for vertices without 
 
   m.def(
       "geodesic_ball",
-      [](const py::handle& V, const py::handle& F, long long vertex, double radius) {
+      [](const ArrayLike& V, const ArrayLike& F, long long vertex, double radius) {
         const Mesh mesh = mesh_arg(V, F);
         if (!(radius > 0) || !std::isfinite(radius))
           throw InputError(fmt::format("radius: expected a length > 0, got {}", radius));
@@ -408,7 +408,7 @@ Vertices whose edge-path distance from `vertex` is below `radius` (mesh units), 
       py::arg("V"), py::arg("F"), py::arg("vertex"), py::arg("radius"));
   m.def(
       "ring_ball",
-      [](const py::handle& V, const py::handle& F, long long vertex, int rings) {
+      [](const ArrayLike& V, const ArrayLike& F, long long vertex, int rings) {
         const Mesh mesh = mesh_arg(V, F);
         if (rings < 0) throw InputError(fmt::format("rings: expected >= 0, got {}", rings));
         return to_numpy(ring_ball(mesh, vertex_arg(vertex, "vertex", mesh.num_vertices()), rings));
@@ -420,7 +420,7 @@ Vertices within `rings` edges of `vertex`.)doc",
 
   m.def(
       "self_intersections",
-      [](const py::handle& V, const py::handle& F) {
+      [](const ArrayLike& V, const ArrayLike& F) {
         const Mesh mesh = mesh_arg(V, F);
         std::vector<std::pair<int, int>> pairs;
         {
@@ -445,7 +445,7 @@ Polygon_mesh_processing::self_intersections counts the same pairs).)doc",
 
   m.def(
       "hausdorff_distance",
-      [](const py::handle& VA, const py::handle& FA, const py::handle& VB, const py::handle& FB, bool directed) {
+      [](const ArrayLike& VA, const ArrayLike& FA, const ArrayLike& VB, const ArrayLike& FB, bool directed) {
         const Mesh a = mesh_arg(VA, FA), b = mesh_arg(VB, FB);
         py::gil_scoped_release release;
         return directed ? directed_hausdorff(a.positions(), a.triangles(), b.positions(), b.triangles())
@@ -460,7 +460,7 @@ measured exactly to the other (mesh/surface_distance.h). Units of the positions.
 
   m.def(
       "closest_surface_points",
-      [](const py::handle& V, const py::handle& F, const py::handle& points) {
+      [](const ArrayLike& V, const ArrayLike& F, const ArrayLike& points) {
         const Mesh mesh = mesh_arg(V, F);
         const Field P = field_arg(points, "points", -1, 3);
         std::vector<Eigen::Vector3d> at;
@@ -487,7 +487,7 @@ A field on the vertices at those points is ``(bary[:, :, None] * field[F[faces]]
 
   m.def(
       "geodesic_distance",
-      [](const py::handle& V, const py::handle& F, const py::handle& sources, double radius) {
+      [](const ArrayLike& V, const ArrayLike& F, const ArrayLike& sources, double radius) {
         const Mesh mesh = mesh_arg(V, F);
         GeodesicSources s;
         const py::array a = py::array::ensure(sources);
@@ -520,9 +520,9 @@ Units of V.)doc",
 
   m.def(
       "render",
-      [](const py::handle& V, const py::handle& F, const py::handle& field, const py::handle& vectors,
-         const py::handle& path, int width, int height, double azimuth, double elevation, const std::string& up,
-         double zoom, const py::handle& center, bool wireframe, const std::string& colormap, const py::handle& range,
+      [](const ArrayLike& V, const ArrayLike& F, const ArrayLike& field, const ArrayLike& vectors,
+         const OptionalPath& path, int width, int height, double azimuth, double elevation, const std::string& up,
+         double zoom, const ArrayLike& center, bool wireframe, const std::string& colormap, const ArrayLike& range,
          const std::string& title, const std::string& field_name) -> py::object {
         const Mesh mesh = mesh_arg(V, F);
         if (width < 16 || height < 16 || width > 8192 || height > 8192)
@@ -571,10 +571,10 @@ A headless picture: shading, a colour map of `field` (n,) with its legend, arrow
 #ifdef MESHPDE_HAVE_MEDICAL
   m.def(
       "read_volume",
-      [](const std::filesystem::path& path, const py::handle& series) {
+      [](const std::filesystem::path& path, const SeriesChoice& series) {
         require_file(path);
         VolumeReadOptions options;
-        if (!series.is_none()) options.series = py::str(series);
+        if (!series.is_none()) options.series = py::str(py::handle(series));
         Volume v;
         {
           py::gil_scoped_release release;
@@ -691,7 +691,7 @@ raises InputError listing them.)doc",
       py::arg("dent_depth") = b.dent_depth, py::arg("dent_radius") = b.dent_radius);
   g.def(
       "subdivide",
-      [](const py::handle& V, const py::handle& F) {
+      [](const ArrayLike& V, const ArrayLike& F) {
         const Mesh mesh = mesh_arg(V, F);
         return generated(subdivide_midpoint(mesh.positions(), mesh.triangles()));
       },

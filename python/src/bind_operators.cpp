@@ -42,7 +42,7 @@ Operators operators_of(const py::handle& V, const py::handle& F, const std::stri
 void bind_operators(py::module_& m) {
   m.def(
       "stiffness",
-      [](const py::handle& V, const py::handle& F, const std::string& laplacian) {
+      [](const ArrayLike& V, const ArrayLike& F, const std::string& laplacian) {
         const Operators o = operators_of(V, F, laplacian);
         // Written straight into the arrays scipy keeps (no intermediate matrix).
         const auto n = static_cast<std::size_t>(o.operator_mesh().num_vertices());
@@ -65,7 +65,7 @@ Delaunay, an M-matrix on any mesh) or "auto" (intrinsic on badly shaped meshes).
       py::arg("V"), py::arg("F"), py::arg("laplacian") = "cotan");
   m.def(
       "mass",
-      [](const py::handle& V, const py::handle& F, const std::string& laplacian) {
+      [](const ArrayLike& V, const ArrayLike& F, const std::string& laplacian) {
         const Operators o = operators_of(V, F, laplacian);
         return to_csr(mass_matrix(o.ops()));
       },
@@ -75,7 +75,7 @@ Lumped mass M: M_ii = a third of the area of the triangles at i (length^2).)doc"
       py::arg("V"), py::arg("F"), py::arg("laplacian") = "cotan");
   m.def(
       "intrinsic_delaunay",
-      [](const py::handle& V, const py::handle& F, double mollify_epsilon) {
+      [](const ArrayLike& V, const ArrayLike& F, double mollify_epsilon) {
         const Mesh mesh = mesh_arg(V, F);
         if (!(mollify_epsilon >= 0) || !std::isfinite(mollify_epsilon))
           throw InputError(fmt::format("mollify_epsilon: expected a finite value >= 0, got {}", mollify_epsilon));
@@ -100,7 +100,7 @@ K and M on the intrinsic Delaunay triangulation of the same surface (Sharp and C
       py::arg("V"), py::arg("F"), py::arg("mollify_epsilon") = IntrinsicDelaunayOptions{}.mollify_epsilon);
   m.def(
       "curvature",
-      [](const py::handle& V, const py::handle& F, const std::string& scale, const std::string& laplacian) {
+      [](const ArrayLike& V, const ArrayLike& F, const std::string& scale, const std::string& laplacian) {
         if (scale != "area" && scale != "valence")
           throw InputError(fmt::format("scale: expected 'area' or 'valence', got '{}'", scale));
         const LaplacianKind kind = parse_laplacian_kind(laplacian);

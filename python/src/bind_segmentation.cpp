@@ -138,7 +138,7 @@ void bind_segmentation(py::module_& m) {
       "_write_segmentation",
       [](const std::filesystem::path& path,
          const py::array_t<std::int32_t, py::array::c_style | py::array::forcecast>& flat, std::array<int, 3> dims,
-         int layers, const py::handle& affine, const py::handle& segments, const py::handle& like) {
+         int layers, const ArrayLike& affine, const py::handle& segments, const py::handle& like) {
         Segmentation seg = segmentation_from(flat, dims, layers, affine, segments);
         if (!like.is_none()) {
           // The header, format and table of `like`, with these labels.
@@ -159,7 +159,7 @@ void bind_segmentation(py::module_& m) {
 
   m.def(
       "_extract_surface",
-      [](const py::handle& path, const py::handle& flat, std::array<int, 3> dims, int layers, const py::handle& affine,
+      [](const py::handle& path, const ArrayLike& flat, std::array<int, 3> dims, int layers, const ArrayLike& affine,
          const std::string& segment, double smoothing) {
         Segmentation seg =
             path.is_none()
@@ -185,7 +185,7 @@ void bind_segmentation(py::module_& m) {
 
   m.def(
       "_voxelize",
-      [](const py::handle& V, const py::handle& F, const py::handle& displacement,
+      [](const ArrayLike& V, const ArrayLike& F, const py::handle& displacement,
          const std::filesystem::path& reference, const std::string& segment, int oversampling, bool full,
          const std::string& space, const std::string& units, const py::handle& series, const py::handle& output) {
         MeshData surface;

@@ -93,7 +93,7 @@ backward Euler with CG on the free vertices of an active domain (every vertex fr
 at first: activate_all(), activate_rings(), or constrain() which frees rings around a
 vertex). values and velocities are (n, components); reaction_forces one row per
 constrained vertex (the force the constraint applies to hold it).)doc")
-      .def(py::init([](const py::handle& V, const py::handle& F, int components, double alpha, double b1, double b2,
+      .def(py::init([](const ArrayLike& V, const ArrayLike& F, int components, double alpha, double b1, double b2,
                        double g0, double g1, double g2, bool self_adjusting, double grow_fraction, double rest_value,
                        double rest_rate, int rest_steps, int seed_rings, int max_free, double tolerance,
                        int max_iterations) {
@@ -116,19 +116,19 @@ constrained vertex (the force the constraint applies to hold it).)doc")
       .def_property_readonly("velocities", [](const PyPdeSession& p) { return to_numpy(p.s->velocities()); })
       .def(
           "set_values",
-          [](PyPdeSession& p, const py::handle& u, bool as_rest) {
+          [](PyPdeSession& p, const ArrayLike& u, bool as_rest) {
             p.s->set_values(field_arg(u, "u", p.mesh.num_vertices(), p.s->components()), as_rest);
           },
           py::arg("u"), py::arg("as_rest") = true)
       .def(
           "set_velocities",
-          [](PyPdeSession& p, const py::handle& v) {
+          [](PyPdeSession& p, const ArrayLike& v) {
             p.s->set_velocities(field_arg(v, "v", p.mesh.num_vertices(), p.s->components()));
           },
           py::arg("v"))
       .def(
           "constrain",
-          [](PyPdeSession& p, long long v, const py::handle& value) {
+          [](PyPdeSession& p, long long v, const ArrayLike& value) {
             const int i = vertex_arg(v, "vertex", p.mesh.num_vertices());
             const Eigen::VectorXd x = py::isinstance<py::float_>(value) || py::isinstance<py::int_>(value)
                                           ? Eigen::VectorXd::Constant(1, value.cast<double>())
@@ -155,7 +155,7 @@ constrained vertex (the force the constraint applies to hold it).)doc")
                              })
       .def(
           "activate",
-          [](PyPdeSession& p, const py::handle& vertices) {
+          [](PyPdeSession& p, const ArrayLike& vertices) {
             const std::vector<int> v = vertices_arg(vertices, "vertices", p.mesh.num_vertices());
             p.s->activate(v);
           },
@@ -171,7 +171,7 @@ constrained vertex (the force the constraint applies to hold it).)doc")
       .def("deactivate_all", [](PyPdeSession& p) { p.s->deactivate_all(); })
       .def(
           "step",
-          [](PyPdeSession& p, double dt, const py::handle& f) {
+          [](PyPdeSession& p, double dt, const ArrayLike& f) {
             if (!(dt > 0) || !std::isfinite(dt)) throw InputError(fmt::format("dt: expected > 0, got {}", dt));
             const Field force = p.optional_field(f);
             StepResult r;
@@ -184,7 +184,7 @@ constrained vertex (the force the constraint applies to hold it).)doc")
           py::arg("dt"), py::arg("f") = py::none())
       .def(
           "solve_steady",
-          [](PyPdeSession& p, const py::handle& f) {
+          [](PyPdeSession& p, const ArrayLike& f) {
             const Field force = p.optional_field(f);
             StepResult r;
             {
@@ -210,7 +210,7 @@ factor being built; set it when stepping faster than real time (a notebook loop,
 offline replay): the domain then keeps up and the forces are the same in every run.
 laplacian: "auto" (intrinsic Delaunay on badly shaped or non-manifold meshes), "cotan"
 or "intrinsic".)doc")
-      .def(py::init([](const py::handle& V, const py::handle& F, double influence, double stiffness, double mass,
+      .def(py::init([](const ArrayLike& V, const ArrayLike& F, double influence, double stiffness, double mass,
                        double damping, double stiffness_damping, double domain_tolerance, double rate_hz,
                        const std::string& solver, bool wait_for_factors, const std::string& laplacian) {
              HapticParams p;
@@ -240,10 +240,10 @@ or "intrinsic".)doc")
           [](PyHapticSession& p, long long v) { p.s->touch(vertex_arg(v, "vertex", p.mo.mesh.num_vertices())); },
           py::arg("vertex"))
       .def(
-          "touch_point", [](PyHapticSession& p, const py::handle& x) { p.s->touch_point(vector_arg(x, "point", 3)); },
+          "touch_point", [](PyHapticSession& p, const ArrayLike& x) { p.s->touch_point(vector_arg(x, "point", 3)); },
           py::arg("point"))
       .def(
-          "move_probe", [](PyHapticSession& p, const py::handle& x) { p.s->move_probe(vector_arg(x, "offset", 3)); },
+          "move_probe", [](PyHapticSession& p, const ArrayLike& x) { p.s->move_probe(vector_arg(x, "offset", 3)); },
           py::arg("offset"))
       .def("release", [](PyHapticSession& p) { p.s->release(); })
       .def_property_readonly("touching", [](const PyHapticSession& p) { return p.s->touching(); })
@@ -311,7 +311,7 @@ positions(d) for handle displacements d (k, 3) costs a product, not a solve;
 add_handle, grow and shrink reuse the factor where they can. The region: the
 vertices within `radius` of the first handle on the surface (geodesic_distance),
 or `rings` rings of neighbours; held at zero outside.)doc")
-      .def(py::init([](const py::handle& V, const py::handle& F, const py::handle& handles, double radius, int rings,
+      .def(py::init([](const ArrayLike& V, const ArrayLike& F, const ArrayLike& handles, double radius, int rings,
                        double g1, double g2, bool margin, bool inner_margin) {
              auto p = std::make_unique<PyDragSession>();
              p->mesh = mesh_arg(V, F);
@@ -330,13 +330,13 @@ or `rings` rings of neighbours; held at zero outside.)doc")
            py::arg("inner_margin") = g0.inner_margin)
       .def(
           "displacements",
-          [](const PyDragSession& p, const py::handle& d) {
+          [](const PyDragSession& p, const ArrayLike& d) {
             return to_numpy(Eigen::MatrixXd(p.s->displacements(p.handle_displacements(d))));
           },
           py::arg("handle_displacements"))
       .def(
           "positions",
-          [](const PyDragSession& p, const py::handle& d) {
+          [](const PyDragSession& p, const ArrayLike& d) {
             return to_numpy(Eigen::MatrixXd(p.s->positions(p.handle_displacements(d))));
           },
           py::arg("handle_displacements"))
@@ -378,7 +378,7 @@ Whole-mesh steady solves (g1 K + g2 K M^-1 K) u = 0 on the `free` vertices, the 
 held at the values given to solve(u) (n,) or (n, c). The preconditioner (surface
 multigrid or Laplacian factor, "auto" chooses by measured convergence) is built by the
 first solve and kept. Returns (u, info).)doc")
-      .def(py::init([](const py::handle& V, const py::handle& F, const py::handle& free, double g1, double g2,
+      .def(py::init([](const ArrayLike& V, const ArrayLike& F, const ArrayLike& free, double g1, double g2,
                        double tolerance, int max_iterations, const std::string& preconditioner) {
              auto p = std::make_unique<PyGlobalSolver>();
              p->mesh = mesh_arg(V, F);
@@ -398,7 +398,7 @@ first solve and kept. Returns (u, info).)doc")
            py::arg("preconditioner") = "auto")
       .def(
           "solve",
-          [](PyGlobalSolver& p, const py::handle& u, bool warm_start) {
+          [](PyGlobalSolver& p, const ArrayLike& u, bool warm_start) {
             const Field held = field_arg(u, "u", p.mesh.num_vertices());
             GlobalBilaplacianResult r;
             {
@@ -446,7 +446,7 @@ first solve and kept. Returns (u, info).)doc")
       py::arg("session"), py::arg("vertex"), py::arg("direction"), py::arg("depth"), py::arg("steps"), py::arg("dt"));
   b.def(
       "stiffness_seconds",
-      [](const py::handle& V, const py::handle& F) {
+      [](const ArrayLike& V, const ArrayLike& F) {
         const Positions P = positions_arg(V);
         const Triangles T = triangles_arg(F, P.rows());
         py::gil_scoped_release release;

@@ -26,6 +26,29 @@ namespace meshpde::python {
 
 namespace py = pybind11;
 
+/// An argument that takes any array-like value (a numpy array of any dtype and order,
+/// a list of lists, ...), checked and converted by the functions below where it is
+/// used. Shown as `numpy.typing.ArrayLike` in signatures and help(), where a plain
+/// py::handle would show `handle`.
+class ArrayLike : public py::object {
+ public:
+  using py::object::object;
+  static bool check_(py::handle h) { return h.ptr() != nullptr; }
+};
+/// An optional path: a str or os.PathLike, or None. Shown as `os.PathLike | None`.
+class OptionalPath : public py::object {
+ public:
+  using py::object::object;
+  static bool check_(py::handle h) { return h.ptr() != nullptr; }
+};
+/// A DICOM series chosen by its UID (a str) or number (an int), or None (the only one).
+/// Shown as `str | int | None`.
+class SeriesChoice : public py::object {
+ public:
+  using py::object::object;
+  static bool check_(py::handle h) { return h.ptr() != nullptr; }
+};
+
 /// An index out of range: Python's meshpde.OutOfRangeError (both a meshpde.InputError
 /// and an IndexError).
 class IndexOutOfRange : public InputError {
@@ -78,3 +101,18 @@ py::object csr_from_arrays(const py::array_t<double>& data, const py::array_t<in
 void check_interrupt();
 
 }  // namespace meshpde::python
+
+namespace pybind11::detail {
+template <>
+struct handle_type_name<meshpde::python::ArrayLike> {
+  static constexpr auto name = const_name("numpy.typing.ArrayLike");
+};
+template <>
+struct handle_type_name<meshpde::python::OptionalPath> {
+  static constexpr auto name = const_name("os.PathLike | None");
+};
+template <>
+struct handle_type_name<meshpde::python::SeriesChoice> {
+  static constexpr auto name = const_name("str | int | None");
+};
+}  // namespace pybind11::detail

@@ -43,3 +43,21 @@ def test_python_level_functions_document_themselves():
 def test_version_is_the_projects():
     text = (pathlib.Path(__file__).parents[2] / "CMakeLists.txt").read_text(encoding="utf-8")
     assert f"VERSION {meshpde.__version__} " in text
+
+
+def test_no_public_signature_shows_a_bare_handle():
+    # help() shows what each argument takes (numpy.typing.ArrayLike, os.PathLike | None,
+    # ...), never pybind11's "handle".
+    import re
+    import meshpde._meshpde as ext
+    shown = []
+    for name, obj in vars(ext).items():
+        # Private functions are wrapped by Python functions with their own signatures;
+        # a private class's constructor (CorrectionSession's base) is public.
+        members = [] if name.startswith("_") else [(name, obj)]
+        if isinstance(obj, type):
+            members += [(f"{name}.{k}", v) for k, v in vars(obj).items() if not k.startswith("_") or k == "__init__"]
+        for full, member in members:
+            for line in (getattr(member, "__doc__", None) or "").splitlines():
+                shown += [(full, arg) for arg in re.findall(r"(\w+): handle\b", line)]
+    assert not shown, shown
