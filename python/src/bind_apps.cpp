@@ -341,8 +341,8 @@ class PyCorrectionSession {
 void bind_apps(py::module_& m) {
   m.def(
       "_heat",
-      [](const ArrayLike& V, const ArrayLike& F, const ArrayLike& sources, const ArrayLike& flux, double dt,
-         int steps, double diffusivity, const ArrayLike& initial, bool local, const std::string& laplacian,
+      [](const ArrayLike& V, const ArrayLike& F, const ArrayLike& sources, const ArrayLike& flux, double dt, int steps,
+         double diffusivity, const ArrayLike& initial, bool local, const std::string& laplacian,
          const py::object& callback) {
         return run_propagation(Propagation::Heat, V, F, sources, flux, py::none(), dt, steps, diffusivity, 1.0, 0.0,
                                initial, py::none(), local, laplacian, callback);

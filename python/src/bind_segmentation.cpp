@@ -185,9 +185,9 @@ void bind_segmentation(py::module_& m) {
 
   m.def(
       "_voxelize",
-      [](const ArrayLike& V, const ArrayLike& F, const py::handle& displacement,
-         const std::filesystem::path& reference, const std::string& segment, int oversampling, bool full,
-         const std::string& space, const std::string& units, const py::handle& series, const py::handle& output) {
+      [](const ArrayLike& V, const ArrayLike& F, const py::handle& displacement, const std::filesystem::path& reference,
+         const std::string& segment, int oversampling, bool full, const std::string& space, const std::string& units,
+         const py::handle& series, const py::handle& output) {
         MeshData surface;
         surface.V = positions_arg(V);
         surface.F = triangles_arg(F, surface.V.rows());
