@@ -1,10 +1,8 @@
 #include "editor_page.h"
 
 #include <fmt/format.h>
-#include <unistd.h>
 
 #include <algorithm>
-#include <atomic>
 #include <cstdint>
 #include <cstring>
 #include <filesystem>
@@ -397,16 +395,8 @@ void EditorPage::upload_image(const std::string& bytes, const std::string& name)
         "{}: its voxels are in another file; upload one file: .mha, .nii, .nii.gz or .nrrd, or a DICOM series as .zip",
         base));
   // The readers take a path: the bytes go to a private temporary file, removed at once.
-  static std::atomic<unsigned> serial{0};
-  const std::string ext = lower.ends_with(".nii.gz") ? ".nii.gz" : lower_ext(base);
-  const fs::path tmp = fs::temp_directory_path() / fmt::format("meshpde-upload-{}-{}{}", ::getpid(), ++serial, ext);
-  struct RemoveAtExit {  // whatever happens, the temporary file goes
-    fs::path path;
-    ~RemoveAtExit() {
-      std::error_code ec;
-      fs::remove(path, ec);
-    }
-  } remove_at_exit{tmp};
+  const TemporaryPath temporary("meshpde-upload", lower.ends_with(".nii.gz") ? ".nii.gz" : lower_ext(base));
+  const fs::path& tmp = temporary.path();
   Volume v;
   try {
     if (lower.ends_with(".zip")) {
@@ -541,17 +531,9 @@ int EditorPage::open_session(const std::string& bytes, const std::string& name) 
   std::shared_ptr<const EditorImage> image = image_;
   if (j.contains("image") && !j["image"].is_null()) {
     const std::string image_file = text(j["image"], "file"), image_name = text(j["image"], "name");
-    static std::atomic<unsigned> serial{0};
-    const fs::path tmp = fs::temp_directory_path() / fmt::format("meshpde-session-{}-{}.mha", ::getpid(), ++serial);
-    struct RemoveAtExit {
-      fs::path path;
-      ~RemoveAtExit() {
-        std::error_code ec;
-        fs::remove(path, ec);
-      }
-    } remove_at_exit{tmp};
-    write_file_atomically(tmp, entry(image_file));
-    Volume v = read_volume(tmp, kMaxUploadedVoxels);
+    const TemporaryPath tmp("meshpde-session", ".mha");
+    write_file_atomically(tmp.path(), entry(image_file));
+    Volume v = read_volume(tmp.path(), kMaxUploadedVoxels);
     v.name = image_name;
     image = prepare_editor_image(std::move(v), image_name);
   }

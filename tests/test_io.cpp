@@ -10,6 +10,7 @@
 #include "meshpde/core/errors.h"
 #include "meshpde/io/file_formats.h"
 #include "meshpde/io/mesh_io.h"
+#include "meshpde/io/text_records.h"
 #include "meshpde/mesh/generators.h"
 #include "test_data.h"
 #include "test_support.h"
@@ -394,4 +395,58 @@ TEST(Io, AnUnknownExtensionIsRefusedWithEveryExtensionThisBuildReads) {
     for (const char* ext : {".obj", ".off", ".ply", ".stl"}) EXPECT_NE(what.find(ext), std::string::npos) << what;
   }
   EXPECT_THROW(write_mesh_to_memory(MeshData{}, "mesh"), InputError);  // no extension at all
+}
+
+TEST(Io, TextRecordsSplitAsHandWrittenTablesAreWritten) {
+  // Comments, blank lines, CRLF line ends, and the two separators; line numbers count
+  // every line, so that messages name the line a user sees.
+  const std::string text = "# header comment\r\nv, value\r\n\r\n  1, 2.5 # one\n2,,3\n4 5,6\n7,8,\n   \n";
+  std::vector<std::pair<int, std::vector<std::string>>> commas, spaces;
+  for_each_text_record(text, FieldSeparator::Comma,
+                       [&](int line, const std::vector<std::string>& f) { commas.emplace_back(line, f); });
+  for_each_text_record(text, FieldSeparator::CommaOrSpace,
+                       [&](int line, const std::vector<std::string>& f) { spaces.emplace_back(line, f); });
+  using R = std::vector<std::pair<int, std::vector<std::string>>>;
+  EXPECT_EQ(commas,
+            (R{{2, {"v", "value"}}, {4, {"1", "2.5"}}, {5, {"2", "", "3"}}, {6, {"4 5", "6"}}, {7, {"7", "8"}}}));
+  EXPECT_EQ(spaces,
+            (R{{2, {"v", "value"}}, {4, {"1", "2.5"}}, {5, {"2", "3"}}, {6, {"4", "5", "6"}}, {7, {"7", "8"}}}));
+  int calls = 0;
+  for_each_text_record("", FieldSeparator::Comma, [&](int, const std::vector<std::string>&) { ++calls; });
+  for_each_text_record("# only a comment", FieldSeparator::CommaOrSpace,
+                       [&](int, const std::vector<std::string>&) { ++calls; });
+  EXPECT_EQ(calls, 0);
+  // The last line needs no line end.
+  for_each_text_record("1\n2", FieldSeparator::Comma, [&](int line, const std::vector<std::string>& f) {
+    ++calls;
+    EXPECT_EQ(f, std::vector<std::string>{std::to_string(line)});
+  });
+  EXPECT_EQ(calls, 2);
+}
+
+TEST(Io, ATemporaryPathIsPrivateAndGoesWithItsScopeWhateverIsUnderIt) {
+  std::filesystem::path file, folder;
+  {
+    const TemporaryPath a("meshpde-test", ".bin"), b("meshpde-test", ".bin"), dir("meshpde-test-dir");
+    EXPECT_NE(a.path(), b.path());
+    EXPECT_EQ(a.path().extension(), ".bin");
+    EXPECT_FALSE(std::filesystem::exists(a.path()));  // a name, nothing created
+    write_file_atomically(a.path(), "bytes");
+    std::filesystem::create_directories(dir.path() / "inner");
+    write_file_atomically(dir.path() / "inner" / "x.dcm", "bytes");
+    file = a.path();
+    folder = dir.path();
+    EXPECT_TRUE(std::filesystem::exists(file) && std::filesystem::exists(folder / "inner" / "x.dcm"));
+  }
+  EXPECT_FALSE(std::filesystem::exists(file));
+  EXPECT_FALSE(std::filesystem::exists(folder));
+  // Left by an exception too.
+  try {
+    const TemporaryPath t("meshpde-test");
+    file = t.path();
+    write_file_atomically(file, "bytes");
+    throw InputError("on purpose");
+  } catch (const InputError&) {
+  }
+  EXPECT_FALSE(std::filesystem::exists(file));
 }

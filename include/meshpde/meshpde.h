@@ -19,6 +19,7 @@
 #include "meshpde/image/volume.h"
 #include "meshpde/io/file_formats.h"
 #include "meshpde/io/mesh_io.h"
+#include "meshpde/io/text_records.h"
 #include "meshpde/mesh/field.h"
 #include "meshpde/mesh/generators.h"
 #include "meshpde/mesh/geodesic_distance.h"

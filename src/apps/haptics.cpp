@@ -6,7 +6,6 @@
 #include <cctype>
 #include <chrono>
 #include <cmath>
-#include <sstream>
 
 #ifdef __linux__
 #include <sys/resource.h>
@@ -16,6 +15,7 @@
 
 #include "meshpde/core/errors.h"
 #include "meshpde/core/parallel.h"
+#include "meshpde/io/text_records.h"
 #include "meshpde/mesh/topology.h"
 
 namespace meshpde {
@@ -358,31 +358,21 @@ std::vector<HapticSample> HapticSession::log() const {
 
 std::vector<ProbePathPoint> parse_probe_path(const std::string& text, const std::string& name) {
   std::vector<ProbePathPoint> out;
-  std::stringstream in(text);
-  std::string line;
-  int lineno = 0;
-  while (std::getline(in, line)) {
-    ++lineno;
-    line = line.substr(0, line.find('#'));
-    std::replace(line.begin(), line.end(), ',', ' ');
-    std::stringstream ss(line);
-    std::vector<std::string> tok;
-    for (std::string t; ss >> t;) tok.push_back(t);
-    if (tok.empty()) continue;
+  for_each_text_record(text, FieldSeparator::CommaOrSpace, [&](int line, const std::vector<std::string>& tok) {
     if (out.empty() && !std::isdigit(static_cast<unsigned char>(tok[0][0])) && tok[0][0] != '-' && tok[0][0] != '.')
-      continue;  // header
-    if (tok.size() != 4) throw InputError(fmt::format("{}: line {}: expected t,dx,dy,dz", name, lineno));
+      return;  // header
+    if (tok.size() != 4) throw InputError(fmt::format("{}: line {}: expected t,dx,dy,dz", name, line));
     double v[4];
     for (int k = 0; k < 4; ++k) {
       char* end = nullptr;
       v[k] = std::strtod(tok[k].c_str(), &end);
       if (*end != '\0' || !std::isfinite(v[k]))
-        throw InputError(fmt::format("{}: line {}: '{}' is not a number", name, lineno, tok[k]));
+        throw InputError(fmt::format("{}: line {}: '{}' is not a number", name, line, tok[k]));
     }
     if (!out.empty() && v[0] <= out.back().t)
-      throw InputError(fmt::format("{}: line {}: times must increase", name, lineno));
+      throw InputError(fmt::format("{}: line {}: times must increase", name, line));
     out.push_back({v[0], Eigen::Vector3d(v[1], v[2], v[3])});
-  }
+  });
   if (out.empty()) throw InputError(fmt::format("{}: no path points", name));
   return out;
 }

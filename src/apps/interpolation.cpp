@@ -5,10 +5,10 @@
 #include <cctype>
 #include <cmath>
 #include <nlohmann/json.hpp>
-#include <sstream>
 
 #include "meshpde/apps/selection.h"
 #include "meshpde/core/errors.h"
+#include "meshpde/io/text_records.h"
 #include "meshpde/operators/connection.h"
 #include "meshpde/solvers/direct.h"
 
@@ -209,23 +209,9 @@ std::vector<InterpolationConstraint> parse_constraints(const std::function<int(c
     }
     return out;
   }
-  std::stringstream lines(text);
-  std::string line;
-  int lineno = 0;
-  while (std::getline(lines, line)) {
-    ++lineno;
-    line = line.substr(0, line.find('#'));
-    if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
-    auto trim = [](std::string t) {
-      const auto b = t.find_first_not_of(" \t\r"), e = t.find_last_not_of(" \t\r");
-      return b == std::string::npos ? std::string() : t.substr(b, e - b + 1);
-    };
-    std::vector<std::string> f;
-    std::stringstream ls(line);
-    std::string item;
-    while (std::getline(ls, item, ',')) f.push_back(trim(item));
-    const std::string where = fmt::format("line {}", lineno);
-    if (out.empty() && !f[0].empty() && !std::isdigit(static_cast<unsigned char>(f[0][0]))) continue;  // header
+  for_each_text_record(text, FieldSeparator::Comma, [&](int line, const std::vector<std::string>& f) {
+    const std::string where = fmt::format("line {}", line);
+    if (out.empty() && !f[0].empty() && !std::isdigit(static_cast<unsigned char>(f[0][0]))) return;  // header
     const int v = parse_vertex(f[0], where);
     std::vector<double> x;
     for (std::size_t k = 1; k < f.size(); ++k) {
@@ -236,7 +222,7 @@ std::vector<InterpolationConstraint> parse_constraints(const std::function<int(c
       x.push_back(d);
     }
     add(v, x, where);
-  }
+  });
   if (out.empty()) throw InputError(fmt::format("{}: no constraints", path));
   return out;
 }

@@ -8,6 +8,7 @@
 #include <sstream>
 
 #include "meshpde/core/errors.h"
+#include "meshpde/io/text_records.h"
 
 namespace meshpde {
 
@@ -33,23 +34,15 @@ std::vector<std::string> split(const std::string& s, char sep) {
 
 std::vector<int> parse_vertex_list(const Mesh& mesh, const std::string& text, const std::string& name) {
   std::vector<int> out;
-  std::stringstream in(text);
-  std::string line;
-  int lineno = 0;
-  while (std::getline(in, line)) {
-    ++lineno;
-    line = line.substr(0, line.find('#'));
-    std::replace(line.begin(), line.end(), ',', ' ');
-    std::stringstream ss(line);
-    std::string tok;
-    while (ss >> tok) {
+  for_each_text_record(text, FieldSeparator::CommaOrSpace, [&](int line, const std::vector<std::string>& fields) {
+    for (const std::string& f : fields) {
       try {
-        out.push_back(parse_vertex_spec(mesh, tok));
+        out.push_back(parse_vertex_spec(mesh, f));
       } catch (const InputError& e) {
-        throw InputError(fmt::format("{}: line {}: {}", name, lineno, e.what()));
+        throw InputError(fmt::format("{}: line {}: {}", name, line, e.what()));
       }
     }
-  }
+  });
   return out;
 }
 

@@ -1,8 +1,10 @@
 #include "meshpde/io/mesh_io.h"
 
 #include <fmt/format.h>
+#include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
 #include <fstream>
 #include <random>
 #include <sstream>
@@ -188,6 +190,16 @@ std::vector<std::string> refresh_normal_fields(MeshData& d) {
     refreshed.push_back(base);
   }
   return refreshed;
+}
+
+TemporaryPath::TemporaryPath(std::string_view prefix, std::string_view suffix) {
+  static std::atomic<unsigned> serial{0};
+  path_ = std::filesystem::temp_directory_path() / fmt::format("{}-{}-{}{}", prefix, ::getpid(), ++serial, suffix);
+}
+
+TemporaryPath::~TemporaryPath() {
+  std::error_code ec;
+  std::filesystem::remove_all(path_, ec);
 }
 
 void write_file_atomically(const std::filesystem::path& path, const std::string& contents) {

@@ -1,14 +1,13 @@
 // DICOM series uploaded as a .zip archive: unpacked (io/zip_archive.h) into a private
 // temporary folder (the entries' own names are never used as paths), then read as a folder.
 #include <fmt/format.h>
-#include <unistd.h>
 
-#include <atomic>
 #include <filesystem>
 #include <fstream>
 
 #include "meshpde/core/errors.h"
 #include "meshpde/io/dicom.h"
+#include "meshpde/io/mesh_io.h"
 #include "meshpde/io/zip_archive.h"
 
 namespace meshpde {
@@ -17,15 +16,8 @@ namespace fs = std::filesystem;
 
 Volume read_dicom_zip(const std::string& bytes, const std::string& name, const std::string& choice,
                       std::size_t max_voxels, std::size_t max_bytes) {
-  static std::atomic<unsigned> serial{0};
-  const fs::path dir = fs::temp_directory_path() / fmt::format("meshpde-dicom-{}-{}", ::getpid(), ++serial);
-  struct RemoveAtExit {  // whatever happens, the unpacked files go
-    fs::path path;
-    ~RemoveAtExit() {
-      std::error_code ec;
-      fs::remove_all(path, ec);
-    }
-  } remove_at_exit{dir};
+  const TemporaryPath unpacked("meshpde-dicom");  // whatever happens, the unpacked files go
+  const fs::path& dir = unpacked.path();
   fs::create_directories(dir);
   // One entry unpacked at a time (io/zip_archive.h), each written under a name of ours.
   int written = 0;

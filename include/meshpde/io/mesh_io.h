@@ -15,6 +15,7 @@
 #include <filesystem>
 #include <map>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "meshpde/mesh/mesh.h"
@@ -106,6 +107,22 @@ std::vector<std::string> refresh_normal_fields(MeshData& data);
 
 /// Writes `contents` to `path` through a temporary file and a rename.
 void write_file_atomically(const std::filesystem::path& path, const std::string& contents);
+
+/// A private name in the system's temporary folder, removed (with whatever is under it)
+/// when this object goes, however the scope is left: for readers that take a path,
+/// given bytes that came another way (an upload, a zip entry). Nothing is created.
+class TemporaryPath {
+ public:
+  /// The name is `prefix`, this process's id, a serial number and `suffix`.
+  explicit TemporaryPath(std::string_view prefix, std::string_view suffix = "");
+  ~TemporaryPath();
+  TemporaryPath(const TemporaryPath&) = delete;
+  TemporaryPath& operator=(const TemporaryPath&) = delete;
+  const std::filesystem::path& path() const { return path_; }
+
+ private:
+  std::filesystem::path path_;
+};
 
 /// The whole file's bytes. \throw InputError naming the file when it cannot be opened or read.
 std::string read_file(const std::filesystem::path& path);
