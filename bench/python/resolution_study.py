@@ -297,32 +297,41 @@ def main_remeshed(a):
     if a.json:
         Path(a.json).write_text(json.dumps(rows, indent=1))
     if a.out:
-        import matplotlib
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-        fig, axes = plt.subplots(1, 3, figsize=(15, 4.4), sharey=True)
-        names = list(dict.fromkeys(r["case"] for r in rows))
-        colour = {n: f"C{k}" for k, n in enumerate(names)}
-        marker = {5: "o", 10: "s", 20: "^"}
-        for ax, rule in zip(axes, ("point smooth", "vertex clamp", "springs")):
-            for r in rows:
-                if r["method"] == rule:
-                    h = r["h_mm"]
-                    ax.loglog([h / 2, h / 4], [100 * r["max01"], 100 * r["max12"]], "-", color=colour[r["case"]],
-                              marker=marker[r["R_over_h"]])
-            ax.axhline(1.0, color="k", lw=0.8, ls="--")
-            ax.axhline(0.5, color="k", lw=0.8, ls=":")
-            ax.set_title(f"{rule}: coarse vs finer at the same point")
-            ax.set_xlabel("finer mean edge of the pair (mm)")
-            ax.grid(True, which="both", alpha=0.3)
-        axes[0].set_ylabel("largest difference / drag (%)")
-        from matplotlib.lines import Line2D
-        handles = [Line2D([], [], color=colour[n], label=n) for n in names]
-        handles += [Line2D([], [], color="grey", marker=m, ls="", label=f"R = {R} h") for R, m in marker.items()]
-        axes[2].legend(handles=handles, fontsize=7, loc="upper left", bbox_to_anchor=(1.02, 1))
-        fig.tight_layout()
-        fig.savefig(a.out, dpi=110)
-        print(f"plot {a.out}")
+        plot_pairs(rows, ("point smooth", "vertex clamp", "springs"), "max01", "max12",
+                   "coarse vs finer at the same point", "largest difference / drag (%)", a.out)
+
+
+def plot_pairs(rows, methods, coarse_key, fine_key, what, ylabel, out):
+    """One panel per method: each case's difference between the coarse pair (h, h/2)
+    and the finer pair (h/2, h/4) of its resolutions, plotted at the finer edge of
+    each pair, with 1 % and 0.5 % marked."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.lines import Line2D
+    fig, axes = plt.subplots(1, len(methods), figsize=(15, 4.4), sharey=True)
+    names = list(dict.fromkeys(r["case"] for r in rows))
+    colour = {n: f"C{k}" for k, n in enumerate(names)}
+    marker = {5: "o", 10: "s", 20: "^"}
+    for ax, method in zip(axes, methods):
+        for r in rows:
+            if r["method"] == method:
+                h = r["h_mm"]
+                ax.loglog([h / 2, h / 4], [100 * r[coarse_key], 100 * r[fine_key]], "-", color=colour[r["case"]],
+                          marker=marker[r["R_over_h"]])
+        ax.axhline(1.0, color="k", lw=0.8, ls="--")
+        ax.axhline(0.5, color="k", lw=0.8, ls=":")
+        ax.set_title(f"{method}: {what}")
+        ax.set_xlabel("finer mean edge of the pair (mm)")
+        ax.grid(True, which="both", alpha=0.3)
+    axes[0].set_ylabel(ylabel)
+    handles = [Line2D([], [], color=colour[n], label=n) for n in names]
+    handles += [Line2D([], [], color="grey", marker=m, ls="", label=f"R = {R} h") for R, m in marker.items()]
+    handles += [Line2D([], [], color="k", ls="--", label="1 %"), Line2D([], [], color="k", ls=":", label="0.5 %")]
+    axes[-1].legend(handles=handles, fontsize=7, loc="upper left", bbox_to_anchor=(1.02, 1))
+    fig.tight_layout()
+    fig.savefig(out, dpi=110)
+    print(f"plot {out}")
 
 
 def main():
@@ -358,36 +367,8 @@ def main():
     if a.json:
         Path(a.json).write_text(json.dumps(rows, indent=1))
     if a.out:
-        import matplotlib
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-        fig, axes = plt.subplots(1, 3, figsize=(15, 4.4), sharey=True)
-        names = list(dict.fromkeys(r["case"] for r in rows))
-        colour = {n: f"C{k}" for k, n in enumerate(names)}
-        marker = {5: "o", 10: "s", 20: "^"}
-        for ax, method in zip(axes, ("fem clamp", "fem fade", "springs")):
-            for r in rows:
-                if r["method"] != method:
-                    continue
-                h = r["h_mm"]
-                # s01 belongs to the coarse pair (h, h/2), s12 to (h/2, h/4): plotted at
-                # the finer edge of each pair.
-                ax.loglog([h / 2, h / 4], [100 * r["s01"], 100 * r["s12"]], "-", color=colour[r["case"]],
-                          marker=marker[r["R_over_h"]])
-            ax.axhline(1.0, color="k", lw=0.8, ls="--")
-            ax.axhline(0.5, color="k", lw=0.8, ls=":")
-            ax.set_title(f"{method}: change from one level to the next")
-            ax.set_xlabel("finer mean edge of the pair (mm)")
-            ax.grid(True, which="both", alpha=0.3)
-        axes[0].set_ylabel("Hausdorff distance between the results / drag (%)")
-        from matplotlib.lines import Line2D
-        handles = [Line2D([], [], color=colour[n], label=n) for n in names]
-        handles += [Line2D([], [], color="grey", marker=m, ls="", label=f"R = {R} h") for R, m in marker.items()]
-        handles += [Line2D([], [], color="k", ls="--", label="1 %"), Line2D([], [], color="k", ls=":", label="0.5 %")]
-        axes[2].legend(handles=handles, fontsize=7, loc="upper left", bbox_to_anchor=(1.02, 1))
-        fig.tight_layout()
-        fig.savefig(a.out, dpi=110)
-        print(f"plot {a.out}")
+        plot_pairs(rows, ("fem clamp", "fem fade", "springs"), "s01", "s12", "change from one level to the next",
+                   "Hausdorff distance between the results / drag (%)", a.out)
 
 
 if __name__ == "__main__":
