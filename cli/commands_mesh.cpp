@@ -215,7 +215,7 @@ void add_mesh_commands(CLI::App& app) {
       const Mesh mesh = load_mesh(*path);
       const MeshReport r = analyze(mesh);
       // A model whose sizes look like another unit than millimetres (mesh/units.h's rule).
-      const std::string units = units_warning(mesh, LengthUnit::Millimetre, *path);
+      const std::string units = units_warning(mesh, LengthUnit::Millimetre, *path, "--units ");
       if (*json) {
         nlohmann::json j = report_json(r);
         j["units_warning"] = units.empty() ? nlohmann::json() : nlohmann::json(units);

@@ -157,7 +157,8 @@ void run_correct(const CorrectArgs& a) {
   warn_about_shape(mesh, a.mesh);
   CorrectionParams p;
   p.units = parse_length_unit(a.units);
-  if (const std::string w = units_warning(mesh, p.units, a.mesh); !w.empty()) fmt::print(stderr, "warning: {}\n", w);
+  if (const std::string w = units_warning(mesh, p.units, a.mesh, "--units "); !w.empty())
+    fmt::print(stderr, "warning: {}\n", w);
   std::vector<int> handle_vertices;
   for (const auto& spec : a.vertices) handle_vertices.push_back(parse_vertex(mesh, spec, "--vertex"));
   // Moves pair with the --vertex handles first, then the --point handles.

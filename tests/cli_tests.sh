@@ -436,7 +436,7 @@ check "--caps off moves more of the wall" \
   [ "$(python3 -c "import json; print(json.load(open('$T/cap-off.json'))['moved_vertices'] > json.load(open('$T/cap.json'))['moved_vertices'])")" = True ]
 "$M" correct "$T/capped.vtp" --vertex 480 --move normal:1 --radius 5 -o "$T/x.vtp" 2>"$T/err" >/dev/null
 check "a handle on a cap exits 1" [ $? -eq 1 ]
-check "a handle on a cap is explained" grep -q "lies on a cap.*--caps off" "$T/err"
+check "a handle on a cap is explained" grep -q "lies on a cap.*caps rule off" "$T/err"
 if [ -f "$DATA/simvascular-pipe-capped-5k.vtp" ]; then
   "$M" correct "$DATA/simvascular-pipe-capped-5k.vtp" --units cm --vertex 202 --move normal:3 --radius 12 \
     -o "$T/pipe.vtp" --json >"$T/pipe.json" || bad "correct the SimVascular pipe"

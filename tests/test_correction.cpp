@@ -143,9 +143,13 @@ TEST(Vessel, UnitsThatMakeAnImplausibleVesselAreNamed) {
   EXPECT_NEAR(c.diagonal_mm, check_units(mm, LengthUnit::Millimetre).diagonal_mm / 10, 1e-9);
   ASSERT_TRUE(c.suggested.has_value());
   EXPECT_EQ(*c.suggested, LengthUnit::Centimetre);
-  const std::string w = units_warning(cm, LengthUnit::Millimetre, "tube.vtp");
+  const std::string w = units_warning(cm, LengthUnit::Millimetre, "tube.vtp", "--units ");
   EXPECT_NE(w.find("tube.vtp"), std::string::npos) << w;
   EXPECT_NE(w.find("--units cm"), std::string::npos) << w;
+  // The library names no front end's option unless given one.
+  const std::string plain = units_warning(cm, LengthUnit::Millimetre, "tube.vtp");
+  EXPECT_EQ(plain.find("--"), std::string::npos) << plain;
+  EXPECT_NE(plain.find("may be in cm"), std::string::npos) << plain;
   EXPECT_FALSE(check_units(cm, LengthUnit::Centimetre).implausible);
   EXPECT_EQ(parse_length_unit("CM"), LengthUnit::Centimetre);
   EXPECT_THROW(parse_length_unit("inch"), InputError);

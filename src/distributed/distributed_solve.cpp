@@ -288,11 +288,11 @@ DistributedResult distributed_interpolate(const MeshPart& part, const std::vecto
 DistributedResult distributed_fair(const MeshPart& part, const std::vector<std::string>& fixed, int order,
                                    const DistributedSolveParams& params, MPI_Comm comm) {
   if (order != 1 && order != 2) throw InputError(fmt::format("fairing order must be 1 or 2, got {}", order));
-  if (fixed.empty()) throw InputError("give the fixed vertices (--fixed)");
+  if (fixed.empty()) throw InputError("give the fixed vertices: boundary, halfspace:NX,NY,NZ:D or all");
   for (const auto& spec : fixed)
     if (spec != "boundary" && spec != "all" && spec.rfind("halfspace:", 0) != 0)
       throw InputError(
-          fmt::format("--fixed {}: a distributed run takes boundary, halfspace:NX,NY,NZ:D or all (the "
+          fmt::format("fixed vertices '{}': a distributed run takes boundary, halfspace:NX,NY,NZ:D or all (the "
                       "others name vertices or distances that need the whole mesh)",
                       spec));
   // Boundary edges of an owned vertex are whole in its part (it holds every triangle

@@ -28,7 +28,7 @@ long long id_from(double x, long long limit, const std::string& file, const char
 
 std::vector<int> partition_vertices(const Mesh& mesh, int parts) {
   const int n = mesh.num_vertices();
-  if (parts < 1) throw InputError(fmt::format("--parts must be at least 1 (got {})", parts));
+  if (parts < 1) throw InputError(fmt::format("the number of parts must be at least 1 (got {})", parts));
   if (parts > n) throw InputError(fmt::format("{} parts for {} vertices: give at most one part a vertex", parts, n));
   if (parts == 1) return std::vector<int>(static_cast<std::size_t>(n), 0);
   PetscBool up = PETSC_FALSE;

@@ -264,8 +264,8 @@ MeshReport analyze(const Mesh& mesh, const ShapeWarningThresholds& thresholds) {
   if (r.area_ratio > 0 && (r.min_angle_deg < thresholds.min_angle_deg || r.area_ratio > thresholds.area_ratio))
     r.warnings.push_back(
         fmt::format("badly shaped: smallest angle {:.3g} deg, area ratio {:.3g}; cotangent operators and "
-                    "iterative solvers lose accuracy on such meshes (with --laplacian auto each solver "
-                    "judges the part it works on, a correction its region, and uses intrinsic Delaunay "
+                    "iterative solvers lose accuracy on such meshes (with the automatic Laplacian each "
+                    "solver judges the part it works on, a correction its region, and uses intrinsic Delaunay "
                     "operators where that is badly shaped)",
                     r.min_angle_deg, r.area_ratio));
   return r;

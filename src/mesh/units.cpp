@@ -150,8 +150,10 @@ std::string units_warning(const Mesh& mesh, LengthUnit assumed, const std::strin
                 name, to_string(assumed), c.diagonal_mm, c.mean_edge_mm);
   if (c.suggested) {
     const double f = millimetres_per(*c.suggested) / millimetres_per(assumed);
-    msg += fmt::format("; if its coordinates are in {}, give {}{} ({:.3g} mm across)", to_string(*c.suggested), option,
-                       to_string(*c.suggested), f * c.diagonal_mm);
+    msg += option.empty() ? fmt::format("; its coordinates may be in {} ({:.3g} mm across)", to_string(*c.suggested),
+                                        f * c.diagonal_mm)
+                          : fmt::format("; if its coordinates are in {}, give {}{} ({:.3g} mm across)",
+                                        to_string(*c.suggested), option, to_string(*c.suggested), f * c.diagonal_mm);
   }
   return msg;
 }

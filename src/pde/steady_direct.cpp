@@ -375,7 +375,7 @@ SteadyDirectSolver::Conditioning SteadyDirectSolver::conditioning(double accurac
     c.message = fmt::format(
         "the system is too ill-conditioned for the requested accuracy: condition number about {:.1e}, so "
         "the answer may be off by {:.1e} of its size (asked: {:.0e}); badly shaped triangles cause this: "
-        "use the intrinsic Delaunay Laplacian (--laplacian intrinsic or auto)",
+        "use the intrinsic Delaunay Laplacian (intrinsic, or the automatic choice)",
         c.condition_1, c.relative_error, accuracy);
   return c;
 }

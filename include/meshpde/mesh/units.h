@@ -54,8 +54,9 @@ UnitsCheck check_units(const Mesh& mesh, LengthUnit assumed);
 
 /// A one-line warning naming `name`, the sizes and the unit suggested, or "" when the
 /// sizes are plausible in `assumed` units. `option` is how the caller's user says the
-/// unit, the unit's name appended: "--units " on the command line, "units=" in Python.
+/// unit, the unit's name appended ("--units " on the command line, "units=" in Python);
+/// empty: the unit is named alone.
 std::string units_warning(const Mesh& mesh, LengthUnit assumed, const std::string& name,
-                          const std::string& option = "--units ");
+                          const std::string& option = "");
 
 }  // namespace meshpde

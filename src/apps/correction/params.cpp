@@ -71,14 +71,14 @@ void validate(const Mesh& mesh, const CorrectionParams& p) {
             is_held[static_cast<std::size_t>(F(f, 2))])
           throw InputError(
               fmt::format("the handle point in triangle {} lies on a cap, which is held: a cap's vertices do not "
-                          "move (caps off lets it move: --caps off, caps=\"off\" in Python)",
+                          "move (the caps rule off lets it move)",
                           f));
         continue;
       }
       if (is_held[static_cast<std::size_t>(h.vertex)])
         throw InputError(
             fmt::format("handle vertex {} lies on a cap, which is held: a cap's vertices do not move "
-                        "(caps off lets it move: --caps off, caps=\"off\" in Python)",
+                        "(the caps rule off lets it move)",
                         h.vertex));
     }
   }
@@ -120,8 +120,8 @@ void validate(const Mesh& mesh, const CorrectionParams& p) {
     throw InputError(fmt::format("direction cube size {} must be odd and at least 3", p.image.cube_size));
   if (p.boundary == RegionBoundary::Fade) {
     if (p.method != CorrectionMethod::Fem || p.radius <= 0)
-      throw InputError("--boundary fade takes the fem method with a radius (not rings)");
-    if (chosen) throw InputError("--boundary fade takes the direct solver");
+      throw InputError("the boundary fade takes the fem method with a radius (not rings)");
+    if (chosen) throw InputError("the boundary fade takes the direct solver");
   }
 }
 
