@@ -25,7 +25,9 @@ BOXES = [
     (3, 0.0, 6.4, "solvers/", "conjugate gradients, sparse Cholesky (CHOLMOD), surface multigrid, orderings", CORE),
     (4, 0.0, 6.4, "pde/", "PdeSession (stepping, constraints, self-adjusting domain), steady solves,\nglobal bi-Laplacian",
      CORE),
-    (5, 0.0, 6.4, "apps/", "vessel correction (src/apps/correction/, a file a topic), drag, interpolation,\nfairing, heat and wave, haptics, segment surfaces",
+    (5, 0.0, 6.4, "apps/",
+     "vessel correction (src/apps/correction/, a file a topic), drag, interpolation,\n"
+     "fairing, heat and wave, haptics, segment surfaces",
      CORE),
     (6, 0.0, 2.0, "cli/", "meshpde, meshpde-mpi;\nserve starts the editor", FRONT),
     (6, 2.2, 2.0, "python/", "the meshpde module\n(pybind11), meshpde.batch", FRONT),
