@@ -129,8 +129,9 @@ Field fem_solve_local(const Mesh& mesh, const CorrectionParams& p, const FemProb
       extra[v] += lambda * s.mo.ops.mass[v];
     }
   // Dynamic: implicit steps of alpha M d'' + b1 M d' + Kt d = f with the thesis's
-  // parameters (see the header), per vertex: alpha_i M_i and b1_i M_i, and
-  // (alpha_i / dt^2 + b1_i / dt) M_i joins the diagonal. Scalars are constant fields.
+  // parameters (TissueParams, apps/vessel_correction.h), per vertex: alpha_i M_i and
+  // b1_i M_i, and (alpha_i / dt^2 + b1_i / dt) M_i joins the diagonal. Scalars are
+  // constant fields.
   const double e = p.tissue.elasticity;  // the largest of an elasticity field (normalized())
   Eigen::VectorXd alpha = Eigen::VectorXd::Zero(nv), b1 = Eigen::VectorXd::Zero(nv);
   double alpha_min = std::numeric_limits<double>::infinity();
