@@ -415,7 +415,16 @@ TEST(Io, TextRecordsSplitAsHandWrittenTablesAreWritten) {
   for_each_text_record("", FieldSeparator::Comma, [&](int, const std::vector<std::string>&) { ++calls; });
   for_each_text_record("# only a comment", FieldSeparator::CommaOrSpace,
                        [&](int, const std::vector<std::string>&) { ++calls; });
+  // Separators only: no record (fuzzing found a reader indexing the empty fields).
+  for_each_text_record(",\n , ,\n", FieldSeparator::CommaOrSpace,
+                       [&](int, const std::vector<std::string>&) { ++calls; });
   EXPECT_EQ(calls, 0);
+  for_each_text_record(",", FieldSeparator::Comma, [&](int, const std::vector<std::string>& f) {
+    ++calls;
+    EXPECT_EQ(f, std::vector<std::string>{""});  // a field, empty: the reader names it
+  });
+  EXPECT_EQ(calls, 1);
+  calls = 0;
   // The last line needs no line end.
   for_each_text_record("1\n2", FieldSeparator::Comma, [&](int line, const std::vector<std::string>& f) {
     ++calls;

@@ -16,10 +16,7 @@ void for_each_text_record(std::string_view text, FieldSeparator separator,
     begin = end + 1;
     ++line;
     record = record.substr(0, record.find('#'));
-    if (record.find_first_not_of(kSpace) == std::string_view::npos) {
-      if (end == text.size()) break;
-      continue;
-    }
+    if (record.find_first_not_of(kSpace) == std::string_view::npos) continue;
     fields.clear();
     if (separator == FieldSeparator::CommaOrSpace) {
       std::string field;
@@ -32,6 +29,7 @@ void for_each_text_record(std::string_view text, FieldSeparator separator,
         }
       }
       if (!field.empty()) fields.push_back(std::move(field));
+      if (fields.empty()) continue;  // separators only: no record
     } else {
       for (std::size_t from = 0;;) {
         const std::size_t comma = record.find(',', from);
@@ -48,7 +46,6 @@ void for_each_text_record(std::string_view text, FieldSeparator separator,
         fields.pop_back();
     }
     fn(line, fields);
-    if (end == text.size()) break;
   }
 }
 
