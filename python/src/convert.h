@@ -26,28 +26,24 @@ namespace meshpde::python {
 
 namespace py = pybind11;
 
-/// An argument that takes any array-like value (a numpy array of any dtype and order,
-/// a list of lists, ...), checked and converted by the functions below where it is
-/// used. Shown as `numpy.typing.ArrayLike` in signatures and help(), where a plain
-/// py::handle would show `handle`.
-class ArrayLike : public py::object {
+/// An argument taken as any Python object and checked where it is used (by the
+/// functions below), shown in signatures and help() under a name that says what it
+/// takes, where a plain py::handle would show `handle`. The names are given by the
+/// handle_type_name specializations at the end of this file.
+template <int Kind>
+class AnyArgument : public py::object {
  public:
   using py::object::object;
   static bool check_(py::handle h) { return h.ptr() != nullptr; }
 };
-/// An optional path: a str or os.PathLike, or None. Shown as `os.PathLike | None`.
-class OptionalPath : public py::object {
- public:
-  using py::object::object;
-  static bool check_(py::handle h) { return h.ptr() != nullptr; }
-};
-/// A DICOM series chosen by its UID (a str) or number (an int), or None (the only one).
-/// Shown as `str | int | None`.
-class SeriesChoice : public py::object {
- public:
-  using py::object::object;
-  static bool check_(py::handle h) { return h.ptr() != nullptr; }
-};
+/// Any array-like value (a numpy array of any dtype and order, a list of lists, ...):
+/// `numpy.typing.ArrayLike`.
+using ArrayLike = AnyArgument<0>;
+/// An optional path, a str or os.PathLike, or None: `os.PathLike | None`.
+using OptionalPath = AnyArgument<1>;
+/// A DICOM series chosen by its UID (a str) or number (an int), or None (the only
+/// one): `str | int | None`.
+using SeriesChoice = AnyArgument<2>;
 
 /// An index out of range: Python's meshpde.OutOfRangeError (both a meshpde.InputError
 /// and an IndexError).

@@ -40,15 +40,15 @@ struct PdeSession::Impl {
   void set_free_set(std::span<const int> free, std::span<const int> to_rest);
   void constrain(int v, std::span<const double> value);
   void release(int v);
-  StepResult step(double dt, const Field* f);
-  StepResult solve_steady(const Field* f);
+  StepResult step(double dt, const Field* f, const CgOptions& cg);
+  StepResult solve_steady(const Field* f, const CgOptions& cg);
   void set_step_factor(std::shared_ptr<const StepFactor> factor);
   bool step_factor_applies(double dt) const;
 
   enum class Mode { Step, Steady };
   // y(rows) = Kt w(rows), reading w on rows and two rings beyond; uses scratch t_, k_.
   void apply_Kt_free(const double* w, double* y);
-  StepResult solve(Mode mode, double dt, const Field* f);
+  StepResult solve(Mode mode, double dt, const Field* f, const CgOptions& cg);
   void adjust_domain(StepResult& r);  // applies propose_domain_change(), counting into r
   double jacobi(int v, double cM, double cK);
   void free_vertex(int v);
@@ -61,7 +61,6 @@ struct PdeSession::Impl {
   PdeCoefficients coef_;
   DomainOptions dopt_;
   ActiveDomain domain_;
-  CgOptions cg_options;  // PdeSession::cg_options, copied in before each solve
   Field u_, v_, rest_;
   // Constraints: list, target values (row-aligned), per-vertex slot.
   std::vector<int> cons_;
@@ -364,16 +363,16 @@ void PdeSession::Impl::apply_local(const double* P, double* Y, double cM, double
     apply_local_impl<0>(L, coef_, n, m_, P, Y, cM, cK, L.p.data(), L.k.data(), L.t.data(), L.kt.data());
 }
 
-StepResult PdeSession::Impl::step(double dt, const Field* f) {
+StepResult PdeSession::Impl::step(double dt, const Field* f, const CgOptions& cg) {
   if (!(dt > 0) || !std::isfinite(dt)) throw InputError(fmt::format("time step must be positive, got {}", dt));
-  return solve(Mode::Step, dt, f);
+  return solve(Mode::Step, dt, f, cg);
 }
 
-StepResult PdeSession::Impl::solve_steady(const Field* f) {
-  return solve(Mode::Steady, 0.0, f);
+StepResult PdeSession::Impl::solve_steady(const Field* f, const CgOptions& cg) {
+  return solve(Mode::Steady, 0.0, f, cg);
 }
 
-StepResult PdeSession::Impl::solve(Mode mode, double dt, const Field* f) {
+StepResult PdeSession::Impl::solve(Mode mode, double dt, const Field* f, const CgOptions& cg) {
   if (f && (f->rows() != u_.rows() || f->cols() != m_))
     throw InputError(fmt::format("forcing must be {} x {}, got {} x {}", u_.rows(), m_, f->rows(), f->cols()));
   const auto A = domain_.free_vertices();
@@ -445,7 +444,7 @@ StepResult PdeSession::Impl::solve(Mode mode, double dt, const Field* f) {
     }
     build_local_system();
     auto apply = [&](const Field& P, Field& Y) { apply_local(P.data(), Y.data(), cM, cK); };
-    r.cg = pcg(apply, inv_diag, b, x, cg_options, ws_);
+    r.cg = pcg(apply, inv_diag, b, x, cg, ws_);
   }
 
   if (r.cg.status == CgStatus::Breakdown) {
@@ -661,12 +660,10 @@ const Field& PdeSession::reaction_forces() const {
   return impl_->reaction_;
 }
 StepResult PdeSession::step(double dt, const Field* f) {
-  impl_->cg_options = cg_options;
-  return impl_->step(dt, f);
+  return impl_->step(dt, f, cg_options);
 }
 StepResult PdeSession::solve_steady(const Field* f) {
-  impl_->cg_options = cg_options;
-  return impl_->solve_steady(f);
+  return impl_->solve_steady(f, cg_options);
 }
 void PdeSession::set_step_factor(std::shared_ptr<const StepFactor> factor) {
   impl_->set_step_factor(std::move(factor));

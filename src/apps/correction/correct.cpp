@@ -121,10 +121,11 @@ CorrectionRegion correction_region(const Mesh& mesh, const CorrectionParams& p) 
     throw InputError(
         fmt::format("correction_region works on a mesh in millimetres, not {}: scale it first", to_string(p.units)));
   correction::validate(mesh, p);
+  const CorrectionParams q = correction::normalized(p, mesh);
   CorrectionRegion out;
-  out.region = correction::fem_problem(mesh, correction::normalized(p, mesh)).region;
+  out.region = correction::fem_problem(mesh, q).region;
   out.copy = copy_region(mesh, out.region, kCorrectionMarginRings);
-  const Eigen::VectorXd all = correction::operator_weights(correction::normalized(p, mesh), mesh.num_vertices());
+  const Eigen::VectorXd all = correction::operator_weights(q, mesh.num_vertices());
   Eigen::VectorXd weights;
   if (all.size()) {
     weights.resize(static_cast<Eigen::Index>(out.copy.to_mesh.size()));
