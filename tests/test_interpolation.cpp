@@ -1,4 +1,5 @@
 // apps/interpolation.h: scattered-data interpolation and its constraint files.
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -264,6 +265,48 @@ TEST(InterpolationSolver, EqualsAFreshSolveOnRealAndIrregularMeshesWithBoundary)
   const Mesh plane = make(test::jittered_plane(30, 0.15, 8));
   random_edits(plane, build_cotan_operators(plane), FieldKind::Scalar, InterpolationParams{.g1 = 0, .g2 = 1}, 64, 9,
                factorizations, 50);
+}
+
+// Many values held when the factor was made: new values at a few of them move the kept
+// answer by their kept responses, at many of them at once (or past the responses kept)
+// the held part is solved afresh; released ones join the border. Every answer equals a
+// fresh solve without refinement, all on one factor.
+TEST(InterpolationSolver, NewValuesAtManyOriginallyHeldVerticesEqualAFreshSolve) {
+  const Mesh sphere = make(icosphere(3));  // 642 vertices
+  const FemOperators ops = build_cotan_operators(sphere);
+  const InterpolationParams params{.g1 = 0, .g2 = 1};
+  InterpolationSolver solver(sphere, ops, FieldKind::Scalar, params);
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> value(-2, 2);
+  std::vector<int> held;
+  for (int v = 0; v < sphere.num_vertices(); v += 7) held.push_back(v);  // 92 vertices
+  for (const int v : held) solver.set_value(v, Eigen::VectorXd::Constant(1, value(rng)));
+  solver.solve();
+  const auto check = [&](const std::string& what) {
+    const InterpolationResult kept = solver.solve();
+    const InterpolationResult fresh =
+        interpolate(sphere, ops, FieldKind::Scalar, solver.constraints(),
+                    InterpolationParams{.g1 = 0, .g2 = 1, .solver = SteadySolver::Direct});
+    EXPECT_LT(relative_difference(kept.values, fresh.values), 1e-10) << what;
+    // The kept columns alone give it: no refinement step was needed.
+    EXPECT_EQ(kept.cg.iterations, 0) << what;
+  };
+  // One at a time, past the number of responses kept (64), revisiting some.
+  for (int k = 0; k < 80; ++k) {
+    solver.set_value(held[static_cast<std::size_t>((k * 5) % held.size())], Eigen::VectorXd::Constant(1, value(rng)));
+    check(fmt::format("one value changed, step {}", k));
+  }
+  // Ten at once.
+  for (int k = 0; k < 10; ++k)
+    solver.set_value(held[static_cast<std::size_t>(k)], Eigen::VectorXd::Constant(1, value(rng)));
+  check("ten values changed at once");
+  // Released and changed together.
+  for (int k = 20; k < 26; ++k) solver.remove(held[static_cast<std::size_t>(k)]);
+  solver.set_value(held[30], Eigen::VectorXd::Constant(1, value(rng)));
+  check("six released and one changed");
+  solver.set_value(held[20], Eigen::VectorXd::Constant(1, value(rng)));
+  check("one restored");
+  EXPECT_EQ(solver.factorizations(), 1);
 }
 
 TEST(InterpolationSolver, NewValuesAtTheSameVerticesKeepTheFactor) {

@@ -12,6 +12,15 @@
 // with c = (b_P, u_Q) and w = (y_P, multipliers): the rows of Q are met by their
 // multipliers, the rest are the current system's. Eliminating y0 gives
 // S w = c - G^T A_00^-1 b0 with S = H - G^T A_00^-1 G, then y0 = A_00^-1 (b0 - G w).
+//
+// What makes a click cheap is what is kept between solves, each column solved once
+// (with refinement) when it first appears: T = A_00^-1 G, a column per border vertex;
+// z0 = A_00^-1 b0 for the values C0 held at the last solve; and the response
+// z_c = A_00^-1 (-A_0c) of each vertex c of C0 whose value has changed since the
+// factorization (at most kHeldColumns of them), so that a new value there moves z0 by
+// z_c times the change. A solve is then dense arithmetic on kept columns (w from S,
+// y0 = z0 - T w) and one residual through the products; only a vertex new to the
+// border, or a C0 vertex's first change, costs a solve with the factor.
 #include <fmt/format.h>
 
 #include <Eigen/Eigenvalues>
@@ -34,6 +43,10 @@ constexpr int kMaxRefinements = 4;
 // Below this smallest eigenvalue of the scaled Schur complement (update_border) it is not
 // trusted and the system is factored afresh.
 constexpr double kMinSchurEigenvalue = 1e-12;
+// Responses z_c kept for at most this many vertices of C0 (n0 doubles each); beyond,
+// or for more than kMaxColumnSolves new ones at once, z0 is solved afresh instead.
+constexpr int kHeldColumns = 64;
+constexpr int kMaxColumnSolves = 4;
 
 // One column of G: its nonzeros on F0's rows (local indices), and for a released vertex
 // its couplings to the other released vertices (the column of A_PP).
@@ -41,7 +54,9 @@ struct BorderColumn {
   int vertex = 0;
   bool released = false;  // in P (an unknown), else in Q (a multiplier)
   std::vector<std::pair<int, double>> g;
-  double h_diagonal = 0;  // A_pp of a released vertex
+  double h_diagonal = 0;                         // A_pp of a released vertex
+  std::vector<std::pair<int, double>> coupling;  // a released vertex's -A_{i,p} (steady_coupling)
+  Eigen::VectorXd t;                             // A_00^-1 g, on F0's rows
 };
 
 }  // namespace
@@ -64,6 +79,12 @@ struct InterpolationSolver::Impl {
   Eigen::MatrixXd S;
   Eigen::PartialPivLU<Eigen::MatrixXd> S_lu;
   int factorizations = 0;
+  // z0 = A_00^-1 b0 for the values z0_values held at C0's vertices (absent: released),
+  // and the responses z_c of the C0 vertices that have changed.
+  Eigen::MatrixXd z0;
+  std::map<int, Eigen::VectorXd> z0_values;
+  bool z0_valid = false;
+  std::map<int, Eigen::VectorXd> responses;
 
   static void check(FieldKind kind, const InterpolationParams& params) {
     if (!(params.g1 >= 0 && params.g2 >= 0) || params.g1 + params.g2 <= 0)
@@ -108,8 +129,63 @@ struct InterpolationSolver::Impl {
     base.reset();  // a failed factorization leaves no stale factor behind
     border.clear();
     border_vertices.clear();
+    z0_valid = false;
+    responses.clear();
     base = std::make_unique<SteadyDirectSolver>(*mesh, *ops, coefficients(), std::move(free));
     ++factorizations;
+  }
+
+  // z0 = A_00^-1 b0 for the values held now at C0's vertices (`outside`: #V x m, those
+  // values and zero elsewhere): from the kept z0 and responses where few values changed,
+  // else solved afresh.
+  const Eigen::MatrixXd& held_response(const Field& outside) {
+    std::vector<int> moved;  // C0 vertices whose value differs from z0's
+    if (z0_valid) {
+      for (const auto& [v, x] : cons)
+        if (base_held[static_cast<std::size_t>(v)]) {
+          const auto it = z0_values.find(v);
+          if (it == z0_values.end() || it->second != x) moved.push_back(v);
+        }
+      for (const auto& [v, x] : z0_values)
+        if (!cons.count(v)) moved.push_back(v);
+    }
+    std::vector<int> missing;
+    for (const int v : moved)
+      if (!responses.count(v)) missing.push_back(v);
+    const bool incremental = z0_valid && static_cast<int>(missing.size()) <= kMaxColumnSolves &&
+                             static_cast<int>(responses.size() + missing.size()) <= kHeldColumns;
+    if (incremental) {
+      if (!missing.empty()) {
+        Eigen::MatrixXd B(base->num_free(), static_cast<Eigen::Index>(missing.size()));
+        for (std::size_t j = 0; j < missing.size(); ++j)
+          B.col(static_cast<Eigen::Index>(j)) = base->coupling(missing[j]);
+        const Eigen::MatrixXd Zm = base->solve_rhs(B);  // the new columns in one pass of sweeps
+        for (std::size_t j = 0; j < missing.size(); ++j) responses[missing[j]] = Zm.col(static_cast<Eigen::Index>(j));
+      }
+      for (const int v : moved) {
+        const auto now = cons.find(v);
+        const auto then = z0_values.find(v);
+        Eigen::RowVectorXd change = Eigen::RowVectorXd::Zero(m);
+        if (now != cons.end()) change += now->second.transpose();
+        if (then != z0_values.end()) change -= then->second.transpose();
+        z0 += responses[v] * change;
+        if (now != cons.end())
+          z0_values[v] = now->second;
+        else
+          z0_values.erase(v);
+      }
+      return z0;
+    }
+    const Field AU = apply(outside);
+    const std::vector<int>& free0 = base->free_vertices();
+    Eigen::MatrixXd b0(static_cast<Eigen::Index>(free0.size()), m);
+    for (std::size_t i = 0; i < free0.size(); ++i) b0.row(static_cast<Eigen::Index>(i)) = -AU.row(free0[i]);
+    z0 = base->solve_rhs(b0);
+    z0_values.clear();
+    for (const auto& [v, x] : cons)
+      if (base_held[static_cast<std::size_t>(v)]) z0_values[v] = x;
+    z0_valid = true;
+    return z0;
   }
 
   std::vector<int> changed() const {
@@ -123,13 +199,10 @@ struct InterpolationSolver::Impl {
     return p;
   }
 
-  // A_00^-1 B with the kept factor alone: two triangular sweeps a column. Its rounding
-  // is removed by solve()'s refinement against the products.
-  Eigen::MatrixXd sweep(const Eigen::MatrixXd& B) const { return base->factor().solve(B); }
-
   // Brings the border to `vertices` (sorted): the columns of vertices no longer in it are
-  // dropped from S, each new one costs one solve (its column of A_00^-1 G gives its row
-  // and column of S). Returns false when S is close to singular.
+  // dropped from S, each new one costs one solve (its column t of A_00^-1 G gives its
+  // row and column of S; a released vertex of C0 may have it as its response). Returns false
+  // when S is close to singular.
   bool update_border(const std::vector<int>& vertices) {
     std::vector<BorderColumn> kept;
     std::vector<int> from;  // kept column -> its index in the old S
@@ -153,7 +226,8 @@ struct InterpolationSolver::Impl {
       const int j = static_cast<int>(border.size());
       if (col.released) {
         // A_{i,p} = -coupling: steady_coupling gives the right-hand side of a unit value.
-        for (const auto& [i, value] : steady_coupling(*mesh, *ops, coefficients(), v)) {
+        col.coupling = steady_coupling(*mesh, *ops, coefficients(), v);
+        for (const auto& [i, value] : col.coupling) {
           if (const int li = base->free_index(i); li >= 0) col.g.emplace_back(li, -value);
           if (i == v) col.h_diagonal = -value;
           for (int r = 0; r < j; ++r)  // H = A_PP between released vertices
@@ -164,10 +238,16 @@ struct InterpolationSolver::Impl {
       } else {
         col.g.emplace_back(base->free_index(v), 1.0);
       }
+      if (const auto it = responses.find(v); col.released && it != responses.end()) {
+        col.t = -it->second;  // g = A_0p = -coupling(p)
+      } else {
+        Eigen::VectorXd gj = Eigen::VectorXd::Zero(base->num_free());
+        for (const auto& [li, value] : col.g) gj[li] = value;
+        col.t = base->solve_rhs(gj).col(0);
+        if (col.released && static_cast<int>(responses.size()) < kHeldColumns) responses[v] = -col.t;
+      }
       border.push_back(std::move(col));
-      Eigen::VectorXd gj = Eigen::VectorXd::Zero(base->num_free());
-      for (const auto& [li, value] : border.back().g) gj[li] = value;
-      const Eigen::VectorXd t = sweep(gj).col(0);
+      const Eigen::VectorXd& t = border.back().t;
       for (int r = 0; r <= j; ++r) {
         double gt = 0;
         for (const auto& [li, value] : border[static_cast<std::size_t>(r)].g) gt += value * t[li];
@@ -195,21 +275,17 @@ struct InterpolationSolver::Impl {
     return eigenvalues.cwiseAbs().minCoeff() >= kMinSchurEigenvalue;
   }
 
-  // The bordered solve: y0 on F0 (rows in the order of the factor's free list) and w.
-  std::pair<Eigen::MatrixXd, Eigen::MatrixXd> bordered_solve(const Eigen::MatrixXd& b0,
-                                                             const Eigen::MatrixXd& c) const {
-    Eigen::MatrixXd z0 = base->solve_rhs(b0);
+  // The bordered solve from z0 = A_00^-1 b0: y0 on F0 (rows in the order of the
+  // factor's free list) and w; no solve with the factor (T is kept).
+  std::pair<Eigen::MatrixXd, Eigen::MatrixXd> bordered_solve(Eigen::MatrixXd y, const Eigen::MatrixXd& c) const {
     const Eigen::Index k = static_cast<Eigen::Index>(border.size());
-    if (k == 0) return {std::move(z0), Eigen::MatrixXd(0, b0.cols())};
+    if (k == 0) return {std::move(y), Eigen::MatrixXd(0, y.cols())};
     Eigen::MatrixXd rhs = c;
     for (Eigen::Index i = 0; i < k; ++i)
-      for (const auto& [li, value] : border[static_cast<std::size_t>(i)].g) rhs.row(i) -= value * z0.row(li);
+      for (const auto& [li, value] : border[static_cast<std::size_t>(i)].g) rhs.row(i) -= value * y.row(li);
     const Eigen::MatrixXd w = S_lu.solve(rhs);
-    Eigen::MatrixXd Gw = Eigen::MatrixXd::Zero(b0.rows(), b0.cols());
-    for (Eigen::Index j = 0; j < k; ++j)
-      for (const auto& [li, value] : border[static_cast<std::size_t>(j)].g) Gw.row(li) += value * w.row(j);
-    z0 -= base->solve_rhs(Gw);
-    return {std::move(z0), w};
+    for (Eigen::Index j = 0; j < k; ++j) y -= border[static_cast<std::size_t>(j)].t * w.row(j);
+    return {std::move(y), w};
   }
 
   // -(A U) on the rows of F0 and of the border's released vertices, and the values of
@@ -328,9 +404,19 @@ InterpolationResult InterpolationSolver::solve() {
   Field outside = given;
   for (const BorderColumn& col : s.border)
     if (!col.released) outside.row(col.vertex).setZero();
-  Eigen::MatrixXd b0, c;
-  s.right_hand_side(s.apply(outside), given, b0, c);
-  auto [y0, w] = s.bordered_solve(b0, c);
+  // c: b_P = -(A outside) on P's rows (from their couplings: A is symmetric) and the
+  // values at Q.
+  Eigen::MatrixXd c(static_cast<Eigen::Index>(s.border.size()), s.m);
+  for (std::size_t j = 0; j < s.border.size(); ++j) {
+    const BorderColumn& col = s.border[j];
+    if (col.released) {
+      c.row(static_cast<Eigen::Index>(j)).setZero();
+      for (const auto& [i, value] : col.coupling) c.row(static_cast<Eigen::Index>(j)) += value * outside.row(i);
+    } else {
+      c.row(static_cast<Eigen::Index>(j)) = given.row(col.vertex);
+    }
+  }
+  auto [y0, w] = s.bordered_solve(s.held_response(outside), c);
 
   Field u = given;
   const std::vector<int>& free = s.base->free_vertices();
@@ -344,7 +430,9 @@ InterpolationResult InterpolationSolver::solve() {
   place(y0, w);
 
   // Residual of the current system on its free rows, through the products; refined by
-  // the same bordered solve (the added vertices' rows are their multipliers').
+  // the same bordered solve (the added vertices' rows are their multipliers') from one
+  // pair of plain sweeps: the kept columns are refined already, so the correction is
+  // small and the sweeps' own rounding in it negligible.
   const Field load = s.apply(given);
   auto worst = [&](const Field& AU) {
     double r = 0;
@@ -367,7 +455,7 @@ InterpolationResult InterpolationSolver::solve() {
     for (const auto& [v, x] : s.cons) AUfree.row(v).setZero();
     Eigen::MatrixXd r0, rc;
     s.right_hand_side(AUfree, zero, r0, rc);  // -(A u) on the free rows: the residual
-    auto [d0, dw] = s.bordered_solve(r0, rc);
+    auto [d0, dw] = s.bordered_solve(s.base->factor().solve(r0), rc);
     place(d0, dw);
     AU = s.apply(u);
     const double next = worst(AU);

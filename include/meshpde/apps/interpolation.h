@@ -83,19 +83,23 @@ InterpolationResult interpolate(const Mesh& mesh, FieldKind kind,
 /// at a time (painting; the stateful tier beside interpolate()). The first solve()
 /// factors the free block A_FF of A = g1 K + g2 K D K on the vertices free then
 /// (SteadyDirectSolver). Later solves reuse that factor:
-///  - new values at the same constrained vertices: one solve with the factor (two
-///    triangular sweeps a column, and the refinement steps of
-///    SteadyDirectSolver::solve_rhs) and whole-mesh products for the right-hand side;
 ///  - constraints added or removed since the factorization: the factored system is
 ///    bordered by the changed vertices, a released constraint as an extra unknown and a
 ///    new one as a Lagrange multiplier holding its value, and the small dense Schur
-///    complement S = H - G^T A_FF^-1 G of that border (k x k for k changed vertices;
-///    one pair of sweeps for each vertex that joins it) is factored by LU. A solve then
-///    costs two solves with the factor. Once more than max_changes constraints differ
-///    from the factored set, or S is close to singular, the next solve() factors afresh.
+///    complement S = H - G^T A_FF^-1 G of that border (k x k for k changed vertices)
+///    is factored by LU. Once more than max_changes constraints differ from the
+///    factored set, or S is close to singular, the next solve() factors afresh.
+///  - what each solve needs from the factor is kept as columns of #free doubles, each
+///    solved once (two triangular sweeps and a refinement step) when first needed: the
+///    column A_FF^-1 G of each vertex that joins the border, and the response of each
+///    originally constrained vertex whose value changes (at most 64; beyond, or for many
+///    at once, their part of the right-hand side is solved afresh). A solve on kept
+///    columns is dense arithmetic and whole-mesh products, with no solve by the factor:
+///    a new value at a painted vertex costs milliseconds, a new vertex one column.
 /// Every answer is checked by its residual through the whole-mesh products and refined
-/// (the same bordered solve on the residual) until it is at rounding level, so it equals
-/// a fresh interpolate() with the Direct solver to rounding (tests: 1e-10 relative).
+/// (a solve with the factor on the residual, through the border) until it is at
+/// rounding level, so it equals a fresh interpolate() with the Direct solver to rounding
+/// (tests: 1e-10 relative). Memory: the factor and up to max_changes + 64 columns.
 ///
 /// Fields: scalars, displacements and tangent vectors componentwise (3 columns,
 /// projected onto the tangent planes); the connection method has no kept factor (use
