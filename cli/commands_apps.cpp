@@ -525,6 +525,11 @@ void add_poke_command(CLI::App& app) {
                            {"free_vertices", x.free_vertices},
                            {"cg_iterations", x.cg_iterations},
                            {"factored", x.factored},
+                           {"new_factor", x.new_factor},
+                           {"install_us", x.install_us},
+                           {"solve_us", x.solve_us},
+                           {"propose_us", x.propose_us},
+                           {"publish_us", x.publish_us},
                            {"missed", x.missed}});
       print_json({{"vertex", v},
                   {"solver", a->h.solver == HapticSolver::Cg ? "cg" : "factored"},

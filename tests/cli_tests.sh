@@ -410,6 +410,8 @@ for key in p50 p99 max; do
   check "poke latency_us.$key" [ "$(json "$T/p.json" "'$key' in d['latency_us']")" = True ]
 done
 check "poke reports misses and steps" [ "$(json "$T/p.json" "d['steps'] >= 200 and 'deadline_misses' in d")" = True ]
+check "poke samples say where each step's time went" [ "$(json "$T/p.json" \
+  "all(s['solve_us'] > 0 and s['install_us'] + s['solve_us'] + s['propose_us'] + s['publish_us'] <= s['latency_us'] + 1e-3 and 'new_factor' in s for s in d['samples'])")" = True ]
 check "poke force opposes the indentation" \
   [ "$(json "$T/p.json" "[s for s in d['samples'] if abs(s['t'] - 0.2) < 1e-9][0]['force'][2] > 0")" = True ]
 printf 't,dx,dy,dz\n0,0,0,0\n0,0,0,1\n' >"$T/badpath.csv"

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <map>
 #include <memory>
 #include <numeric>
 #include <optional>
@@ -181,7 +182,8 @@ PokeFigures poke(const Mesh& mesh, const FemOperators& ops, int steps, bool full
 // the editor's operators (LaplacianKind::Auto). Eight values painted and solved first
 // (the factorization, paint_first_ms_*); then clicks that alternate a new value at a
 // painted vertex and a new vertex, each timed from set_value to the field
-// (paint_update_ms_*, the median; _max the slowest), and the fresh solve of the same
+// (paint_update_ms_*, the median; _max the slowest; _value_ and _vertex_ the medians of
+// each kind), and the fresh solve of the same
 // constraints after some of them (paint_resolve_ms_*, the median). The largest
 // difference between the two answers is reported relative to the field's largest value.
 void paint_figures(const BenchOptions& options, nlohmann::json& j, bool large) {
@@ -213,7 +215,7 @@ void paint_figures(const BenchOptions& options, nlohmann::json& j, bool large) {
     j["paint_first_ms_" + tag] = seconds_since(t0) * 1e3;
     const int clicks = options.quick ? 6 : 20;
     const int resolves = level ? (options.quick ? 1 : 2) : (options.quick ? 2 : 5);
-    std::vector<double> update_ms, resolve_ms;
+    std::vector<double> update_ms, resolve_ms, by_kind[2];
     double worst = 0;
     for (int c = 0; c < clicks; ++c) {
       progress(fmt::format("paint on {}: click {} of {}", tag, c + 1, clicks));
@@ -223,6 +225,7 @@ void paint_figures(const BenchOptions& options, nlohmann::json& j, bool large) {
       solver.set_value(v, Eigen::VectorXd::Constant(1, value(rng)));
       const InterpolationResult kept = solver.solve();
       update_ms.push_back(seconds_since(t0) * 1e3);
+      by_kind[c % 2].push_back(update_ms.back());
       if (c >= clicks - resolves) {
         t0 = clock_type::now();
         const InterpolationResult fresh =
@@ -236,6 +239,8 @@ void paint_figures(const BenchOptions& options, nlohmann::json& j, bool large) {
     j["paint_vertices_" + tag] = nv;
     j["paint_update_ms_" + tag] = percentiles(update_ms).p50;
     j["paint_update_ms_max_" + tag] = *std::max_element(update_ms.begin(), update_ms.end());
+    j["paint_update_value_ms_" + tag] = percentiles(by_kind[0]).p50;
+    j["paint_update_vertex_ms_" + tag] = percentiles(by_kind[1]).p50;
     j["paint_resolve_ms_" + tag] = percentiles(resolve_ms).p50;
     j["paint_update_over_resolve_" + tag] = percentiles(update_ms).p50 / percentiles(resolve_ms).p50;
     j["paint_max_relative_difference_" + tag] = worst;
@@ -354,6 +359,49 @@ void haptic_figures(const BenchOptions& options, nlohmann::json& j) {
             static_cast<int>(std::count_if(run.us.begin(), run.us.end(), [](double x) { return x > 1000; }));
         j[run.key + "steps_" + tag] = run.steps;
         if (!run.session) continue;
+        // The per-step trace: for each step over 1 ms, the part of the session's step
+        // that took longest (install, solve, propose, publish), or "outside" when most
+        // of the time was spent outside them (the thread preempted between them, or
+        // waiting for the session's lock); the ten slowest steps in full.
+        const std::vector<HapticSample> log = run.session->log();
+        std::map<std::string, int> where;
+        int with_new_factor = 0;
+        std::vector<int> order;
+        for (std::size_t k = 0; k < run.us.size() && k < log.size(); ++k) {
+          if (run.us[k] <= 1000) continue;
+          order.push_back(static_cast<int>(k));
+          const HapticSample& s = log[k];
+          const std::pair<const char*, double> parts[] = {
+              {"install", s.install_us},
+              {"solve", s.solve_us},
+              {"propose", s.propose_us},
+              {"publish", s.publish_us},
+              {"outside", run.us[k] - s.install_us - s.solve_us - s.propose_us - s.publish_us}};
+          ++where[std::max_element(std::begin(parts), std::end(parts), [](const auto& a, const auto& b) {
+                    return a.second < b.second;
+                  })->first];
+          with_new_factor += s.new_factor;
+        }
+        for (const char* part : {"install", "solve", "propose", "publish", "outside"})
+          j[run.key + "over_1ms_in_" + part + "_" + tag] = where[part];
+        j[run.key + "over_1ms_new_factor_" + tag] = with_new_factor;
+        std::sort(order.begin(), order.end(), [&](int a, int b) { return run.us[a] > run.us[b]; });
+        nlohmann::json slow = nlohmann::json::array();
+        for (std::size_t q = 0; q < order.size() && q < 10; ++q) {
+          const int k = order[q];
+          const HapticSample& s = log[static_cast<std::size_t>(k)];
+          slow.push_back({{"step", k},
+                          {"us", run.us[k]},
+                          {"install_us", s.install_us},
+                          {"solve_us", s.solve_us},
+                          {"propose_us", s.propose_us},
+                          {"publish_us", s.publish_us},
+                          {"new_factor", s.new_factor},
+                          {"factored", s.factored},
+                          {"free_vertices", s.free_vertices},
+                          {"cg_iterations", s.cg_iterations}});
+        }
+        j[run.key + "slow_steps_" + tag] = slow;
         j[run.key + "max_free_vertices_" + tag] = run.max_free;
         j[run.key + "settled_force_error_" + tag] = (run.force - reference).norm() / reference.norm();
       }

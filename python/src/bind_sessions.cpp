@@ -276,7 +276,8 @@ or "intrinsic".)doc")
       .def("log", [](const PyHapticSession& p) {
         const std::vector<HapticSample> log = p.s->log();
         const auto n = static_cast<Eigen::Index>(log.size());
-        Eigen::VectorXd t(n), latency(n), free(n), iters(n), missed(n), factored(n);
+        Eigen::VectorXd t(n), latency(n), free(n), iters(n), missed(n), factored(n), new_factor(n);
+        Eigen::MatrixXd phases(n, 4);  // install, solve, propose, publish (us)
         Eigen::MatrixXd probe(n, 3), force(n, 3);
         for (Eigen::Index i = 0; i < n; ++i) {
           const HapticSample& s = log[static_cast<std::size_t>(i)];
@@ -288,6 +289,8 @@ or "intrinsic".)doc")
           iters[i] = s.cg_iterations;
           missed[i] = s.missed;
           factored[i] = s.factored;
+          new_factor[i] = s.new_factor;
+          phases.row(i) << s.install_us, s.solve_us, s.propose_us, s.publish_us;
         }
         py::dict d;
         d["time"] = to_numpy(t);
@@ -298,6 +301,9 @@ or "intrinsic".)doc")
         d["cg_iterations"] = to_numpy(iters);
         d["missed"] = to_numpy(missed);
         d["factored"] = to_numpy(factored);
+        d["new_factor"] = to_numpy(new_factor);
+        const char* names[] = {"install_us", "solve_us", "propose_us", "publish_us"};
+        for (int k = 0; k < 4; ++k) d[names[k]] = to_numpy(Eigen::VectorXd(phases.col(k)));
         return d;
       });
 

@@ -46,8 +46,13 @@ def test_haptic_settled_force_matches_a_full_matrix_solve(solver):
     assert log["force"].shape == (300, 3) and np.allclose(log["force"][-1], f)
     if solver == "factored":  # waiting for each factor: all but the first few steps use one
         assert h.factorizations > 1 and log["factored"][-100:].all()
+        assert 0 < log["new_factor"].sum() <= h.factorizations
     else:
-        assert h.factorizations == 0 and not log["factored"].any()
+        assert h.factorizations == 0 and not log["factored"].any() and not log["new_factor"].any()
+    # Where each step's time went: the parts are timed inside the step, so they add up
+    # to no more than its latency, and the solve is one of them.
+    parts = sum(log[k] for k in ("install_us", "solve_us", "propose_us", "publish_us"))
+    assert (parts <= log["latency_us"] + 1e-3).all() and (log["solve_us"] > 0).all()
 
 
 def test_haptic_session_names_a_bad_solver():

@@ -70,34 +70,40 @@ std::string HapticSession::factor_error() const {
   return factor_error_;
 }
 
-void HapticSession::install_ready_factor(int contact) {
-  std::optional<FactorReady> r;
-  {
-    std::lock_guard lock(builder_mutex_);
-    if (!ready_) return;
-    r.swap(ready_);
-  }
+std::unique_lock<std::mutex> HapticSession::servo_builder_lock() {
+  // The servo never waits for the builder: a builder descheduled while it holds the lock
+  // (it runs at a lower priority, on a machine with other work) would stall the servo
+  // for a time slice, milliseconds (the per-step trace caught it). When the lock is
+  // taken, the servo leaves the exchange to a later step. A caller that waits for
+  // factors (replays, tests) takes it always, so its runs stay reproducible.
+  if (params_.wait_for_factors) return std::unique_lock(builder_mutex_);
+  return std::unique_lock(builder_mutex_, std::try_to_lock);
+}
+
+bool HapticSession::install_ready_factor(int contact) {
+  const std::unique_lock lock = servo_builder_lock();
+  if (!lock.owns_lock() || !ready_) return false;
+  FactorReady r = std::move(*ready_);
+  ready_.reset();
   std::shared_ptr<const StepFactor> retired;
-  if (r->contact == contact) {  // else the probe touched elsewhere meanwhile: stale
+  if (r.contact == contact) {  // else the probe touched elsewhere meanwhile: stale
     retired = session_->step_factor();
-    session_->set_free_set(r->factor->vertices(), r->to_rest);
-    session_->set_step_factor(std::move(r->factor));
+    session_->set_free_set(r.factor->vertices(), r.to_rest);
+    session_->set_step_factor(std::move(r.factor));
   } else {
-    retired = std::move(r->factor);
+    retired = std::move(r.factor);
   }
   // Freeing a factor (megabytes) is the builder's work, not the servo's.
-  if (retired) {
-    std::lock_guard lock(builder_mutex_);
-    retired_.push_back(std::move(retired));
-  }
+  if (retired) retired_.push_back(std::move(retired));
+  return true;
 }
 
 void HapticSession::propose_factor(double dt, int contact) {
   // Every step, so that the rest counters advance as in a self-adjusting session.
   DomainChange change = session_->propose_domain_change();
   {
-    std::lock_guard lock(builder_mutex_);
-    if (building_ || job_ || ready_ || !factor_error_.empty()) return;
+    const std::unique_lock lock = servo_builder_lock();
+    if (!lock.owns_lock() || building_ || job_ || ready_ || !factor_error_.empty()) return;
   }
   const int free_now = session_->domain().num_free();
   const bool stale = !session_->step_factor_applies(dt);
@@ -111,15 +117,15 @@ void HapticSession::propose_factor(double dt, int contact) {
     if (!std::binary_search(change.shrink.begin(), change.shrink.end(), v)) job.free.push_back(v);
   job.free.insert(job.free.end(), change.grow.begin(), change.grow.end());
   job.to_rest = std::move(change.shrink);
-  if (job.free.empty()) {  // everything at rest: nothing to factor
+  const std::unique_lock lock = servo_builder_lock();
+  if (!lock.owns_lock()) return;                                               // proposed again at the next step
+  if (job.free.empty()) {                                                      // everything at rest: nothing to factor
+    if (session_->step_factor()) retired_.push_back(session_->step_factor());  // freed by the builder
     session_->set_free_set({}, job.to_rest);
     session_->set_step_factor(nullptr);
     return;
   }
-  {
-    std::lock_guard lock(builder_mutex_);
-    job_ = std::move(job);
-  }
+  job_ = std::move(job);
   builder_cv_.notify_one();
 }
 
@@ -231,11 +237,22 @@ Eigen::Vector3d HapticSession::step_locked(double dt, std::chrono::steady_clock:
   }
   const int contact = contact_;  // changes only under mutex_, which this step holds
   const bool factored = params_.solver == HapticSolver::Factored;
-  if (factored) install_ready_factor(contact);
+  using clock = std::chrono::steady_clock;
+  const auto us_since = [](clock::time_point t) {
+    return static_cast<float>(std::chrono::duration<double, std::micro>(clock::now() - t).count());
+  };
+  HapticSample s;
+  auto t = clock::now();
+  if (factored) s.new_factor = install_ready_factor(contact);
+  s.install_us = us_since(t);
   if (contact >= 0) session_->constrain(contact, std::span<const double>(probe.data(), 3));
   session_->cg_options.deadline = deadline;
+  t = clock::now();
   const StepResult r = session_->step(dt);
+  s.solve_us = us_since(t);
+  t = clock::now();
   if (factored) propose_factor(dt, contact);
+  s.propose_us = us_since(t);
   const Eigen::Vector3d force =
       contact >= 0 ? Eigen::Vector3d(-session_->reaction_forces().row(0).transpose()) : Eigen::Vector3d::Zero();
   {
@@ -243,14 +260,16 @@ Eigen::Vector3d HapticSession::step_locked(double dt, std::chrono::steady_clock:
     force_ = force;
   }
   time_ += dt;
-  HapticSample s;
   s.time = time_;
   s.probe = probe;
   s.force = force;
-  s.latency_us = std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count();
   s.free_vertices = r.free_vertices;
   s.cg_iterations = r.cg.iterations;
   s.factored = r.factored;
+  t = clock::now();
+  publish();
+  s.publish_us = us_since(t);
+  s.latency_us = std::chrono::duration<double, std::micro>(clock::now() - t0).count();
   s.missed = r.cg.status == CgStatus::Deadline || s.latency_us > 1e6 * dt;
   {
     std::lock_guard io(io_mutex_);
@@ -268,7 +287,6 @@ Eigen::Vector3d HapticSession::step_locked(double dt, std::chrono::steady_clock:
     log_[log_next_] = s;
     log_next_ = (log_next_ + 1) % log_.size();
   }
-  publish();
   return force;
 }
 

@@ -14,9 +14,10 @@
 // is adjusted by PdeSession's self-adjusting rule, but a change takes effect only when
 // the factor of the new domain is ready: a second thread builds it while the servo
 // keeps stepping on the last one (the domain lags its growth by one build, a few
-// milliseconds). Before the first factor of a touch is ready, the step uses CG on the
-// few seed rings. A caller that steps faster than real time (an offline replay, a
-// notebook, a test) sets wait_for_factors: step() then waits for a factor being built,
+// milliseconds); the servo never waits for the builder, not even for its lock.
+// Before the first factor of a touch is ready, the step uses CG on the few seed rings.
+// A caller that steps faster than real time (an offline replay, a notebook, a test)
+// sets wait_for_factors: step() then waits for a factor being built,
 // so its domain keeps up with its steps and every run gives the same forces.
 // Cg: Jacobi-CG every step on a domain that adjusts itself after every step; fast on
 // average, but its iteration count, hence its time, has no bound.
@@ -90,6 +91,12 @@ struct HapticSample {
   int cg_iterations = 0;
   bool factored = false;  ///< solved with the domain's factor (HapticSolver::Factored), not CG
   bool missed = false;    ///< the step overran its period (or hit the deadline)
+  /// Where the step's time went (us; latency_us is their sum and the bookkeeping
+  /// between): taking a new domain's factor (install_us, with new_factor set when one
+  /// was taken), the solve (solve_us), proposing the next domain (propose_us) and
+  /// publishing the displacement (publish_us).
+  bool new_factor = false;
+  float install_us = 0, solve_us = 0, propose_us = 0, publish_us = 0;
 };
 
 class HapticSession {
@@ -157,7 +164,8 @@ class HapticSession {
     std::vector<int> to_rest;
     int contact = -1;
   };
-  void install_ready_factor(int contact);
+  bool install_ready_factor(int contact);  // true when a factor was taken
+  std::unique_lock<std::mutex> servo_builder_lock();
   void propose_factor(double dt, int contact);
   FactorReady build_factor(FactorJob job);
   void builder_loop();
