@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <fstream>
 #include <map>
 #include <memory>
 #include <numeric>
@@ -602,6 +603,75 @@ void global_real_figures(const BenchOptions& options, nlohmann::json& j, bool ev
       measure(level == 7 ? "icosphere-164k" : "icosphere-655k", unit_edge_icosphere(level), false);
 }
 
+// Resident memory of this process now and at its peak since the last reset (bytes,
+// from /proc/self/status: VmRSS, VmHWM); the peak is reset by writing 5 to
+// /proc/self/clear_refs (Linux 4.0 on). Negative where unavailable.
+double proc_status_bytes(const char* field) {
+  std::ifstream in("/proc/self/status");
+  std::string line;
+  const std::string key = std::string(field) + ":";
+  while (std::getline(in, line))
+    if (line.rfind(key, 0) == 0) return 1024.0 * std::strtod(line.c_str() + key.size(), nullptr);  // kB
+  return -1;
+}
+bool reset_peak_memory() {
+  std::ofstream out("/proc/self/clear_refs");
+  out << "5";
+  out.flush();
+  return static_cast<bool>(out);
+}
+
+// The direct solve of the million-vertex row (what `interpolate --solver direct` and
+// Auto's direct route run: CHOLMOD with its default ordering), its time
+// (global_bilap_direct_baseline_s_1m) and memory: direct_bytes_per_vertex_1m, the rise
+// of the process's peak resident memory during the solve (factor, assembly and
+// workspace) over the mesh's vertices, and the factor's nonzeros. Returns the answer.
+Field direct_million_figures(const BenchOptions& options, nlohmann::json& j, const Mesh& m, const FemOperators& o,
+                             const std::vector<int>& free, const Field& u) {
+  if (options.progress)
+    options.progress("global bi-Laplacian on fertility-4k subdivided 4 times by CHOLMOD's direct solve (baseline)");
+  const double before = proc_status_bytes("VmRSS");
+  const bool peak = before > 0 && reset_peak_memory();
+  const auto t_direct = clock_type::now();
+  Field x;
+  long long nonzeros = 0;
+  {
+    const SteadyDirectSolver direct(m, o, PdeCoefficients{.g0 = 0, .g1 = 0, .g2 = 1}, free);
+    x = direct.solve(u);
+    nonzeros = direct.factor().factor_nonzeros();
+  }
+  j["global_bilap_direct_baseline_s_1m"] = seconds_since(t_direct);
+  j["direct_factor_nonzeros_1m"] = nonzeros;
+  if (peak)
+    j["direct_bytes_per_vertex_1m"] = (proc_status_bytes("VmHWM") - before) / m.num_vertices();
+  else if (options.warning)
+    options.warning("no peak memory reset here (/proc/self/clear_refs): direct_bytes_per_vertex_1m skipped");
+  return x;
+}
+
+// fertility-4k (genus 4) midpoint-subdivided four times (1.15M vertices), the handle
+// at its top, the lowest 2 % (by height) held; null where the file is missing.
+struct MillionProblem {
+  Mesh mesh;
+  FemOperators ops;
+  TopDrag drag;
+};
+std::optional<MillionProblem> million_problem(const BenchOptions& options) {
+  const auto fertility = options.data_dir / "fertility-4k.off";
+  if (!std::filesystem::exists(fertility)) {
+    if (options.warning) options.warning(fertility.string() + " not found; the _1m global and direct figures skipped");
+    return std::nullopt;
+  }
+  if (options.progress) options.progress("fertility-4k subdivided 4 times (1.15M vertices)");
+  MeshData d = read_mesh(fertility);
+  GeneratedMesh g{d.V, d.F, {}};
+  for (int k = 0; k < 4; ++k) g = subdivide_midpoint(g.V, g.F);
+  MillionProblem p{Mesh(g.V, g.F), {}, {}};
+  p.ops = build_cotan_operators(p.mesh);
+  p.drag = top_drag(p.mesh, mean_edge_length(p.mesh));
+  return p;
+}
+
 }  // namespace
 
 // A correction the self-intersection guard has to limit, against the same correction
@@ -664,9 +734,9 @@ nlohmann::json run_standard_benchmarks(const BenchOptions& options) {
   const bool quick = options.quick, large = options.large;
   nlohmann::json j;
   if (!options.only.empty() && options.only != "haptic" && options.only != "global_real" && options.only != "paint" &&
-      options.only != "correct_guard")
-    throw InputError(
-        fmt::format("bench: no section '{}' (--only takes: haptic, global_real, paint, correct_guard)", options.only));
+      options.only != "correct_guard" && options.only != "direct")
+    throw InputError(fmt::format(
+        "bench: no section '{}' (--only takes: haptic, global_real, paint, correct_guard, direct)", options.only));
   const int reps = quick ? 3 : 10;
   const int steps = quick ? 300 : 1000;
   j["quick"] = quick;
@@ -687,6 +757,13 @@ nlohmann::json run_standard_benchmarks(const BenchOptions& options) {
   }
   if (options.only == "correct_guard") {
     correct_guard_figures(options, j);
+    return j;
+  }
+  if (options.only == "direct") {
+    if (const std::optional<MillionProblem> million = million_problem(options)) {
+      j["global_bilap_vertices_1m"] = million->mesh.num_vertices();
+      direct_million_figures(options, j, million->mesh, million->ops, million->drag.free, million->drag.u);
+    }
     return j;
   }
 
@@ -1081,18 +1158,12 @@ nlohmann::json run_standard_benchmarks(const BenchOptions& options) {
   }
 
   {
-    // About a million vertices of a real mesh: fertility-4k (genus 4) midpoint-
-    // subdivided four times (1.15M vertices), the handle at its top, the lowest 2 %
-    // (by height) held.
-    const auto fertility = options.data_dir / "fertility-4k.off";
-    if (std::filesystem::exists(fertility)) {
+    // About a million vertices of a real mesh (million_problem).
+    if (const std::optional<MillionProblem> million = million_problem(options)) {
       progress("global bi-Laplacian on fertility-4k subdivided 4 times");
-      MeshData d = read_mesh(fertility);
-      GeneratedMesh g{d.V, d.F, {}};
-      for (int k = 0; k < 4; ++k) g = subdivide_midpoint(g.V, g.F);
-      const Mesh m(g.V, g.F);
-      const FemOperators o = build_cotan_operators(m);
-      const auto [handle, u, free] = top_drag(m, mean_edge_length(m));
+      const Mesh& m = million->mesh;
+      const FemOperators& o = million->ops;
+      const auto& [handle, u, free] = million->drag;
       using Preconditioner = GlobalBilaplacianParams::Preconditioner;
       const TimedGlobalResolve resolve = timed_global_resolve(m, o, free, u, handle);
       const GlobalBilaplacianResult& r = resolve.first;
@@ -1125,16 +1196,9 @@ nlohmann::json run_standard_benchmarks(const BenchOptions& options) {
       // The names for this row, and CHOLMOD's direct solve of the same problem.
       j["global_bilap_s_fertility-1m"] = auto_s;
       j["global_bilap_iters_fertility-1m"] = r.iterations;
-      progress("global bi-Laplacian on fertility-4k subdivided 4 times by CHOLMOD's direct solve (baseline)");
-      const auto t_direct = clock_type::now();
-      const SteadyDirectSolver direct(m, o, PdeCoefficients{.g0 = 0, .g1 = 0, .g2 = 1}, free);
-      const Field x = direct.solve(u);
-      const double direct_s = seconds_since(t_direct);
-      j["global_bilap_direct_baseline_s_1m"] = direct_s;
-      j["global_bilap_speedup_over_direct_1m"] = direct_s / auto_s;
+      const Field x = direct_million_figures(options, j, m, o, free, u);
+      j["global_bilap_speedup_over_direct_1m"] = j["global_bilap_direct_baseline_s_1m"].get<double>() / auto_s;
       j["global_bilap_max_difference_1m"] = (r.values - x).cwiseAbs().maxCoeff() / x.cwiseAbs().maxCoeff();
-    } else {
-      warn(fertility.string() + " not found; global_bilap_s_1m skipped");
     }
   }
   if (!quick) global_real_figures(options, j, /*every=*/large);

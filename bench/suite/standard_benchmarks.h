@@ -17,8 +17,10 @@ struct BenchOptions {
   bool large = false;  ///< also the global solves on the 655k and 2.6M icospheres (minutes, several GB)
   int threads = 0;     ///< thread limit for the whole run; 0: every core
   /// One section alone: "haptic" (the haptic_* figures), "global_real" (the global
-  /// bi-Laplacian on the real meshes, global_bilap_*_<mesh>) or "paint" (the paint_*
-  /// figures); empty: everything.
+  /// bi-Laplacian on the real meshes, global_bilap_*_<mesh>), "paint" (the paint_*
+  /// figures), "correct_guard" (correct_guarded_*) or "direct" (the direct solve of the
+  /// million-vertex row: global_bilap_direct_baseline_s_1m, direct_bytes_per_vertex_1m);
+  /// empty: everything.
   std::string only;
   /// Where the real meshes are (igea-134k.ply, bunny-36k.obj, fertility-4k.off); a
   /// missing one leaves its figures out with a warning.
