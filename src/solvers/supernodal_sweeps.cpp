@@ -30,7 +30,10 @@ constexpr double kTwoThreadsFrom = 500000;
 // Updates of rows >= buffer_from go to `buffer` (rows counted from
 // buffer_from) when it is given. Per supernode: the diagonal block's rows are
 // contiguous in y and solved in place; the rows below it are summed into a dense
-// scratch block column by column (contiguous in L) and scattered once.
+// scratch block column by column (contiguous in L) and scattered once. A supernode
+// whose rows of y are all zero changes nothing and is skipped: for a right-hand side
+// with few nonzeros (a unit load, a vertex's coupling) only the elimination tree's
+// paths from them to the root are swept.
 template <int M>
 void forward(const SupernodalFactorView& L, Index k0, Index k1, double* y, Index buffer_from, double* buffer) {
   constexpr Index cols = M;
@@ -40,6 +43,7 @@ void forward(const SupernodalFactorView& L, Index k0, Index k1, double* y, Index
     const double* D = L.x + L.px[k];
     const int* rows = L.s + L.pi[k];
     double* yk = y + c0 * cols;
+    if (std::all_of(yk, yk + nc * cols, [](double v) { return v == 0; })) continue;
     t.assign(static_cast<std::size_t>(below * cols), 0.0);
     for (Index j = 0; j < nc; ++j) {
       const double* col = D + j * nr;
