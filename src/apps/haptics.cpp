@@ -73,9 +73,9 @@ std::string HapticSession::factor_error() const {
 std::unique_lock<std::mutex> HapticSession::servo_builder_lock() {
   // The servo never waits for the builder: a builder descheduled while it holds the lock
   // (it runs at a lower priority, on a machine with other work) would stall the servo
-  // for a time slice, milliseconds (the per-step trace caught it). When the lock is
-  // taken, the servo leaves the exchange to a later step. A caller that waits for
-  // factors (replays, tests) takes it always, so its runs stay reproducible.
+  // for a time slice, milliseconds. When the lock is taken, the servo leaves the
+  // exchange to a later step. A caller that waits for factors (replays, tests) takes it
+  // always, so its runs stay reproducible.
   if (params_.wait_for_factors) return std::unique_lock(builder_mutex_);
   return std::unique_lock(builder_mutex_, std::try_to_lock);
 }
