@@ -273,39 +273,45 @@ or "intrinsic".)doc")
       .def_property_readonly("active_vertices", [](const PyHapticSession& p) { return p.s->active_vertices(); })
       .def_property_readonly("misses", [](const PyHapticSession& p) { return p.s->misses(); })
       .def_property_readonly("factorizations", [](const PyHapticSession& p) { return p.s->factorizations(); })
-      .def("log", [](const PyHapticSession& p) {
-        const std::vector<HapticSample> log = p.s->log();
-        const auto n = static_cast<Eigen::Index>(log.size());
-        Eigen::VectorXd t(n), latency(n), free(n), iters(n), missed(n), factored(n), new_factor(n);
-        Eigen::MatrixXd phases(n, 4);  // install, solve, propose, publish (us)
-        Eigen::MatrixXd probe(n, 3), force(n, 3);
-        for (Eigen::Index i = 0; i < n; ++i) {
-          const HapticSample& s = log[static_cast<std::size_t>(i)];
-          t[i] = s.time;
-          probe.row(i) = s.probe.transpose();
-          force.row(i) = s.force.transpose();
-          latency[i] = s.latency_us;
-          free[i] = s.free_vertices;
-          iters[i] = s.cg_iterations;
-          missed[i] = s.missed;
-          factored[i] = s.factored;
-          new_factor[i] = s.new_factor;
-          phases.row(i) << s.install_us, s.solve_us, s.propose_us, s.publish_us;
-        }
-        py::dict d;
-        d["time"] = to_numpy(t);
-        d["probe"] = to_numpy(probe);
-        d["force"] = to_numpy(force);
-        d["latency_us"] = to_numpy(latency);
-        d["free_vertices"] = to_numpy(free);
-        d["cg_iterations"] = to_numpy(iters);
-        d["missed"] = to_numpy(missed);
-        d["factored"] = to_numpy(factored);
-        d["new_factor"] = to_numpy(new_factor);
-        const char* names[] = {"install_us", "solve_us", "propose_us", "publish_us"};
-        for (int k = 0; k < 4; ++k) d[names[k]] = to_numpy(Eigen::VectorXd(phases.col(k)));
-        return d;
-      });
+      .def(
+          "log",
+          [](const PyHapticSession& p) {
+            const std::vector<HapticSample> log = p.s->log();
+            const auto n = static_cast<Eigen::Index>(log.size());
+            Eigen::VectorXd t(n), latency(n), free(n), iters(n), missed(n), factored(n), new_factor(n);
+            Eigen::MatrixXd phases(n, 4);  // install, solve, propose, publish (us)
+            Eigen::MatrixXd probe(n, 3), force(n, 3);
+            for (Eigen::Index i = 0; i < n; ++i) {
+              const HapticSample& s = log[static_cast<std::size_t>(i)];
+              t[i] = s.time;
+              probe.row(i) = s.probe.transpose();
+              force.row(i) = s.force.transpose();
+              latency[i] = s.latency_us;
+              free[i] = s.free_vertices;
+              iters[i] = s.cg_iterations;
+              missed[i] = s.missed;
+              factored[i] = s.factored;
+              new_factor[i] = s.new_factor;
+              phases.row(i) << s.install_us, s.solve_us, s.propose_us, s.publish_us;
+            }
+            py::dict d;
+            d["time"] = to_numpy(t);
+            d["probe"] = to_numpy(probe);
+            d["force"] = to_numpy(force);
+            d["latency_us"] = to_numpy(latency);
+            d["free_vertices"] = to_numpy(free);
+            d["cg_iterations"] = to_numpy(iters);
+            d["missed"] = to_numpy(missed);
+            d["factored"] = to_numpy(factored);
+            d["new_factor"] = to_numpy(new_factor);
+            const char* names[] = {"install_us", "solve_us", "propose_us", "publish_us"};
+            for (int k = 0; k < 4; ++k) d[names[k]] = to_numpy(Eigen::VectorXd(phases.col(k)));
+            return d;
+          },
+          R"doc(The steps so far, one array entry a step: time (s), probe and force (n x 3),
+latency_us, free_vertices, cg_iterations, missed, factored, new_factor (the step took a
+new domain's factor), and where each step's time went: install_us, solve_us,
+propose_us, publish_us.)doc");
 
   const DragSessionParams g0;
   py::class_<PyDragSession>(
