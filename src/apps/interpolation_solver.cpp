@@ -180,10 +180,8 @@ struct InterpolationSolver::Impl {
       }
       return z0;
     }
-    const Field AU = apply(outside);
-    const std::vector<int>& free0 = base->free_vertices();
-    Eigen::MatrixXd b0(static_cast<Eigen::Index>(free0.size()), m);
-    for (std::size_t i = 0; i < free0.size(); ++i) b0.row(static_cast<Eigen::Index>(i)) = -AU.row(free0[i]);
+    Eigen::MatrixXd b0, c;
+    load_rhs(apply(outside), b0, c);
     z0 = base->solve_rhs(b0);
     z0_values.clear();
     for (const auto& [v, x] : cons)
@@ -292,19 +290,16 @@ struct InterpolationSolver::Impl {
     return {std::move(y), w};
   }
 
-  // -(A U) on the rows of F0 and of the border's released vertices, and the values of
-  // its added ones: the right-hand side (b0, c) of the bordered system for the load
-  // -(A U) (the values given are `q_values`, #V x m read at Q's vertices).
-  void right_hand_side(const Field& AU, const Field& q_values, Eigen::MatrixXd& b0, Eigen::MatrixXd& c) const {
+  // -(A U) on the rows of F0 (b0) and of the border's released vertices, zero at its
+  // added ones (c): the right-hand side of the bordered system for the load -(A U)
+  // with the added vertices held at zero, as a residual's correction needs.
+  void load_rhs(const Field& AU, Eigen::MatrixXd& b0, Eigen::MatrixXd& c) const {
     const std::vector<int>& free = base->free_vertices();
     b0.resize(static_cast<Eigen::Index>(free.size()), m);
     for (std::size_t i = 0; i < free.size(); ++i) b0.row(static_cast<Eigen::Index>(i)) = -AU.row(free[i]);
-    c.resize(static_cast<Eigen::Index>(border.size()), m);
-    for (std::size_t j = 0; j < border.size(); ++j) {
-      const BorderColumn& col = border[j];
-      c.row(static_cast<Eigen::Index>(j)) =
-          col.released ? Eigen::RowVectorXd(-AU.row(col.vertex)) : Eigen::RowVectorXd(q_values.row(col.vertex));
-    }
+    c = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(border.size()), m);
+    for (std::size_t j = 0; j < border.size(); ++j)
+      if (border[j].released) c.row(static_cast<Eigen::Index>(j)) = -AU.row(border[j].vertex);
   }
 };
 
@@ -453,12 +448,11 @@ InterpolationResult InterpolationSolver::solve() {
   Field AU = s.apply(u);
   double residual = worst(AU);
   int steps = 0;
-  const Field zero = Field::Zero(nv, s.m);
   while (residual > kRefineTolerance && steps < kMaxRefinements) {
     Field AUfree = AU;
     for (const auto& [v, x] : s.cons) AUfree.row(v).setZero();
     Eigen::MatrixXd r0, rc;
-    s.right_hand_side(AUfree, zero, r0, rc);  // -(A u) on the free rows: the residual
+    s.load_rhs(AUfree, r0, rc);  // -(A u) on the free rows: the residual
     auto [d0, dw] = s.bordered_solve(s.base->factor().solve(r0), rc);
     place(d0, dw);
     AU = s.apply(u);
