@@ -135,7 +135,13 @@ struct InterpolationSolver::Impl {
     border_vertices.clear();
     z0_valid = false;
     responses.clear();
-    base = std::make_unique<SteadyDirectSolver>(*mesh, *ops, coefficients(), std::move(free));
+    // CHOLMOD's ordering, one factor: every click sweeps it. The mesh ordering's
+    // factor (solvers/ordering.h) is analyzed faster but has more fill: on igea-134k
+    // in `meshpde bench --only paint` the first solve took 2.7 s against 4.2 s, and a
+    // click 87 ms against 74 ms (docs/solvers-measurements.md).
+    base =
+        std::make_unique<SteadyDirectSolver>(*mesh, *ops, coefficients(), std::move(free),
+                                             SparseCholesky::Backend::Auto, Eigen::VectorXd(), DirectOrdering::Cholmod);
     ++factorizations;
   }
 

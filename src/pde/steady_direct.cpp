@@ -13,6 +13,7 @@
 #include "meshpde/core/parallel.h"
 #include "meshpde/mesh/topology.h"
 #include "meshpde/pde/global_bilaplacian.h"
+#include "meshpde/solvers/ordering.h"
 #include "meshpde/solvers/refinement.h"
 
 namespace meshpde {
@@ -201,7 +202,7 @@ Eigen::SparseMatrix<double> assemble_steady_matrix(const Mesh& mesh, const FemOp
 
 SteadyDirectSolver::SteadyDirectSolver(const Mesh& mesh, const FemOperators& ops, const PdeCoefficients& c,
                                        std::vector<int> free, SparseCholesky::Backend backend,
-                                       const Eigen::VectorXd& extra_diagonal)
+                                       const Eigen::VectorXd& extra_diagonal, DirectOrdering ordering)
     : mesh_(mesh), ops_(ops), c_(c), free_(std::move(free)), chol_(backend) {
   const int nv = mesh.num_vertices(), n = static_cast<int>(free_.size());
   const bool extra = extra_diagonal.size() > 0;
@@ -231,6 +232,20 @@ SteadyDirectSolver::SteadyDirectSolver(const Mesh& mesh, const FemOperators& ops
     double sum = 0;
     for (Eigen::SparseMatrix<double>::InnerIterator it(A_, k); it; ++it) sum += std::abs(it.value());
     a_norm_inf_ = std::max(a_norm_inf_, sum);
+  }
+  if (ordering == DirectOrdering::Mesh || ordering == DirectOrdering::MeshSplit ||
+      (ordering == DirectOrdering::Auto && c.g2 != 0 && n >= kMeshOrderingFrom && mesh_ordering_available() &&
+       std::string(chol_.backend_name()) == "cholmod-supernodal")) {
+    // The free vertices in mesh order, as rows of A_.
+    MeshOrderingParams p;
+    p.separator_hops = c.g2 != 0 ? 2 : 1;
+    NestedDissection nd = mesh_nested_dissection(mesh, free_, p);
+    for (int& v : nd.order) v = local_index(v);
+    // Its top level's two parts are factored on two threads (SparseCholesky's split
+    // factor) when there is a separator between them.
+    const bool split = (ordering == DirectOrdering::Auto || ordering == DirectOrdering::MeshSplit) && nd.parts[1] > 0 &&
+                       nd.parts[0] + nd.parts[1] < nd.order.size();
+    chol_.set_order(std::move(nd.order), split ? nd.parts[0] : 0, split ? nd.parts[1] : 0);
   }
   chol_.factorize(A_);
 }

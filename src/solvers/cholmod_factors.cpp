@@ -43,6 +43,36 @@ struct CholmodLLT : Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>> {
     v.perm = static_cast<const int*>(L->Perm);
     return v;
   }
+  // Eigen's analyzePattern with the fill-reducing order given (order[k]: the row
+  // eliminated k-th) instead of CHOLMOD's choice; CHOLMOD still postorders it. Coarser
+  // supernodes than CHOLMOD's default {4, 16, 48}: fewer, larger BLAS calls (the
+  // mesh ordering's factor of fertility-4k subdivided three times: 4.8 s with the
+  // default, 3.9 s with these).
+  void analyze_in_order(const Eigen::SparseMatrix<double>& A, std::vector<int>& order) {
+    cholmod_common& common = cholmod();
+    if (m_cholmodFactor) {
+      cholmod_free_factor(&m_cholmodFactor, &common);
+      m_cholmodFactor = nullptr;
+    }
+    cholmod_sparse view = Eigen::viewAsCholmod(A.selfadjointView<Eigen::Lower>());
+    cholmod_common saved = common;
+    common.nmethods = 1;
+    common.method[0].ordering = CHOLMOD_GIVEN;
+    common.nrelax[0] = 16;
+    common.nrelax[1] = 64;
+    common.nrelax[2] = 192;
+    m_cholmodFactor = cholmod_analyze_p(&view, order.data(), nullptr, 0, &common);
+    common.nmethods = saved.nmethods;
+    common.method[0].ordering = saved.method[0].ordering;
+    std::copy(std::begin(saved.nrelax), std::end(saved.nrelax), std::begin(common.nrelax));
+    if (!m_cholmodFactor)
+      throw SolverError(
+          fmt::format("direct solve: CHOLMOD's analysis in the given order failed (status {})", common.status));
+    m_isInitialized = true;
+    m_info = Eigen::Success;
+    m_analysisIsOk = true;
+    m_factorizationIsOk = false;
+  }
 };
 
 }  // namespace
@@ -55,10 +85,15 @@ struct CholmodFactor::Impl {
 CholmodFactor::CholmodFactor() : impl_(std::make_unique<Impl>()) {}
 CholmodFactor::~CholmodFactor() = default;
 
-void CholmodFactor::analyze(const Eigen::SparseMatrix<double>& A) {
+void CholmodFactor::analyze(const Eigen::SparseMatrix<double>& A, const std::vector<int>* order) {
   set_blas_threads(blas_threads_for(A.rows()));
   const OpenMpActiveLevels serial(0);
-  impl_->llt.analyzePattern(A);
+  if (order) {
+    std::vector<int> copy = *order;  // CHOLMOD takes a non-const pointer
+    impl_->llt.analyze_in_order(A, copy);
+  } else {
+    impl_->llt.analyzePattern(A);
+  }
 }
 
 bool CholmodFactor::factorize(const Eigen::SparseMatrix<double>& A) {

@@ -7,6 +7,7 @@
 #include <Eigen/Core>
 #include <Eigen/SparseCore>
 #include <memory>
+#include <vector>
 
 namespace meshpde::detail {
 
@@ -24,8 +25,10 @@ class CholmodFactor {
   CholmodFactor(const CholmodFactor&) = delete;
   CholmodFactor& operator=(const CholmodFactor&) = delete;
 
-  /// Symbolic analysis of A's pattern (compressed, symmetric, both triangles stored).
-  void analyze(const Eigen::SparseMatrix<double>& A);
+  /// Symbolic analysis of A's pattern (compressed, symmetric, both triangles stored),
+  /// in CHOLMOD's order, or in `order` (a permutation of A's rows, order[k] eliminated
+  /// k-th) when given. \throw SolverError if CHOLMOD rejects the order.
+  void analyze(const Eigen::SparseMatrix<double>& A, const std::vector<int>* order = nullptr);
   /// Numeric factorization with the last analysis. Returns false if A is not positive
   /// definite.
   bool factorize(const Eigen::SparseMatrix<double>& A);

@@ -20,7 +20,7 @@ CholmodFactor::CholmodFactor() {
   missing();
 }
 CholmodFactor::~CholmodFactor() = default;
-void CholmodFactor::analyze(const Eigen::SparseMatrix<double>&) {
+void CholmodFactor::analyze(const Eigen::SparseMatrix<double>&, const std::vector<int>*) {
   missing();
 }
 bool CholmodFactor::factorize(const Eigen::SparseMatrix<double>&) {

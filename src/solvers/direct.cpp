@@ -55,7 +55,10 @@ struct SparseCholesky::Impl {
   Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> eigen;
   std::unique_ptr<CholmodFactor> cholmod;  // made on the first CHOLMOD factorization
   Sweeps sweep_mode = Sweeps::WrittenOut;
-  Eigen::SparseMatrix<double> pattern;  // structure of the analyzed matrix (values unused)
+  Eigen::SparseMatrix<double> pattern;   // structure of the analyzed matrix (values unused)
+  std::vector<int> order;                // the given fill-reducing order, or empty
+  Eigen::Index parts[2] = {0, 0};        // its top level's parts, when split
+  std::unique_ptr<SplitCholesky> split;  // the factor of A in that order, when split
   bool analyzed = false;
   bool factored = false;
 };
@@ -77,6 +80,28 @@ SparseCholesky& SparseCholesky::operator=(SparseCholesky&&) noexcept = default;
 
 void SparseCholesky::set_sweeps(Sweeps sweeps) {
   impl_->sweep_mode = sweeps;
+}
+
+void SparseCholesky::set_order(std::vector<int> order, std::size_t part1, std::size_t part2) {
+  Impl& d = *impl_;
+  if (order == d.order && static_cast<Eigen::Index>(part1) == d.parts[0] &&
+      static_cast<Eigen::Index>(part2) == d.parts[1])
+    return;
+  std::vector<char> seen(order.size(), 0);
+  for (int k : order) {
+    const bool in_range = k >= 0 && static_cast<std::size_t>(k) < order.size();
+    if (!in_range || seen[static_cast<std::size_t>(k)])
+      throw SolverError(fmt::format("direct solve: the given order is not a permutation of 0..{} (row {} {})",
+                                    order.size() - 1, k, in_range ? "appears twice" : "is out of range"));
+    seen[static_cast<std::size_t>(k)] = 1;
+  }
+  if ((part1 > 0) != (part2 > 0) || (part1 > 0 && part1 + part2 >= order.size()))
+    throw SolverError(fmt::format("direct solve: parts of {} and {} rows leave no separator in an order of {}", part1,
+                                  part2, order.size()));
+  d.order = std::move(order);
+  d.parts[0] = static_cast<Eigen::Index>(part1);
+  d.parts[1] = static_cast<Eigen::Index>(part2);
+  d.analyzed = false;  // the next factorize() analyzes afresh
 }
 
 const char* SparseCholesky::backend_name() const {
@@ -103,13 +128,31 @@ void SparseCholesky::factorize(const Eigen::SparseMatrix<double>& A_in) {
     d.backend = cholmod_available() && A.rows() >= kSimplicialBelow ? Backend::Cholmod : Backend::Eigen;
   const bool new_pattern = !d.analyzed || !same_pattern(A, d.pattern);
   Eigen::ComputationInfo info = Eigen::Success;
-  if (d.backend == Backend::Cholmod) {
+  const bool split = d.backend == Backend::Cholmod && d.parts[0] > 0;
+  if (split) {
+    // A in the given order, factored as two parts on two threads and their separator
+    // (SplitCholesky). Its analyses are made with each factorization.
+    if (d.order.size() != static_cast<std::size_t>(A.rows()))
+      throw SolverError(
+          fmt::format("direct solve: the given order has {} rows, the matrix {}", d.order.size(), A.rows()));
+    Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> to_order(A.rows());
+    for (std::size_t k = 0; k < d.order.size(); ++k) to_order.indices()[d.order[k]] = static_cast<int>(k);
+    Eigen::SparseMatrix<double> ordered;
+    ordered = A.selfadjointView<Eigen::Lower>().twistedBy(to_order);
+    if (!d.split) d.split = std::make_unique<SplitCholesky>();
+    ++analyses_;
+    d.split->factorize(ordered, d.parts[0], d.parts[1]);
+  }
+  if (d.backend == Backend::Cholmod && !split) {
     // The CHOLMOD factor is made on first use (a build without CHOLMOD never gets
     // here: the backend is then Eigen's); a fresh one has no analysis yet.
     const bool fresh = !d.cholmod;
     if (fresh) d.cholmod = std::make_unique<CholmodFactor>();
     if (new_pattern || fresh) {
-      d.cholmod->analyze(A);
+      if (!d.order.empty() && d.order.size() != static_cast<std::size_t>(A.rows()))
+        throw SolverError(
+            fmt::format("direct solve: the given order has {} rows, the matrix {}", d.order.size(), A.rows()));
+      d.cholmod->analyze(A, d.order.empty() ? nullptr : &d.order);
       ++analyses_;
     }
     if (!d.cholmod->factorize(A)) info = Eigen::NumericalIssue;
@@ -136,6 +179,7 @@ void SparseCholesky::factorize(const Eigen::SparseMatrix<double>& A_in) {
 double SparseCholesky::factor_nonzeros() const {
   const Impl& d = *impl_;
   if (!d.factored) return 0;
+  if (d.backend == Backend::Cholmod && d.parts[0] > 0) return d.split->factor_nonzeros();
   if (d.backend == Backend::Cholmod) return d.cholmod->nonzeros();
   return static_cast<double>(d.eigen.matrixL().nestedExpression().nonZeros());
 }
@@ -143,6 +187,7 @@ double SparseCholesky::factor_nonzeros() const {
 double SparseCholesky::pivot_ratio() const {
   const Impl& d = *impl_;
   if (!d.factored) return 0;
+  if (d.backend == Backend::Cholmod && d.parts[0] > 0) return 0;  // not computed for a split factor
   if (d.backend == Backend::Cholmod) return d.cholmod->pivot_ratio();
   const auto D = d.eigen.vectorD();
   if (D.size() == 0) return 0;
@@ -155,6 +200,14 @@ Eigen::MatrixXd SparseCholesky::solve(const Eigen::MatrixXd& B) const {
   if (!d.factored) throw SolverError("direct solve: solve() before a successful factorize()");
   if (B.rows() != d.pattern.rows())
     throw SolverError(fmt::format("direct solve: {} rows for a factor of {}", B.rows(), d.pattern.rows()));
+  if (d.backend == Backend::Cholmod && d.parts[0] > 0) {
+    Eigen::MatrixXd ordered(B.rows(), B.cols());
+    for (std::size_t k = 0; k < d.order.size(); ++k) ordered.row(static_cast<Eigen::Index>(k)) = B.row(d.order[k]);
+    const Eigen::MatrixXd x = d.split->solve(ordered);
+    Eigen::MatrixXd out(B.rows(), B.cols());
+    for (std::size_t k = 0; k < d.order.size(); ++k) out.row(d.order[k]) = x.row(static_cast<Eigen::Index>(k));
+    return out;
+  }
   if (d.backend == Backend::Cholmod) return d.cholmod->solve(B, d.sweep_mode == Sweeps::WrittenOut);
   return d.eigen.solve(B);
 }

@@ -123,6 +123,22 @@ Eigen::SparseMatrix<double> assemble_steady_matrix(const Mesh& mesh, const FemOp
 std::vector<std::pair<int, double>> steady_coupling(const Mesh& mesh, const FemOperators& ops,
                                                     const PdeCoefficients& coefficients, int v);
 
+/// The fill-reducing ordering of SteadyDirectSolver's factor. Mesh:
+/// mesh_nested_dissection of the free vertices (solvers/ordering.h), computed from the
+/// mesh before the factor, one factor. MeshSplit: the same order, its two top-level
+/// parts factored on two threads (SparseCholesky's split factor: a faster
+/// factorization, slower solves). Cholmod: CHOLMOD's own choice (AMD, and METIS when
+/// AMD's fill is high), the baseline `meshpde bench` compares with, and the factor
+/// InterpolationSolver sweeps at every click. Auto (the default): MeshSplit for
+/// operators with a bi-Laplacian part (g2 != 0) from kMeshOrderingFrom free vertices
+/// when the build has METIS and the factor is CHOLMOD's, else Cholmod. CHOLMOD's
+/// analysis of K D K (AMD, then METIS on its two-ring graph) costs about as much as
+/// its factorization at 1M vertices, the mesh ordering a tenth of it; for K alone the
+/// mesh order's one-layer separators leave 1.4x the fill of CHOLMOD's order on
+/// armadillo-43k, and CHOLMOD's analysis is cheap (docs/solvers-measurements.md).
+enum class DirectOrdering { Auto, Mesh, MeshSplit, Cholmod };
+inline constexpr int kMeshOrderingFrom = 20000;
+
 class SteadyDirectSolver {
  public:
   /// Assembles and factors Kt_FF (+ diag(extra_diagonal) on the free rows, when
@@ -132,7 +148,8 @@ class SteadyDirectSolver {
   ///        set touches no held vertex (and g0 = 0): its values would be undetermined.
   SteadyDirectSolver(const Mesh& mesh, const FemOperators& ops, const PdeCoefficients& coefficients,
                      std::vector<int> free, SparseCholesky::Backend backend = SparseCholesky::Backend::Auto,
-                     const Eigen::VectorXd& extra_diagonal = Eigen::VectorXd());
+                     const Eigen::VectorXd& extra_diagonal = Eigen::VectorXd(),
+                     DirectOrdering ordering = DirectOrdering::Auto);
 
   /// Returns u with the free rows solved; the other rows of u are the held values.
   /// `f` (optional) is the load, #V x m like u.

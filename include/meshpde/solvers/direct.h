@@ -1,7 +1,7 @@
 // Sparse Cholesky factorization for symmetric positive definite systems.
 //
-// Backend: CHOLMOD (SuiteSparse, supernodal; CHOLMOD chooses the fill-reducing
-// ordering, METIS or AMD) when meshpde was built with it, else Eigen's simplicial
+// Backend: CHOLMOD (SuiteSparse, supernodal; the fill-reducing ordering given by the
+// caller, or CHOLMOD's choice of METIS or AMD) when meshpde was built with it, else Eigen's simplicial
 // LDL^T with AMD ordering. The symbolic analysis is kept: factorize() with a matrix of
 // the same pattern only redoes the numeric part, and one factor serves any number of
 // right-hand sides (x, y, z of a displacement, several frames).
@@ -11,6 +11,7 @@
 #include <Eigen/SparseCore>
 #include <memory>
 #include <string>
+#include <vector>
 
 namespace meshpde {
 
@@ -40,6 +41,17 @@ class SparseCholesky {
   /// Eigen backend ignores this.
   enum class Sweeps { WrittenOut, Cholmod };
   void set_sweeps(Sweeps sweeps);
+  /// The fill-reducing order of the next analyses: order[k] is the row eliminated k-th
+  /// (a permutation of 0..n-1, e.g. mesh_nested_dissection of the rows' vertices);
+  /// empty (the default): CHOLMOD chooses (AMD, METIS when AMD's fill is high). A
+  /// changed order makes the next factorize() analyze afresh; the same order and
+  /// pattern are analyzed once. With the order's top level given (its first part1
+  /// rows and next part2 rows uncoupled, the rest their separator), the CHOLMOD
+  /// backend factors the two parts on two threads (SplitCholesky below; every
+  /// factorize() then analyzes, and pivot_ratio() is 0). The Eigen backend ignores all
+  /// of it (AMD). \throw SolverError if order is not a permutation or the parts leave
+  /// no separator; factorize() throws when its size is not the matrix's.
+  void set_order(std::vector<int> order, std::size_t part1 = 0, std::size_t part2 = 0);
 
   const char* backend_name() const;
   /// Nonzeros of the factor L of the last factorization (memory: about 12 bytes each).

@@ -1,4 +1,16 @@
-// Fill-reducing orderings for the Cholesky factors of operators on a mesh region.
+// Fill-reducing orderings for the Cholesky factors of operators on a mesh region,
+// computed from the mesh (positions and adjacency), never from an assembled matrix.
+//
+// mesh_nested_dissection() is the ordering of whole-mesh and large solves
+// (SteadyDirectSolver uses it for K D K from kMeshOrderingFrom free vertices): the
+// vertex set is grouped into patches of about 16 vertices (breadth-first), METIS finds
+// a vertex separator of the graph of patches, the separating patches' vertices join
+// the nearer side, and the vertices the operator couples across (one layer for K; two
+// for K D K, with the couplings through held vertices and separators above) are the
+// separator; each side is dissected the same way, parts of at most 64 vertices are
+// ordered by AMD. METIS works on a sixteenth of the vertices, which is why this costs a
+// tenth of CHOLMOD's analysis of K D K; the factor has 1.0-1.26x the fill of CHOLMOD's
+// order on the meshes measured (docs/solvers-measurements.md).
 //
 // nested_dissection_order() bisects the region by planes through the median vertex
 // along the longest side of its bounding box, takes out the vertices that couple the
@@ -48,5 +60,31 @@ struct NestedDissection {
 };
 NestedDissection nested_dissection(const Mesh& mesh, const std::vector<int>& vertices,
                                    const NestedDissectionParams& params = {});
+
+struct MeshOrderingParams {
+  /// As NestedDissectionParams: 1 for K and M, 2 for K D K and g1 K + g2 K D K.
+  int separator_hops = 2;
+  /// Vertices per patch of the graph the separators are found on. Smaller patches
+  /// place separators more finely and cost more; 16 gave the least fill of 8, 16, 24
+  /// and 32 on fertility-4k subdivided three times.
+  int patch_size = 16;
+  /// Parts of at most this many vertices are ordered by AMD on their own couplings.
+  int leaf_size = 64;
+};
+
+/// A permutation of `vertices` (mesh vertex ids, distinct) in nested dissection order,
+/// out[k] eliminated k-th. The same input gives the same order on any number of threads
+/// (the two top-level halves are ordered on two threads). Without METIS in the build
+/// (mesh_ordering_available() false) this is nested_dissection_order() by planes.
+/// \throw InputError for a vertex that does not exist, a repeated vertex,
+///        separator_hops not 1 or 2, or a size below 1.
+std::vector<int> mesh_nested_dissection_order(const Mesh& mesh, const std::vector<int>& vertices,
+                                              const MeshOrderingParams& params = {});
+/// The same order with its top level (as nested_dissection): part 1, part 2, their
+/// separator, no matrix row coupling the parts (what SparseCholesky's split factor needs).
+NestedDissection mesh_nested_dissection(const Mesh& mesh, const std::vector<int>& vertices,
+                                        const MeshOrderingParams& params = {});
+/// Whether meshpde was built with METIS (libmetis-dev), which mesh_nested_dissection_order uses.
+bool mesh_ordering_available();
 
 }  // namespace meshpde

@@ -1,0 +1,47 @@
+// The recursion of both nested dissections (solvers/ordering.h): a part is a leaf, or
+// it splits into two halves and the separator between them; the halves are ordered
+// first (each the same way), the separator last, and the top level's halves at the
+// same time on two threads, each into its own output, so that the order is the same
+// as one after the other. Internal to the solver layer.
+#pragma once
+
+#include <cstddef>
+#include <utility>
+#include <vector>
+
+#include "../core/two_threads.h"
+#include "meshpde/core/parallel.h"
+
+namespace meshpde::detail {
+
+/// D provides: `std::vector<int> out` (the order so far), `bool split(part, lower,
+/// upper, separator)` (false: the part does not split), `void leaf(part)` (appends a
+/// part that is not split) and `D sibling()` (an empty dissection with the same
+/// input, for the second thread). `sizes`, when given (the top level), gets the two
+/// halves' sizes (0, 0 when the part is not split); from `parallel_from` vertices in
+/// the two halves they are ordered on two threads.
+template <class D>
+void dissect(D& d, std::vector<int> part, int leaf_size, std::size_t parallel_from, std::size_t* sizes = nullptr) {
+  std::vector<int> lower, upper, separator;
+  if (static_cast<int>(part.size()) <= leaf_size || !d.split(part, lower, upper, separator)) {
+    d.leaf(part);
+    return;
+  }
+  part = {};  // free it before recursing
+  if (sizes) {
+    sizes[0] = lower.size();
+    sizes[1] = upper.size();
+  }
+  if (sizes && max_threads() > 1 && lower.size() + upper.size() >= parallel_from) {
+    D second = d.sibling();
+    run_both([&] { dissect(d, std::move(lower), leaf_size, parallel_from); },
+             [&] { dissect(second, std::move(upper), leaf_size, parallel_from); });
+    d.out.insert(d.out.end(), second.out.begin(), second.out.end());
+  } else {
+    dissect(d, std::move(lower), leaf_size, parallel_from);
+    dissect(d, std::move(upper), leaf_size, parallel_from);
+  }
+  d.out.insert(d.out.end(), separator.begin(), separator.end());
+}
+
+}  // namespace meshpde::detail
