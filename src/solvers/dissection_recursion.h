@@ -5,14 +5,36 @@
 // as one after the other. Internal to the solver layer.
 #pragma once
 
+#include <fmt/format.h>
+
 #include <cstddef>
 #include <utility>
 #include <vector>
 
+#include "../core/index_map.h"
 #include "../core/two_threads.h"
+#include "meshpde/core/errors.h"
 #include "meshpde/core/parallel.h"
+#include "meshpde/mesh/mesh.h"
 
 namespace meshpde::detail {
+
+/// The checks both dissections make of their input, `what` naming the caller in the
+/// message. \throw InputError for separator_hops not 1 or 2, leaf_size < 1, a vertex
+/// that does not exist or one listed twice.
+inline void check_dissection_input(const Mesh& mesh, const std::vector<int>& vertices, int separator_hops,
+                                   int leaf_size, const char* what) {
+  if (separator_hops != 1 && separator_hops != 2)
+    throw InputError(fmt::format("{}: separator_hops is {}; it must be 1 (K) or 2 (K D K)", what, separator_hops));
+  if (leaf_size < 1) throw InputError(fmt::format("{}: leaf_size is {}; it must be at least 1", what, leaf_size));
+  IndexMap seen(vertices.size());
+  for (int v : vertices) {
+    if (v < 0 || v >= mesh.num_vertices())
+      throw InputError(
+          fmt::format("{}: vertex {} does not exist (the mesh has {} vertices)", what, v, mesh.num_vertices()));
+    if (!seen.insert(v).second) throw InputError(fmt::format("{}: vertex {} is listed twice", what, v));
+  }
+}
 
 /// D provides: `std::vector<int> out` (the order so far), `bool split(part, lower,
 /// upper, separator)` (false: the part does not split), `void leaf(part)` (appends a

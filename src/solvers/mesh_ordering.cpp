@@ -308,21 +308,11 @@ struct PatchDissection {
 
 NestedDissection mesh_nested_dissection(const Mesh& mesh, const std::vector<int>& vertices,
                                         const MeshOrderingParams& params) {
-  if (params.separator_hops != 1 && params.separator_hops != 2)
-    throw InputError(
-        fmt::format("mesh ordering: separator_hops is {}; it must be 1 (K) or 2 (K D K)", params.separator_hops));
-  if (params.patch_size < 1 || params.leaf_size < 1)
-    throw InputError(fmt::format("mesh ordering: patch_size {} and leaf_size {} must be at least 1", params.patch_size,
-                                 params.leaf_size));
-  const int n = mesh.num_vertices();
-  std::vector<int> patch(static_cast<std::size_t>(n), -2);  // -2 outside the set, -1 not yet in a patch
-  for (int v : vertices) {
-    if (v < 0 || v >= n)
-      throw InputError(fmt::format("mesh ordering: vertex {} does not exist (the mesh has {} vertices)", v, n));
-    if (patch[static_cast<std::size_t>(v)] == -1)
-      throw InputError(fmt::format("mesh ordering: vertex {} is listed twice", v));
-    patch[static_cast<std::size_t>(v)] = -1;
-  }
+  detail::check_dissection_input(mesh, vertices, params.separator_hops, params.leaf_size, "mesh ordering");
+  if (params.patch_size < 1)
+    throw InputError(fmt::format("mesh ordering: patch_size is {}; it must be at least 1", params.patch_size));
+  std::vector<int> patch(static_cast<std::size_t>(mesh.num_vertices()), -2);  // -2 outside the set, -1 in no patch yet
+  for (int v : vertices) patch[static_cast<std::size_t>(v)] = -1;
   // Patches: breadth-first from each vertex not yet taken (in the order given) until
   // patch_size vertices, through the set's own vertices.
   const auto off = mesh.offsets();
@@ -360,7 +350,7 @@ bool mesh_ordering_available() {
 NestedDissection mesh_nested_dissection(const Mesh& mesh, const std::vector<int>& vertices,
                                         const MeshOrderingParams& params) {
   if (params.patch_size < 1)
-    throw InputError(fmt::format("mesh ordering: patch_size {} must be at least 1", params.patch_size));
+    throw InputError(fmt::format("mesh ordering: patch_size is {}; it must be at least 1", params.patch_size));
   return nested_dissection(mesh, vertices, {params.separator_hops, std::max(params.leaf_size, 1)});
 }
 

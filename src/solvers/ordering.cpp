@@ -4,7 +4,6 @@
 
 #include <algorithm>
 
-#include "../core/index_map.h"
 #include "dissection_recursion.h"
 #include "meshpde/core/errors.h"
 #include "meshpde/core/parallel.h"
@@ -62,18 +61,7 @@ struct Dissection {
 
 NestedDissection nested_dissection(const Mesh& mesh, const std::vector<int>& vertices,
                                    const NestedDissectionParams& params) {
-  if (params.separator_hops != 1 && params.separator_hops != 2)
-    throw InputError(
-        fmt::format("nested dissection: separator_hops is {}; it must be 1 (K) or 2 (K D K)", params.separator_hops));
-  if (params.leaf_size < 1)
-    throw InputError(fmt::format("nested dissection: leaf_size is {}; it must be at least 1", params.leaf_size));
-  IndexMap seen(vertices.size());
-  for (int v : vertices) {
-    if (v < 0 || v >= mesh.num_vertices())
-      throw InputError(fmt::format("nested dissection: vertex {} does not exist (the mesh has {} vertices)", v,
-                                   mesh.num_vertices()));
-    if (!seen.insert(v).second) throw InputError(fmt::format("nested dissection: vertex {} is listed twice", v));
-  }
+  detail::check_dissection_input(mesh, vertices, params.separator_hops, params.leaf_size, "nested dissection");
   Dissection d{mesh, params, {}, {}};
   d.out.reserve(vertices.size());
   NestedDissection result;
