@@ -16,6 +16,7 @@
 #include "meshpde/core/errors.h"
 #include "meshpde/core/parallel.h"
 #include "meshpde/mesh/mesh.h"
+#include "meshpde/solvers/ordering.h"
 
 namespace meshpde::detail {
 
@@ -64,6 +65,18 @@ void dissect(D& d, std::vector<int> part, int leaf_size, std::size_t parallel_fr
     dissect(d, std::move(upper), leaf_size, parallel_from);
   }
   d.out.insert(d.out.end(), separator.begin(), separator.end());
+}
+
+/// The whole order of `vertices` with its top level (NestedDissection: parts =
+/// {#vertices, 0} when the set is not split).
+template <class D>
+NestedDissection dissect_all(D& d, const std::vector<int>& vertices, int leaf_size, std::size_t parallel_from) {
+  d.out.reserve(vertices.size());
+  NestedDissection result;
+  dissect(d, vertices, leaf_size, parallel_from, result.parts);
+  if (result.parts[0] == 0 && result.parts[1] == 0) result.parts[0] = vertices.size();  // not split
+  result.order = std::move(d.out);
+  return result;
 }
 
 }  // namespace meshpde::detail

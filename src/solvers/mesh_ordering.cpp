@@ -333,12 +333,7 @@ NestedDissection mesh_nested_dissection(const Mesh& mesh, const std::vector<int>
   }
   const PatchGraph graph = patch_graph_of(mesh, vertices, patch, patches, params.separator_hops);
   PatchDissection d(mesh, params, patch, graph);
-  d.out.reserve(vertices.size());
-  NestedDissection result;
-  detail::dissect(d, vertices, params.leaf_size, kParallelHalves, result.parts);
-  if (result.parts[0] == 0 && result.parts[1] == 0) result.parts[0] = vertices.size();  // not split
-  result.order = std::move(d.out);
-  return result;
+  return detail::dissect_all(d, vertices, params.leaf_size, kParallelHalves);
 }
 
 #else  // without METIS

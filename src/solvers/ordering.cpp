@@ -63,14 +63,9 @@ NestedDissection nested_dissection(const Mesh& mesh, const std::vector<int>& ver
                                    const NestedDissectionParams& params) {
   detail::check_dissection_input(mesh, vertices, params.separator_hops, params.leaf_size, "nested dissection");
   Dissection d{mesh, params, {}, {}};
-  d.out.reserve(vertices.size());
-  NestedDissection result;
   // On a 10k drag region the halves on two threads took the ordering from about 1.6
   // to 0.9 ms.
-  detail::dissect(d, vertices, params.leaf_size, kParallelHalves, result.parts);
-  if (result.parts[0] == 0 && result.parts[1] == 0) result.parts[0] = vertices.size();  // not split
-  result.order = std::move(d.out);
-  return result;
+  return detail::dissect_all(d, vertices, params.leaf_size, kParallelHalves);
 }
 
 std::vector<int> nested_dissection_order(const Mesh& mesh, const std::vector<int>& vertices,
