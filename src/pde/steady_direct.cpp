@@ -235,7 +235,7 @@ SteadyDirectSolver::SteadyDirectSolver(const Mesh& mesh, const FemOperators& ops
   }
   if (ordering == DirectOrdering::Mesh || ordering == DirectOrdering::MeshSplit ||
       (ordering == DirectOrdering::Auto && c.g2 != 0 && n >= kMeshOrderingFrom && mesh_ordering_available() &&
-       std::string(chol_.backend_name()) == "cholmod-supernodal")) {
+       backend != SparseCholesky::Backend::Eigen && SparseCholesky::cholmod_available())) {
     // The free vertices in mesh order, as rows of A_.
     MeshOrderingParams p;
     p.separator_hops = c.g2 != 0 ? 2 : 1;
