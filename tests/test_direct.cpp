@@ -7,6 +7,7 @@
 #include <Eigen/SparseCore>
 #include <algorithm>
 #include <limits>
+#include <numeric>
 #include <queue>
 #include <random>
 #include <unordered_set>
@@ -446,4 +447,56 @@ TEST(Direct, SplitFactorMatchesOneFactorOfTheWholeAndRefusesCoupledParts) {
   bad = A;
   bad.coeffRef(5, 5) = -1e3;  // a row of part 1: its CHOLMOD factor fails
   EXPECT_NE(message(bad, n1, n2).find("not positive definite"), std::string::npos);
+}
+
+TEST(Direct, SplitFactorInAGivenOrderEqualsTheSplitFactorOfThePermutedMatrix) {
+  if (!SplitCholesky::available()) GTEST_SKIP() << "built without CHOLMOD: no split factor";
+  const Mesh mesh = make(icosphere(5));
+  const FemOperators ops = build_cotan_operators(mesh);
+  const std::vector<int> region = ordering_region(mesh);
+  const NestedDissection nd = nested_dissection(mesh, region);
+  ASSERT_GT(nd.parts[1], 100u);
+  const auto n1 = static_cast<Eigen::Index>(nd.parts[0]), n2 = static_cast<Eigen::Index>(nd.parts[1]);
+  const PdeCoefficients c{.g0 = 0, .g1 = 0.1, .g2 = 1};
+  // A in the region's own numbering (the order as rows of it), and A in the order.
+  const Eigen::SparseMatrix<double> A = assemble_steady_matrix(mesh, ops, c, region);
+  const Eigen::SparseMatrix<double> ordered = assemble_steady_matrix(mesh, ops, c, nd.order);
+  std::vector<int> row_of(static_cast<std::size_t>(mesh.num_vertices()), -1);
+  for (std::size_t k = 0; k < region.size(); ++k) row_of[static_cast<std::size_t>(region[k])] = static_cast<int>(k);
+  std::vector<int> order;
+  for (int v : nd.order) order.push_back(row_of[static_cast<std::size_t>(v)]);
+  ASSERT_NE(order, [&] {
+    std::vector<int> identity(order.size());
+    std::iota(identity.begin(), identity.end(), 0);
+    return identity;
+  }());
+  SplitCholesky given, permuted;
+  given.factorize(A, order, n1, n2);
+  permuted.factorize(ordered, n1, n2);
+  EXPECT_EQ(given.factor_nonzeros(), permuted.factor_nonzeros());
+  const Eigen::MatrixXd B = Eigen::MatrixXd::Random(A.rows(), 2);
+  const Eigen::MatrixXd x = given.solve(B), y = permuted.solve(B);
+  EXPECT_LE((x - y).norm(), 1e-12 * y.norm());
+  // x solves A in the order's numbering: row k of x is row order[k] of A's unknowns.
+  Eigen::MatrixXd b(A.rows(), 2), xa(A.rows(), 2);
+  for (std::size_t k = 0; k < order.size(); ++k) {
+    b.row(order[k]) = B.row(static_cast<Eigen::Index>(k));
+    xa.row(order[k]) = x.row(static_cast<Eigen::Index>(k));
+  }
+  EXPECT_LE((A * xa - b).norm(), 1e-9 * b.norm());
+  // Only A's lower triangle is read.
+  const Eigen::SparseMatrix<double> lower = A.triangularView<Eigen::Lower>();
+  SplitCholesky from_lower;
+  from_lower.factorize(lower, order, n1, n2);
+  EXPECT_LE((from_lower.solve(B) - x).norm(), 1e-14 * x.norm());
+  // A bad order, in words.
+  std::vector<int> twice = order;
+  twice[1] = twice[0];
+  try {
+    SplitCholesky().factorize(A, twice, n1, n2);
+    ADD_FAILURE() << "a repeated row was accepted";
+  } catch (const SolverError& e) {
+    EXPECT_NE(std::string(e.what()).find("not a permutation"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(SplitCholesky().factorize(A, std::vector<int>(order.begin(), order.end() - 1), n1, n2), SolverError);
 }

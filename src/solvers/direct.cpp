@@ -9,6 +9,7 @@
 #include <Eigen/SparseCholesky>
 #include <algorithm>
 #include <cmath>
+#include <exception>
 #include <limits>
 
 #include "cholmod_factors.h"
@@ -135,13 +136,9 @@ void SparseCholesky::factorize(const Eigen::SparseMatrix<double>& A_in) {
     if (d.order.size() != static_cast<std::size_t>(A.rows()))
       throw SolverError(
           fmt::format("direct solve: the given order has {} rows, the matrix {}", d.order.size(), A.rows()));
-    Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> to_order(A.rows());
-    for (std::size_t k = 0; k < d.order.size(); ++k) to_order.indices()[d.order[k]] = static_cast<int>(k);
-    Eigen::SparseMatrix<double> ordered;
-    ordered = A.selfadjointView<Eigen::Lower>().twistedBy(to_order);
     if (!d.split) d.split = std::make_unique<SplitCholesky>();
     ++analyses_;
-    d.split->factorize(ordered, d.parts[0], d.parts[1]);
+    d.split->factorize(A, d.order, d.parts[0], d.parts[1]);
   }
   if (d.backend == Backend::Cholmod && !split) {
     // The CHOLMOD factor is made on first use (a build without CHOLMOD never gets
@@ -307,35 +304,74 @@ SplitCholesky& SplitCholesky::operator=(SplitCholesky&&) noexcept = default;
 
 namespace {
 
-// The principal submatrix of A without the rows and columns [skip_begin, skip_end),
-// compressed. With `check_coupling`, a nonzero between a column before skip_begin and a
-// row in the skipped range throws.
-Eigen::SparseMatrix<double> principal_without(const Eigen::SparseMatrix<double>& A, Eigen::Index skip_begin,
-                                              Eigen::Index skip_end, bool check_coupling) {
-  const Eigen::Index n = A.rows(), skipped = skip_end - skip_begin;
-  Eigen::SparseMatrix<double> M(n - skipped, n - skipped);
-  M.reserve(A.nonZeros());
-  Eigen::Index column = 0;
-  for (Eigen::Index j = 0; j < n; ++j) {
-    if (j >= skip_begin && j < skip_end) continue;
-    M.startVec(column++);
-    for (Eigen::SparseMatrix<double>::InnerIterator it(A, j); it; ++it) {
-      const Eigen::Index i = it.row();
-      if (i >= skip_begin && i < skip_end) {
-        if (check_coupling && j < skip_begin && it.value() != 0)
-          throw SolverError(fmt::format("split factor: rows {} and {} couple the two parts", j, i));
-        continue;
+// Part k's matrix of the split factor, lower triangle only, in the elimination order:
+// the part's rows, then the separator's. A is read in its own numbering (its lower
+// triangle), `position[i]` is row i's place in the order (parts [0, n1) and [n1, n1 +
+// n2), the separator after them). Built without a permuted copy of all of A: the
+// entries are counted into their columns, then each column's few rows sorted. Part 0
+// also fills ASS, the separator's block (dense, both triangles), and throws if a nonzero
+// couples the two parts.
+Eigen::SparseMatrix<double> part_matrix(const Eigen::SparseMatrix<double>& A, const std::vector<int>& position,
+                                        Eigen::Index n1, Eigen::Index n2, int k, Eigen::MatrixXd* ASS) {
+  const Eigen::Index n = A.rows(), s = n - n1 - n2, size = (k == 0 ? n1 : n2) + s;
+  // Local index in the part of an ordered row, -1 in the other part.
+  auto local = [&](Eigen::Index p) -> Eigen::Index {
+    if (p >= n1 + n2) return p - n1 - n2 + (k == 0 ? n1 : n2);
+    if (k == 0) return p < n1 ? p : -1;
+    return p >= n1 ? p - n1 : -1;
+  };
+  auto at = [&](Eigen::Index i) -> Eigen::Index {
+    return position.empty() ? i : position[static_cast<std::size_t>(i)];
+  };
+  std::vector<int> start(static_cast<std::size_t>(size) + 1, 0);
+  auto each_lower = [&](auto&& f) {  // f(row, column) in the part, row >= column
+    for (Eigen::Index j = 0; j < n; ++j) {
+      const Eigen::Index pj = at(j), lj = local(pj);
+      for (Eigen::SparseMatrix<double>::InnerIterator it(A, j); it; ++it) {
+        const Eigen::Index i = it.row();
+        if (i < j) continue;
+        const Eigen::Index pi = at(i), li = local(pi);
+        if (k == 0) {
+          if ((li < 0) != (lj < 0) && std::min(pi, pj) < n1 && it.value() != 0)
+            throw SolverError(fmt::format("split factor: rows {} and {} couple the two parts", j, i));
+          if (ASS && pi >= n1 + n2 && pj >= n1 + n2)
+            (*ASS)(pi - n1 - n2, pj - n1 - n2) = (*ASS)(pj - n1 - n2, pi - n1 - n2) = it.value();
+        }
+        if (li >= 0 && lj >= 0) f(std::max(li, lj), std::min(li, lj), it.value());
       }
-      M.insertBack(i < skip_begin ? i : i - skipped, column - 1) = it.value();
     }
-  }
-  M.finalize();
+  };
+  each_lower([&](Eigen::Index, Eigen::Index c, double) { ++start[static_cast<std::size_t>(c) + 1]; });
+  for (Eigen::Index c = 0; c < size; ++c) start[static_cast<std::size_t>(c) + 1] += start[static_cast<std::size_t>(c)];
+  Eigen::SparseMatrix<double> M(size, size);
+  M.resizeNonZeros(start.back());
+  std::copy(start.begin(), start.end(), M.outerIndexPtr());
+  std::vector<int> next(start.begin(), start.end() - 1);
+  int* rows = M.innerIndexPtr();
+  double* values = M.valuePtr();
+  if (ASS) ASS->setZero();
+  each_lower([&](Eigen::Index r, Eigen::Index c, double v) {
+    const int e = next[static_cast<std::size_t>(c)]++;
+    rows[e] = static_cast<int>(r);
+    values[e] = v;
+  });
+  for (Eigen::Index c = 0; c < size; ++c)  // a column holds a few rows: insertion sort
+    for (int e = start[static_cast<std::size_t>(c)] + 1; e < start[static_cast<std::size_t>(c) + 1]; ++e)
+      for (int q = e; q > start[static_cast<std::size_t>(c)] && rows[q - 1] > rows[q]; --q) {
+        std::swap(rows[q - 1], rows[q]);
+        std::swap(values[q - 1], values[q]);
+      }
   return M;
 }
 
 }  // namespace
 
-void SplitCholesky::factorize(const Eigen::SparseMatrix<double>& A_in, Eigen::Index part1, Eigen::Index part2) {
+void SplitCholesky::factorize(const Eigen::SparseMatrix<double>& A, Eigen::Index part1, Eigen::Index part2) {
+  factorize(A, {}, part1, part2);
+}
+
+void SplitCholesky::factorize(const Eigen::SparseMatrix<double>& A_in, const std::vector<int>& order,
+                              Eigen::Index part1, Eigen::Index part2) {
   Impl& d = *impl_;
   d.factored = false;
   size_ = 0;
@@ -346,6 +382,18 @@ void SplitCholesky::factorize(const Eigen::SparseMatrix<double>& A_in, Eigen::In
   if (part1 < 1 || part2 < 1 || part1 + part2 >= n)
     throw SolverError(
         fmt::format("split factor: parts of {} and {} rows leave no separator in {} rows", part1, part2, n));
+  if (!order.empty() && order.size() != static_cast<std::size_t>(n))
+    throw SolverError(fmt::format("split factor: an order of {} rows for a matrix of {}", order.size(), n));
+  std::vector<int> position;
+  if (!order.empty()) {
+    position.assign(order.size(), -1);
+    for (std::size_t k = 0; k < order.size(); ++k) {
+      const int i = order[k];
+      if (i < 0 || i >= n || position[static_cast<std::size_t>(i)] >= 0)
+        throw SolverError(fmt::format("split factor: the order is not a permutation of 0..{} (row {})", n - 1, i));
+      position[static_cast<std::size_t>(i)] = static_cast<int>(k);
+    }
+  }
   d.n1 = part1;
   d.n2 = part2;
   d.s = n - part1 - part2;
@@ -353,20 +401,31 @@ void SplitCholesky::factorize(const Eigen::SparseMatrix<double>& A_in, Eigen::In
     if (!part) part = std::make_unique<CholmodInOrder>();
   bool ok[2] = {false, false};
   Eigen::MatrixXd gram[2];
+  Eigen::MatrixXd ASS(d.s, d.s);
+  std::exception_ptr error[2];
   auto factor_part = [&](int k) {
-    // M1 skips part 2's rows; M2 skips part 1's.
-    const Eigen::SparseMatrix<double> M =
-        k == 0 ? principal_without(A, part1, part1 + part2, true) : principal_without(A, 0, part1, false);
-    ok[k] = d.part[k]->factorize(M);
+    try {
+      // Freed once factored: only L is kept.
+      const Eigen::SparseMatrix<double> M = part_matrix(A, position, part1, part2, k, k == 0 ? &ASS : nullptr);
+      ok[k] = d.part[k]->factorize(M);
+    } catch (...) {
+      error[k] = std::current_exception();
+      return;
+    }
     if (!ok[k]) return;
     d.C[k] = d.part[k]->trailing_block(d.s);
     // C_k C_k^T on this part's thread (only its lower triangle is read below).
     gram[k] = detail::lower_gram(d.C[k]);
   };
   detail::on_two_threads([&] { factor_part(0); }, [&] { factor_part(1); });
+  for (const auto& e : error)
+    if (e) std::rethrow_exception(e);
   if (!ok[0] || !ok[1]) throw not_positive_definite("cholmod-supernodal, split");
-  const Eigen::MatrixXd schur = gram[0] + gram[1] - Eigen::MatrixXd(A.bottomRightCorner(d.s, d.s));
-  d.schur.compute(schur);
+  gram[0] += gram[1];
+  gram[1] = Eigen::MatrixXd();
+  gram[0] -= ASS;
+  ASS = Eigen::MatrixXd();
+  d.schur.compute(gram[0]);
   if (d.schur.info() != Eigen::Success) throw not_positive_definite("cholmod-supernodal, split");
   size_ = n;
   d.factored = true;

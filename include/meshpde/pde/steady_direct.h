@@ -224,7 +224,11 @@ class SteadyDirectSolver {
   // against the residual of the assembled matrix, refinement cannot remove it
   // (docs/solvers-measurements.md, "Accuracy").
   Eigen::SparseMatrix<double, Eigen::RowMajor> K_SF_;
-  Eigen::VectorXd g2_D_S_;    // g2 D on S
+  Eigen::VectorXd g2_D_S_;  // g2 D on S
+  // K_SC: row s of K on the held vertices, as (vertex, value) in [held_start_[s],
+  // held_start_[s + 1]): the held values' share of the right-hand side.
+  std::vector<int> held_start_;
+  std::vector<std::pair<int, double>> held_entries_;
   Eigen::VectorXd diagonal_;  // g0 M_FF (+ the extra diagonal) on F
   Eigen::MatrixXd multiply(const Eigen::MatrixXd& X) const;
   mutable double residual_ = 0;

@@ -130,11 +130,18 @@ class SplitCholesky {
   /// Whether meshpde was built with CHOLMOD (which this factor needs).
   static bool available() { return SparseCholesky::cholmod_available(); }
 
-  /// Factors A (symmetric, both triangles stored) whose first `part1` rows and next
+  /// Factors A (symmetric; its lower triangle is read) whose first `part1` rows and next
   /// `part2` rows are not coupled. \throw SolverError (in words) if CHOLMOD is missing,
   /// the sizes do not leave a separator, the parts are coupled, or A is not finite or
   /// not positive definite.
   void factorize(const Eigen::SparseMatrix<double>& A, Eigen::Index part1, Eigen::Index part2);
+  /// The same for A in its own numbering, eliminated in `order` (order[k]: the row of A
+  /// eliminated k-th; its first part1 rows and next part2 rows the uncoupled parts),
+  /// without a permuted copy of A: each part's matrix is gathered from A directly (its
+  /// lower triangle). solve() then takes and returns rows in the order's numbering.
+  /// \throw SolverError as above, or if order is not a permutation of A's rows.
+  void factorize(const Eigen::SparseMatrix<double>& A, const std::vector<int>& order, Eigen::Index part1,
+                 Eigen::Index part2);
   /// X = A^-1 B (B has size() rows). \pre factorize() succeeded.
   Eigen::MatrixXd solve(const Eigen::MatrixXd& B) const;
 
