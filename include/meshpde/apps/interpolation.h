@@ -93,9 +93,11 @@ InterpolationResult interpolate(const Mesh& mesh, FieldKind kind,
 ///    solved once (two triangular sweeps and a refinement step) when first needed: the
 ///    column A_FF^-1 G of each vertex that joins the border, and the response of each
 ///    originally constrained vertex whose value changes (at most 64; beyond, or for many
-///    at once, their part of the right-hand side is solved afresh). A solve on kept
-///    columns is dense arithmetic and whole-mesh products, with no solve by the factor:
-///    a new value at a painted vertex costs milliseconds, a new vertex one column.
+///    at once, their part of the right-hand side is solved afresh; with at most 16
+///    values held at the factorization, theirs are solved with the first solve). A
+///    solve on kept columns is dense arithmetic and whole-mesh products, with no solve
+///    by the factor: a new value at a painted vertex costs milliseconds, a new vertex
+///    one column.
 /// Every answer is checked by its residual through the whole-mesh products and refined
 /// (a solve with the factor on the residual, through the border) until it is at
 /// rounding level, so it equals a fresh interpolate() with the Direct solver to rounding
