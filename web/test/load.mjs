@@ -247,7 +247,11 @@ try {
     const t0 = performance.now();
     const times = [];
     let k = 0;
-    while (performance.now() - t0 < seconds * 1000) {
+    // At least the given seconds, and until two corrections are done (at most a
+    // minute): on two loaded cores one correction can take 4 s while the seven pages
+    // step (0.7 s alone), so the count is not asked of a fixed window.
+    const wanted = sanitized ? 1 : 2;
+    while (performance.now() - t0 < seconds * 1000 || (times.length < wanted && performance.now() - t0 < 60000)) {
       const r = await worker.request({ type: 'correct', vertex: 20000 + 997 * (k++ % 50), move: [0, 0, 0.5], radius: 14 });
       if (r.type === 'ok') times.push(r.time_ms);
     }
@@ -263,7 +267,7 @@ try {
       heat_gap_ms_max: all.max,
       per_page: per,
     };
-    check('corrections ran', times.length >= (sanitized ? 1 : 2), `${times.length}`);
+    check('corrections ran', times.length >= wanted, `${times.length}`);
     // Starved pages would get nothing while a correction runs; each must keep a
     // quarter of the lone page's rate at least (not a timing target: a sanity floor).
     const rate = report.baseline_one_page.updates / (seconds - 0.5);
@@ -295,7 +299,12 @@ try {
     for (let i = 0; i < 50 && victim.closed === null; ++i) await sleep(100);
     check('a message over 1 MiB closes that connection with 1009', victim.closed === 1009, `${victim.closed}`);
     await sleep(500);
-    heat.forEach((p, i) => check(`heat page ${i} unaffected by the abuse`, p.fieldTimes.length > before[i] + 10 && p.closed === null));
+    // More than ten updates each in the abuse's 2-3 seconds; the sanitizer build's
+    // server steps heat several times slower (8-10 updates a page there on the
+    // development machine), so there the pages need only keep getting some.
+    const needed = sanitized ? 3 : 10;
+    heat.forEach((p, i) => check(`heat page ${i} unaffected by the abuse`, p.fieldTimes.length > before[i] + needed && p.closed === null,
+                                 `${p.fieldTimes.length - before[i]} updates during it, closed: ${p.closed}`));
     // Uploads over the limit, paths outside the web root, half-sent requests.
     const big = await fetch(`http://127.0.0.1:${port}/api/upload?client=${heat[0].hello.client}&name=big.ply`,
                             { method: 'POST', body: Buffer.alloc(17 * 1024 * 1024, 32) }).then((r) => r.status, () => -1);
