@@ -52,7 +52,7 @@ constexpr double kMinSchurEigenvalue = 1e-12;
 constexpr int kHeldColumns = 64;
 constexpr int kMaxColumnSolves = 4;
 // With at most this many values held when the factor is made, their responses are
-// solved with the first solve (igea-134k: 8 responses add about a tenth to it).
+// solved with the first solve (igea-134k: 8 responses added a tenth to a fifth to it).
 constexpr int kResponsesAhead = 16;
 
 // One column of G: its nonzeros on F0's rows (local indices), and for a released vertex
