@@ -3,6 +3,7 @@
 
 #include <unistd.h>
 
+#include <exception>
 #include <filesystem>
 #include <functional>
 #include <random>
@@ -49,6 +50,18 @@ inline std::filesystem::path scratch_path(const std::string& name) {
   };
   static const Folder folder;
   return folder.path / name;
+}
+
+/// What f throws as E, in words, or "accepted" when it does not throw: for the tests
+/// that a bad request is refused with a message naming what is wrong.
+template <class E = std::exception, class F>
+std::string refusal(F&& f) {
+  try {
+    f();
+  } catch (const E& e) {
+    return e.what();
+  }
+  return "accepted";
 }
 
 inline Mesh make(const GeneratedMesh& g) {

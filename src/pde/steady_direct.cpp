@@ -55,7 +55,10 @@ struct FreeStiffnessRows {
   }
 };
 
-FreeStiffnessRows free_stiffness_rows(const Mesh& mesh, const FemOperators& ops, const std::vector<int>& vertices) {
+// With `held`, also K_SC (held_start, held_entries): only SteadyDirectSolver's solves
+// read it, so a bare assembly (a drag region's) does not collect it.
+FreeStiffnessRows free_stiffness_rows(const Mesh& mesh, const FemOperators& ops, const std::vector<int>& vertices,
+                                      bool held = false) {
   const int n = static_cast<int>(vertices.size());
   const auto off = mesh.offsets();
   const auto nbr = mesh.neighbors();
@@ -82,7 +85,7 @@ FreeStiffnessRows free_stiffness_rows(const Mesh& mesh, const FemOperators& ops,
   std::vector<int>& slot_local = rows.slot_local;
   row_start.assign(S.size() + 1, 0);
   row_entries.reserve(8 * S.size());
-  rows.held_start.assign(S.size() + 1, 0);
+  if (held) rows.held_start.assign(S.size() + 1, 0);
   slot_start.assign(static_cast<std::size_t>(n) + 1, 0);
   slot_local.reserve(7 * static_cast<std::size_t>(n));
   for (std::size_t r = 0; r < S.size(); ++r) {
@@ -90,18 +93,18 @@ FreeStiffnessRows free_stiffness_rows(const Mesh& mesh, const FemOperators& ops,
     const bool free_row = r < static_cast<std::size_t>(n);
     if (free_row)
       row_entries.emplace_back(static_cast<int>(r), ops.Kii[i]);
-    else
+    else if (held)
       rows.held_entries.emplace_back(i, ops.Kii[i]);
     for (int q = off[i]; q < off[i + 1]; ++q) {
       const int j = local.find(nbr[q]);
       if (free_row) slot_local.push_back(j);
       if (j >= 0 && j < n)
         row_entries.emplace_back(j, ops.Kij[q]);
-      else
+      else if (held)
         rows.held_entries.emplace_back(nbr[q], ops.Kij[q]);
     }
     row_start[r + 1] = static_cast<int>(row_entries.size());
-    rows.held_start[r + 1] = static_cast<int>(rows.held_entries.size());
+    if (held) rows.held_start[r + 1] = static_cast<int>(rows.held_entries.size());
     if (free_row) slot_start[r + 1] = static_cast<int>(slot_local.size());
   }
   return rows;
@@ -234,11 +237,11 @@ SteadyDirectSolver::SteadyDirectSolver(const Mesh& mesh, const FemOperators& ops
     detail::require_held_parts(
         mesh, free_, [&](int v) { return local_index(v); }, [&](int v) { return extra && extra_diagonal[v] > 0; });
   // The assembly's rows of K are kept as K_SF for multiply() (the refinement's products).
-  const FreeStiffnessRows rows = free_stiffness_rows(mesh, ops, free_);
+  FreeStiffnessRows rows = free_stiffness_rows(mesh, ops, free_, true);
   A_ = assemble_from_rows(mesh, ops, c, free_, extra_diagonal, rows);
   K_SF_ = rows.matrix(n);
-  held_start_ = rows.held_start;
-  held_entries_ = rows.held_entries;
+  held_start_ = std::move(rows.held_start);
+  held_entries_ = std::move(rows.held_entries);
   g2_D_S_.resize(static_cast<Eigen::Index>(rows.S.size()));
   for (std::size_t r = 0; r < rows.S.size(); ++r) g2_D_S_[static_cast<Eigen::Index>(r)] = c.g2 * ops.D(rows.S[r]);
   diagonal_.resize(n);
