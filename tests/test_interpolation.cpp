@@ -250,6 +250,44 @@ TEST(InterpolationSolver, HundredRandomEditsEqualAFreshSolveAfterEach) {
   EXPECT_GE(factorizations, 10);
 }
 
+// A fresh start after a few changed constraints keeps the last factor's order for the
+// vertices still free (reuse_ordering) and gives a fresh solve's answer; after a change
+// of more than 5 % of the free set it orders afresh.
+TEST(InterpolationSolver, AFreshStartAfterFewChangesReusesTheLastOrder) {
+  const Mesh sphere = make(icosphere(4));  // 2,562 vertices: a CHOLMOD factor
+  const FemOperators ops = build_cotan_operators(sphere);
+  const InterpolationParams params{.g1 = 0, .g2 = 1};
+  InterpolationSolver solver(sphere, ops, FieldKind::Scalar, params);
+  solver.max_changes = 3;
+  std::mt19937 rng(21);
+  std::uniform_real_distribution<double> value(-2, 2);
+  const auto check = [&](const std::string& what) {
+    const InterpolationResult kept = solver.solve();
+    const InterpolationResult fresh =
+        interpolate(sphere, ops, FieldKind::Scalar, solver.constraints(),
+                    InterpolationParams{.g1 = 0, .g2 = 1, .solver = SteadySolver::Direct});
+    EXPECT_LT(relative_difference(kept.values, fresh.values), 1e-10) << what;
+  };
+  for (int v = 0; v < sphere.num_vertices(); v += 250) solver.set_value(v, Eigen::VectorXd::Constant(1, value(rng)));
+  check("first");
+  for (int step = 0; step < 24; ++step) {
+    const int v = static_cast<int>(rng() % static_cast<unsigned>(sphere.num_vertices()));
+    if (solver.constrained(v) && solver.num_constraints() > 3)
+      solver.remove(v);
+    else
+      solver.set_value(v, Eigen::VectorXd::Constant(1, value(rng)));
+    check(fmt::format("step {}", step));
+  }
+  EXPECT_GE(solver.factorizations(), 4) << "max_changes 3 makes fresh starts";
+  EXPECT_EQ(solver.reused_orders(), solver.factorizations() - 1) << "every fresh start after the first reuses";
+  // 300 new constraints: more than 5 % of the free set, a new order.
+  const int before = solver.reused_orders();
+  solver.clear();
+  for (int v = 1; v < sphere.num_vertices(); v += 8) solver.set_value(v, Eigen::VectorXd::Constant(1, value(rng)));
+  check("a large change");
+  EXPECT_EQ(solver.reused_orders(), before);
+}
+
 TEST(InterpolationSolver, EqualsAFreshSolveOnRealAndIrregularMeshesWithBoundary) {
   Mesh m;
   if (!test::load_data("bunny-3k.off", m)) return;

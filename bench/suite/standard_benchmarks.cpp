@@ -187,6 +187,9 @@ PokeFigures poke(const Mesh& mesh, const FemOperators& ops, int steps, bool full
 // each kind), and the fresh solve of the same
 // constraints after some of them (paint_resolve_ms_*, the median). The largest
 // difference between the two answers is reported relative to the field's largest value.
+// Last, a fresh start of the kept solver with those constraints (max_changes 0), which
+// factors in the last factor's order (paint_restart_ms_*, beside paint_first_ms_*, whose
+// factorization ordered afresh).
 void paint_figures(const BenchOptions& options, nlohmann::json& j, bool large) {
   const auto progress = [&](const std::string& what) {
     if (options.progress) options.progress(what);
@@ -218,6 +221,7 @@ void paint_figures(const BenchOptions& options, nlohmann::json& j, bool large) {
     const int resolves = level ? (options.quick ? 1 : 2) : (options.quick ? 2 : 5);
     std::vector<double> update_ms, resolve_ms, by_kind[2];
     double worst = 0;
+    Field last_fresh;
     for (int c = 0; c < clicks; ++c) {
       progress(fmt::format("paint on {}: click {} of {}", tag, c + 1, clicks));
       const std::vector<InterpolationConstraint> now = solver.constraints();
@@ -235,8 +239,16 @@ void paint_figures(const BenchOptions& options, nlohmann::json& j, bool large) {
         resolve_ms.push_back(seconds_since(t0) * 1e3);
         worst =
             std::max(worst, (kept.values - fresh.values).cwiseAbs().maxCoeff() / fresh.values.cwiseAbs().maxCoeff());
+        last_fresh = fresh.values;
       }
     }
+    progress("paint on " + tag + ": a fresh start in the last factor's order");
+    solver.max_changes = 0;
+    t0 = clock_type::now();
+    const InterpolationResult restarted = solver.solve();
+    j["paint_restart_ms_" + tag] = seconds_since(t0) * 1e3;
+    j["paint_restart_reused_order_" + tag] = solver.reused_orders();
+    worst = std::max(worst, (restarted.values - last_fresh).cwiseAbs().maxCoeff() / last_fresh.cwiseAbs().maxCoeff());
     j["paint_vertices_" + tag] = nv;
     j["paint_update_ms_" + tag] = percentiles(update_ms).p50;
     j["paint_update_ms_max_" + tag] = *std::max_element(update_ms.begin(), update_ms.end());

@@ -249,6 +249,7 @@ class InterpolationSolver:
     num_constraints: int
     vertices: list[int]
     factorizations: int
+    reused_orders: int
     changed_constraints: int
     max_changes: int
     def __init__(self, V: ArrayLike, F: ArrayLike, kind: str = "scalar", g1: float = 0.0, g2: float = 1.0,

@@ -107,6 +107,23 @@ def test_interpolation_solver_equals_interpolate_after_every_edit(ico, kind):
         meshpde.InterpolationSolver(V, F, kind="vector")
 
 
+def test_interpolation_solver_fresh_starts_reuse_the_last_order():
+    V, F = meshpde.generate.icosphere(4)  # 2,562 vertices: a CHOLMOD factor
+    rng = np.random.default_rng(4)
+    s = meshpde.InterpolationSolver(V, F)
+    s.max_changes = 2
+    for v in range(0, len(V), 300):
+        s.set_value(v, rng.normal())
+    s.solve()
+    for step in range(9):
+        s.set_value(int(rng.integers(len(V))), rng.normal())
+        u = s.solve()
+        fresh = meshpde.interpolate(V, F, s.vertices, u[s.vertices], solver="direct")
+        assert rel_diff(u, fresh) <= 1e-10, f"step {step}"
+    assert s.factorizations >= 3
+    assert s.reused_orders == s.factorizations - 1
+
+
 def test_interpolate_displacement_equals_the_cli(cli, ico, tmp_path):
     path, V, F = ico
     cons = {"constraints": [{"vertex": 0, "value": [0, 0, 0.1]}, {"vertex": 50, "value": [0.2, 0, 0]},

@@ -54,6 +54,9 @@ constexpr int kMaxColumnSolves = 4;
 // With at most this many values held when the factor is made, their responses are
 // solved with the first solve (igea-134k: 8 responses added a tenth to a fifth to it).
 constexpr int kResponsesAhead = 16;
+// A refactorization reuses the last factor's order while the free set changed by at
+// most this fraction of its vertices.
+constexpr double kReuseOrderChanges = 0.05;
 
 // One column of G: its nonzeros on F0's rows (local indices), and for a released vertex
 // its couplings to the other released vertices (the column of A_PP).
@@ -86,6 +89,7 @@ struct InterpolationSolver::Impl {
   Eigen::MatrixXd S;
   Eigen::PartialPivLU<Eigen::MatrixXd> S_lu;
   int factorizations = 0;
+  int reused_orders = 0;  // factorizations in the last factor's order (reuse_ordering)
   // z0 = A_00^-1 b0 for the values z0_values held at C0's vertices (absent: released),
   // and the responses z_c of the C0 vertices that have changed.
   Eigen::MatrixXd z0;
@@ -133,6 +137,17 @@ struct InterpolationSolver::Impl {
     std::vector<int> free;
     for (int v = 0; v < nv; ++v)
       if (!base_held[static_cast<std::size_t>(v)] && ops->mass[v] > 0) free.push_back(v);
+    // A refactorization after a few changed constraints keeps the last factor's order
+    // for the vertices still free (reuse_ordering): no new ordering, and at most a row
+    // more per new free vertex.
+    NestedDissection reused;
+    int changes = 0;
+    if (base) {
+      const NestedDissection last = base->vertex_order();
+      if (!last.order.empty()) reused = reuse_ordering(last, free, nv, &changes);
+    }
+    const bool reuse =
+        !reused.order.empty() && static_cast<double>(changes) <= kReuseOrderChanges * static_cast<double>(free.size());
     base.reset();  // a failed factorization leaves no stale factor behind
     border.clear();
     border_vertices.clear();
@@ -142,10 +157,11 @@ struct InterpolationSolver::Impl {
     // factor (solvers/ordering.h) is analyzed faster but has more fill: on igea-134k
     // in `meshpde bench --only paint` the first solve took 2.7 s against 4.2 s, and a
     // click 87 ms against 74 ms (docs/solvers-measurements.md).
-    base =
-        std::make_unique<SteadyDirectSolver>(*mesh, *ops, coefficients(), std::move(free),
-                                             SparseCholesky::Backend::Auto, Eigen::VectorXd(), DirectOrdering::Cholmod);
+    base = std::make_unique<SteadyDirectSolver>(*mesh, *ops, coefficients(), std::move(free),
+                                                SparseCholesky::Backend::Auto, Eigen::VectorXd(),
+                                                DirectOrdering::Cholmod, reuse ? &reused : nullptr);
     ++factorizations;
+    reused_orders += reuse;
   }
 
   // z0 = A_00^-1 b0 for the values held now at C0's vertices (`outside`: #V x m, those
@@ -376,6 +392,10 @@ int InterpolationSolver::num_constraints() const {
 }
 int InterpolationSolver::factorizations() const {
   return impl_->factorizations;
+}
+
+int InterpolationSolver::reused_orders() const {
+  return impl_->reused_orders;
 }
 int InterpolationSolver::changed_constraints() const {
   return static_cast<int>(impl_->border_vertices.size());

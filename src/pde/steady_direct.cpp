@@ -218,7 +218,8 @@ Eigen::SparseMatrix<double> assemble_steady_matrix(const Mesh& mesh, const FemOp
 
 SteadyDirectSolver::SteadyDirectSolver(const Mesh& mesh, const FemOperators& ops, const PdeCoefficients& c,
                                        std::vector<int> free, SparseCholesky::Backend backend,
-                                       const Eigen::VectorXd& extra_diagonal, DirectOrdering ordering)
+                                       const Eigen::VectorXd& extra_diagonal, DirectOrdering ordering,
+                                       const NestedDissection* order)
     : mesh_(mesh), ops_(ops), c_(c), free_(std::move(free)), chol_(backend) {
   const int nv = mesh.num_vertices(), n = static_cast<int>(free_.size());
   const bool extra = extra_diagonal.size() > 0;
@@ -251,21 +252,56 @@ SteadyDirectSolver::SteadyDirectSolver(const Mesh& mesh, const FemOperators& ops
     for (Eigen::SparseMatrix<double>::InnerIterator it(A_, k); it; ++it) sum += std::abs(it.value());
     a_norm_inf_ = std::max(a_norm_inf_, sum);
   }
-  if (ordering == DirectOrdering::Mesh || ordering == DirectOrdering::MeshSplit ||
+  const bool given = order != nullptr;
+  if (given || ordering == DirectOrdering::Mesh || ordering == DirectOrdering::MeshSplit ||
       (ordering == DirectOrdering::Auto && c.g2 != 0 && n >= kMeshOrderingFrom && mesh_ordering_available() &&
        backend != SparseCholesky::Backend::Eigen && SparseCholesky::cholmod_available())) {
-    // The free vertices in mesh order, as rows of A_.
-    MeshOrderingParams p;
-    p.separator_hops = c.g2 != 0 ? 2 : 1;
-    NestedDissection nd = mesh_nested_dissection(mesh, free_, p);
-    for (int& v : nd.order) v = local_index(v);
+    // The free vertices in mesh order (or in the order given), as rows of A_.
+    NestedDissection nd;
+    if (given) {
+      nd = *order;
+      if (nd.order.size() != free_.size())
+        throw InputError(
+            fmt::format("the given order has {} vertices for {} free vertices", nd.order.size(), free_.size()));
+      std::vector<char> seen(free_.size(), 0);
+      for (int& v : nd.order) {
+        const int k = local_index(v);
+        if (k < 0 || seen[static_cast<std::size_t>(k)])
+          throw InputError(
+              fmt::format("the given order {} vertex {}", k < 0 ? "has a vertex that is not free:" : "repeats", v));
+        seen[static_cast<std::size_t>(k)] = 1;
+        v = k;
+      }
+    } else {
+      MeshOrderingParams p;
+      p.separator_hops = c.g2 != 0 ? 2 : 1;
+      nd = mesh_nested_dissection(mesh, free_, p);
+      for (int& v : nd.order) v = local_index(v);
+    }
     // Its top level's two parts are factored on two threads (SparseCholesky's split
     // factor) when there is a separator between them.
     const bool split = (ordering == DirectOrdering::Auto || ordering == DirectOrdering::MeshSplit) && nd.parts[1] > 0 &&
                        nd.parts[0] + nd.parts[1] < nd.order.size();
-    chol_.set_order(std::move(nd.order), split ? nd.parts[0] : 0, split ? nd.parts[1] : 0);
+    if (split) {
+      split_parts_[0] = nd.parts[0];
+      split_parts_[1] = nd.parts[1];
+    }
+    // A given order asked to be CHOLMOD's keeps CHOLMOD's supernodes (InterpolationSolver,
+    // whose factor is swept at every click, reuses CHOLMOD's order).
+    chol_.set_order(std::move(nd.order), split ? nd.parts[0] : 0, split ? nd.parts[1] : 0,
+                    !(given && ordering == DirectOrdering::Cholmod));
   }
   chol_.factorize(A_);
+}
+
+NestedDissection SteadyDirectSolver::vertex_order() const {
+  NestedDissection out;
+  out.order = chol_.order();
+  for (int& k : out.order) k = free_[static_cast<std::size_t>(k)];
+  const bool split = split_parts_[1] > 0 && !out.order.empty();
+  out.parts[0] = split ? split_parts_[0] : out.order.size();
+  out.parts[1] = split ? split_parts_[1] : 0;
+  return out;
 }
 
 Field SteadyDirectSolver::solve(const Field& u, const Field* f) const {

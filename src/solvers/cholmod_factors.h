@@ -27,8 +27,10 @@ class CholmodFactor {
 
   /// Symbolic analysis of A's pattern (compressed, symmetric, both triangles stored),
   /// in CHOLMOD's order, or in `order` (a permutation of A's rows, order[k] eliminated
-  /// k-th) when given. \throw SolverError if CHOLMOD rejects the order.
-  void analyze(const Eigen::SparseMatrix<double>& A, const std::vector<int>* order = nullptr);
+  /// k-th) when given: then with coarser supernodes than CHOLMOD's unless
+  /// coarse_supernodes is false. \throw SolverError if CHOLMOD rejects the order.
+  void analyze(const Eigen::SparseMatrix<double>& A, const std::vector<int>* order = nullptr,
+               bool coarse_supernodes = true);
   /// Numeric factorization with the last analysis. Returns false if A is not positive
   /// definite.
   bool factorize(const Eigen::SparseMatrix<double>& A);
@@ -38,6 +40,9 @@ class CholmodFactor {
   Eigen::MatrixXd solve(const Eigen::MatrixXd& B, bool written_out) const;
   double nonzeros() const;     ///< nonzeros of L in the analysis in use
   double pivot_ratio() const;  ///< smallest over largest squared diagonal entry of L; 0 if unknown
+  /// The analysis's fill-reducing order (CHOLMOD's, or the given one postordered):
+  /// order[k] is the row eliminated k-th; empty before an analysis.
+  std::vector<int> order() const;
 
  private:
   struct Impl;

@@ -20,7 +20,7 @@ CholmodFactor::CholmodFactor() {
   missing();
 }
 CholmodFactor::~CholmodFactor() = default;
-void CholmodFactor::analyze(const Eigen::SparseMatrix<double>&, const std::vector<int>*) {
+void CholmodFactor::analyze(const Eigen::SparseMatrix<double>&, const std::vector<int>*, bool) {
   missing();
 }
 bool CholmodFactor::factorize(const Eigen::SparseMatrix<double>&) {
@@ -34,6 +34,9 @@ double CholmodFactor::nonzeros() const {
 }
 double CholmodFactor::pivot_ratio() const {
   return 0;
+}
+std::vector<int> CholmodFactor::order() const {
+  return {};
 }
 
 struct CholmodInOrder::Impl {};

@@ -60,6 +60,7 @@ struct SparseCholesky::Impl {
   std::vector<int> order;                // the given fill-reducing order, or empty
   Eigen::Index parts[2] = {0, 0};        // its top level's parts, when split
   std::unique_ptr<SplitCholesky> split;  // the factor of A in that order, when split
+  bool coarse_supernodes = true;         // for the given order
   bool analyzed = false;
   bool factored = false;
 };
@@ -83,10 +84,10 @@ void SparseCholesky::set_sweeps(Sweeps sweeps) {
   impl_->sweep_mode = sweeps;
 }
 
-void SparseCholesky::set_order(std::vector<int> order, std::size_t part1, std::size_t part2) {
+void SparseCholesky::set_order(std::vector<int> order, std::size_t part1, std::size_t part2, bool coarse_supernodes) {
   Impl& d = *impl_;
   if (order == d.order && static_cast<Eigen::Index>(part1) == d.parts[0] &&
-      static_cast<Eigen::Index>(part2) == d.parts[1])
+      static_cast<Eigen::Index>(part2) == d.parts[1] && coarse_supernodes == d.coarse_supernodes)
     return;
   std::vector<char> seen(order.size(), 0);
   for (int k : order) {
@@ -102,6 +103,7 @@ void SparseCholesky::set_order(std::vector<int> order, std::size_t part1, std::s
   d.order = std::move(order);
   d.parts[0] = static_cast<Eigen::Index>(part1);
   d.parts[1] = static_cast<Eigen::Index>(part2);
+  d.coarse_supernodes = coarse_supernodes;
   d.analyzed = false;  // the next factorize() analyzes afresh
 }
 
@@ -149,7 +151,7 @@ void SparseCholesky::factorize(const Eigen::SparseMatrix<double>& A_in) {
       if (!d.order.empty() && d.order.size() != static_cast<std::size_t>(A.rows()))
         throw SolverError(
             fmt::format("direct solve: the given order has {} rows, the matrix {}", d.order.size(), A.rows()));
-      d.cholmod->analyze(A, d.order.empty() ? nullptr : &d.order);
+      d.cholmod->analyze(A, d.order.empty() ? nullptr : &d.order, d.coarse_supernodes);
       ++analyses_;
     }
     if (!d.cholmod->factorize(A)) info = Eigen::NumericalIssue;
@@ -171,6 +173,13 @@ void SparseCholesky::factorize(const Eigen::SparseMatrix<double>& A_in) {
   ++factors_;
   if (info != Eigen::Success) throw not_positive_definite(backend_name());
   d.factored = true;
+}
+
+std::vector<int> SparseCholesky::order() const {
+  const Impl& d = *impl_;
+  if (!d.factored || d.backend != Backend::Cholmod) return {};
+  if (d.parts[0] > 0) return d.order;
+  return d.cholmod->order();
 }
 
 double SparseCholesky::factor_nonzeros() const {

@@ -73,4 +73,49 @@ std::vector<int> nested_dissection_order(const Mesh& mesh, const std::vector<int
   return nested_dissection(mesh, vertices, params).order;
 }
 
+NestedDissection reuse_ordering(const NestedDissection& previous, const std::vector<int>& vertices, int num_vertices,
+                                int* changed) {
+  // Per mesh vertex: bit 1 in `vertices`, bit 2 in previous.order.
+  std::vector<unsigned char> in(static_cast<std::size_t>(std::max(0, num_vertices)), 0);
+  auto mark = [&](const std::vector<int>& list, unsigned char bit, const char* which) {
+    for (int v : list) {
+      if (v < 0 || v >= num_vertices)
+        throw InputError(fmt::format("reuse ordering: vertex {} of the {} does not exist (the mesh has {})", v, which,
+                                     num_vertices));
+      if (in[static_cast<std::size_t>(v)] & bit)
+        throw InputError(fmt::format("reuse ordering: vertex {} is listed twice in the {}", v, which));
+      in[static_cast<std::size_t>(v)] |= bit;
+    }
+  };
+  mark(vertices, 1, "new vertex set");
+  mark(previous.order, 2, "previous order");
+  NestedDissection out;
+  out.order.reserve(vertices.size());
+  const bool split = previous.parts[0] > 0 && previous.parts[1] > 0;
+  std::size_t dropped = 0, kept_in[2] = {0, 0};
+  for (std::size_t k = 0; k < previous.order.size(); ++k) {
+    const int v = previous.order[k];
+    if (!(in[static_cast<std::size_t>(v)] & 1)) {
+      ++dropped;
+      continue;
+    }
+    out.order.push_back(v);
+    if (split && k < previous.parts[0] + previous.parts[1]) ++kept_in[k < previous.parts[0] ? 0 : 1];
+  }
+  std::size_t added = 0;
+  for (int v : vertices)
+    if (!(in[static_cast<std::size_t>(v)] & 2)) {
+      out.order.push_back(v);
+      ++added;
+    }
+  if (split && kept_in[0] > 0 && kept_in[1] > 0 && kept_in[0] + kept_in[1] < out.order.size()) {
+    out.parts[0] = kept_in[0];
+    out.parts[1] = kept_in[1];
+  } else {
+    out.parts[0] = out.order.size();  // not split (as nested_dissection says it)
+  }
+  if (changed) *changed = static_cast<int>(added + dropped);
+  return out;
+}
+
 }  // namespace meshpde

@@ -88,7 +88,9 @@ InterpolationResult interpolate(const Mesh& mesh, FieldKind kind,
 ///    new one as a Lagrange multiplier holding its value, and the small dense Schur
 ///    complement S = H - G^T A_FF^-1 G of that border (k x k for k changed vertices)
 ///    is factored by LU. Once more than max_changes constraints differ from the
-///    factored set, or S is close to singular, the next solve() factors afresh.
+///    factored set, or S is close to singular, the next solve() factors afresh, in
+///    the last factor's order where the free set changed by at most 5 % (no new
+///    fill-reducing ordering: reused_orders()).
 ///  - what each solve needs from the factor is kept as columns of #free doubles, each
 ///    solved once (two triangular sweeps and a refinement step) when first needed: the
 ///    column A_FF^-1 G of each vertex that joins the border, and the response of each
@@ -142,6 +144,10 @@ class InterpolationSolver {
 
   /// Numeric factorizations so far (one per fresh start).
   int factorizations() const;
+  /// Of those, the ones made in the last factor's order (reuse_ordering,
+  /// solvers/ordering.h) instead of a new one: a fresh start whose free set differs from
+  /// the last factor's by at most 5 % of its vertices.
+  int reused_orders() const;
   /// Constraints that differ from the factored set (added or removed since), as of the
   /// last solve(): the size of the Schur complement.
   int changed_constraints() const;

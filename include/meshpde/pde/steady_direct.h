@@ -19,6 +19,7 @@
 #include "meshpde/operators/laplacian.h"
 #include "meshpde/pde/pde_session.h"
 #include "meshpde/solvers/direct.h"
+#include "meshpde/solvers/ordering.h"
 #include "meshpde/solvers/surface_multigrid.h"
 
 namespace meshpde {
@@ -144,12 +145,19 @@ class SteadyDirectSolver {
   /// Assembles and factors Kt_FF (+ diag(extra_diagonal) on the free rows, when
   /// given: #V non-negative values, e.g. a per-vertex foundation or the inertia of
   /// an implicit time step). Keeps references to mesh and ops.
-  /// \throw InputError for a bad vertex; SolverError if a connected part of the free
-  ///        set touches no held vertex (and g0 = 0): its values would be undetermined.
+  /// `order` (optional): the elimination order of the free vertices (mesh vertex ids)
+  /// instead of one computed here, e.g. reuse_ordering() of an earlier solver's
+  /// vertex_order() for a free set that changed by a few vertices; where its parts
+  /// split it (and the backend is CHOLMOD's, `ordering` Auto or MeshSplit) the two
+  /// parts are factored on two threads; with `ordering` Cholmod, one factor with
+  /// CHOLMOD's own supernodes (SparseCholesky::set_order). Ignored by the Eigen backend.
+  /// \throw InputError for a bad vertex, or an order that is not one of the free set;
+  ///        SolverError if a connected part of the free set touches no held vertex
+  ///        (and g0 = 0): its values would be undetermined.
   SteadyDirectSolver(const Mesh& mesh, const FemOperators& ops, const PdeCoefficients& coefficients,
                      std::vector<int> free, SparseCholesky::Backend backend = SparseCholesky::Backend::Auto,
                      const Eigen::VectorXd& extra_diagonal = Eigen::VectorXd(),
-                     DirectOrdering ordering = DirectOrdering::Auto);
+                     DirectOrdering ordering = DirectOrdering::Auto, const NestedDissection* order = nullptr);
 
   /// Returns u with the free rows solved; the other rows of u are the held values.
   /// `f` (optional) is the load, #V x m like u.
@@ -181,6 +189,10 @@ class SteadyDirectSolver {
   double refine_tolerance = 1e-14;
   int max_refinements = 5;
   const SparseCholesky& factor() const { return chol_; }
+  /// The factor's elimination order as mesh vertex ids, with its top-level parts when
+  /// the factor is split (else parts = {num_free(), 0}): what reuse_ordering() takes
+  /// for the next free set. Empty order for the Eigen backend.
+  NestedDissection vertex_order() const;
   /// The assembled Kt_FF (num_free() x num_free()).
   const Eigen::SparseMatrix<double>& matrix() const { return A_; }
 
@@ -216,6 +228,7 @@ class SteadyDirectSolver {
   }
   Eigen::SparseMatrix<double> A_;
   SparseCholesky chol_;
+  std::size_t split_parts_[2] = {0, 0};  // the factor's two parts, when it is split
   // Kt_FF as the products it is made of, for the residuals of the iterative
   // refinement: g0 M_FF + extra + g1 K_FF + g2 (K_SF)^T D_S K_SF, with K_SF (S = F, then
   // its one ring) kept (about 8 entries a row). The assembled K D K carries rounding of

@@ -87,4 +87,21 @@ NestedDissection mesh_nested_dissection(const Mesh& mesh, const std::vector<int>
 /// Whether meshpde was built with METIS (libmetis-dev), which mesh_nested_dissection_order uses.
 bool mesh_ordering_available();
 
+/// An order of `vertices` made from `previous`, an elimination order of another vertex
+/// set of the same mesh (a factor's: SteadyDirectSolver::vertex_order()), for a free
+/// set that changed by a few vertices: the vertices in both keep previous's relative
+/// order, and those new to it are eliminated last, with the top-level separator.
+/// Dropping a vertex from an elimination order never adds fill, and a vertex eliminated
+/// last adds at most a row across the separators above its neighbours, so the order of
+/// the rest is reused at the cost of a pass over the vertices instead of a new ordering
+/// (numbers: docs/solvers-measurements.md). The top level's parts keep their vertices
+/// still in the set (parts = {#vertices, 0}, not split, when previous was not or one
+/// of them empties):
+/// whether two vertices are coupled does not depend on which others are free, so the
+/// parts stay uncoupled. `changed` (optional) gets the number of vertices added plus
+/// dropped. 	hrow InputError for a vertex outside 0..num_vertices-1 or repeated, in
+/// either list.
+NestedDissection reuse_ordering(const NestedDissection& previous, const std::vector<int>& vertices, int num_vertices,
+                                int* changed = nullptr);
+
 }  // namespace meshpde
