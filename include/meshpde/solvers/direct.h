@@ -49,8 +49,8 @@ class SparseCholesky {
   /// rows and next part2 rows uncoupled, the rest their separator), the CHOLMOD
   /// backend factors the two parts on two threads (SplitCholesky below; every
   /// factorize() then analyzes, and pivot_ratio() is 0). One CHOLMOD factor in a given
-  /// order has coarser supernodes than CHOLMOD's default (a faster factorization, sweeps
-  /// 15-30 % slower on igea-134k) unless coarse_supernodes is false. The Eigen backend
+  /// order has coarser supernodes than CHOLMOD's default (a faster factorization, slower
+  /// sweeps: docs/solvers-measurements.md) unless coarse_supernodes is false. The Eigen backend
   /// ignores all of it (AMD). \throw SolverError if order is not a permutation or the
   /// parts leave no separator; factorize() throws when its size is not the matrix's.
   void set_order(std::vector<int> order, std::size_t part1 = 0, std::size_t part2 = 0, bool coarse_supernodes = true);
