@@ -17,10 +17,11 @@
 
 namespace meshpde::test {
 
-/// True in the AddressSanitizer build, whose Debug code runs 20-40 times slower: the few
+/// True in the AddressSanitizer build (MESHPDE_SANITIZER_BUILD: the tests themselves are
+/// compiled without it), whose Debug code runs 20-40 times slower: the few
 /// tests that loop over many large real meshes check memory there on the smaller ones
 /// and leave the whole list to the Release suite, which runs every one.
-#if defined(__SANITIZE_ADDRESS__)
+#if defined(__SANITIZE_ADDRESS__) || defined(MESHPDE_SANITIZER_BUILD)
 inline constexpr bool kSanitized = true;
 #elif defined(__has_feature)
 #if __has_feature(address_sanitizer)

@@ -397,6 +397,7 @@ int InterpolationSolver::factorizations() const {
 int InterpolationSolver::reused_orders() const {
   return impl_->reused_orders;
 }
+
 int InterpolationSolver::changed_constraints() const {
   return static_cast<int>(impl_->border_vertices.size());
 }

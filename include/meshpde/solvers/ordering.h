@@ -95,12 +95,11 @@ bool mesh_ordering_available();
 /// last adds at most a row across the separators above its neighbours, so the order of
 /// the rest is reused at the cost of a pass over the vertices instead of a new ordering
 /// (numbers: docs/solvers-measurements.md). The top level's parts keep their vertices
-/// still in the set (parts = {#vertices, 0}, not split, when previous was not or one
-/// of them empties):
-/// whether two vertices are coupled does not depend on which others are free, so the
-/// parts stay uncoupled. `changed` (optional) gets the number of vertices added plus
-/// dropped. 	hrow InputError for a vertex outside 0..num_vertices-1 or repeated, in
-/// either list.
+/// still in the set (parts = {#vertices, 0}, not split, when previous was not or one of
+/// them empties): whether two vertices are coupled does not depend on which others are
+/// free, so the parts stay uncoupled. `changed` (optional) gets the number of vertices
+/// added plus dropped. \throw InputError for a vertex outside 0..num_vertices-1 or
+/// repeated, in either list.
 NestedDissection reuse_ordering(const NestedDissection& previous, const std::vector<int>& vertices, int num_vertices,
                                 int* changed = nullptr);
 
