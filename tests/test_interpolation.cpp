@@ -180,6 +180,17 @@ double relative_difference(const Field& a, const Field& b) {
   return (a - b).cwiseAbs().maxCoeff() / std::max(b.cwiseAbs().maxCoeff(), 1e-300);
 }
 
+// The kept solver's answer for a scalar field with plate weights (g1 = 0, g2 = 1),
+// checked against a fresh direct interpolate() of its constraints to 1e-10.
+InterpolationResult solve_like_a_fresh_plate(InterpolationSolver& solver, const Mesh& mesh, const FemOperators& ops,
+                                             const std::string& what) {
+  const InterpolationResult kept = solver.solve();
+  const InterpolationResult fresh = interpolate(mesh, ops, FieldKind::Scalar, solver.constraints(),
+                                                InterpolationParams{.g1 = 0, .g2 = 1, .solver = SteadySolver::Direct});
+  EXPECT_LT(relative_difference(kept.values, fresh.values), 1e-10) << what;
+  return kept;
+}
+
 // Random steps (add a constraint, remove one, change a value), each solved by the
 // kept solver and by a fresh direct interpolate() on the same constraints.
 void random_edits(const Mesh& mesh, const FemOperators& ops, FieldKind kind, const InterpolationParams& params,
@@ -261,13 +272,7 @@ TEST(InterpolationSolver, AFreshStartAfterFewChangesReusesTheLastOrder) {
   solver.max_changes = 3;
   std::mt19937 rng(21);
   std::uniform_real_distribution<double> value(-2, 2);
-  const auto check = [&](const std::string& what) {
-    const InterpolationResult kept = solver.solve();
-    const InterpolationResult fresh =
-        interpolate(sphere, ops, FieldKind::Scalar, solver.constraints(),
-                    InterpolationParams{.g1 = 0, .g2 = 1, .solver = SteadySolver::Direct});
-    EXPECT_LT(relative_difference(kept.values, fresh.values), 1e-10) << what;
-  };
+  const auto check = [&](const std::string& what) { solve_like_a_fresh_plate(solver, sphere, ops, what); };
   for (int v = 0; v < sphere.num_vertices(); v += 250) solver.set_value(v, Eigen::VectorXd::Constant(1, value(rng)));
   check("first");
   for (int step = 0; step < 24; ++step) {
@@ -321,11 +326,7 @@ TEST(InterpolationSolver, NewValuesAtManyOriginallyHeldVerticesEqualAFreshSolve)
   for (const int v : held) solver.set_value(v, Eigen::VectorXd::Constant(1, value(rng)));
   solver.solve();
   const auto check = [&](const std::string& what) {
-    const InterpolationResult kept = solver.solve();
-    const InterpolationResult fresh =
-        interpolate(sphere, ops, FieldKind::Scalar, solver.constraints(),
-                    InterpolationParams{.g1 = 0, .g2 = 1, .solver = SteadySolver::Direct});
-    EXPECT_LT(relative_difference(kept.values, fresh.values), 1e-10) << what;
+    const InterpolationResult kept = solve_like_a_fresh_plate(solver, sphere, ops, what);
     // The kept columns alone give it: no refinement step was needed.
     EXPECT_EQ(kept.cg.iterations, 0) << what;
   };
