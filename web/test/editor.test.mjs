@@ -1471,6 +1471,20 @@ try {
   check('the status line says what paint did, nothing of the correction before it',
         /^painted/.test(line.text) && !/corrected/.test(line.text) && !line.error, JSON.stringify(line));
   await page.screenshot({ path: join(shots, 'editor-paint.png') });
+  // The painted field is drawn, not only sent: the rendered surface shows both ends of
+  // the colour map (viridis: yellow at the top, blue and purple at the bottom), which a
+  // shaded surface of one colour (grey, R = G = B) cannot.
+  const painted = await page.evaluate(() => {
+    const d = meshpde.canvasPixels().data;
+    let yellow = 0, blue = 0;
+    for (let i = 0; i < d.length; i += 4) {
+      if (d[i] > 150 && d[i + 1] > 150 && d[i + 2] < 120) yellow += 1;
+      if (d[i + 2] > d[i + 1] + 20 && d[i + 2] > d[i] + 20) blue += 1;
+    }
+    return { yellow: yellow / (d.length / 4), blue: blue / (d.length / 4) };
+  });
+  check('the painted field is drawn in both ends of the colour map (rendered pixels)',
+        painted.yellow > 0.01 && painted.blue > 0.01, JSON.stringify(painted));
   // Vectors: drag from a vertex; the tangent field comes back as arrows.
   await page.check('input[name=paint-kind][value=vector]');
   await dragBy(page, centre, 60, -20);
