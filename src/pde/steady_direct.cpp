@@ -282,10 +282,6 @@ SteadyDirectSolver::SteadyDirectSolver(const Mesh& mesh, const FemOperators& ops
     // factor) when there is a separator between them.
     const bool split = (ordering == DirectOrdering::Auto || ordering == DirectOrdering::MeshSplit) && nd.parts[1] > 0 &&
                        nd.parts[0] + nd.parts[1] < nd.order.size();
-    if (split) {
-      split_parts_[0] = nd.parts[0];
-      split_parts_[1] = nd.parts[1];
-    }
     // A given order asked to be CHOLMOD's keeps CHOLMOD's supernodes (InterpolationSolver,
     // whose factor is swept at every click, reuses CHOLMOD's order).
     chol_.set_order(std::move(nd.order), split ? nd.parts[0] : 0, split ? nd.parts[1] : 0,
@@ -298,9 +294,10 @@ NestedDissection SteadyDirectSolver::vertex_order() const {
   NestedDissection out;
   out.order = chol_.order();
   for (int& k : out.order) k = free_[static_cast<std::size_t>(k)];
-  const bool split = split_parts_[1] > 0 && !out.order.empty();
-  out.parts[0] = split ? split_parts_[0] : out.order.size();
-  out.parts[1] = split ? split_parts_[1] : 0;
+  const auto parts = chol_.split_parts();
+  const bool split = parts[1] > 0 && !out.order.empty();
+  out.parts[0] = split ? parts[0] : out.order.size();
+  out.parts[1] = split ? parts[1] : 0;
   return out;
 }
 

@@ -182,6 +182,12 @@ std::vector<int> SparseCholesky::order() const {
   return d.cholmod->order();
 }
 
+std::array<std::size_t, 2> SparseCholesky::split_parts() const {
+  const Impl& d = *impl_;
+  if (!d.factored || d.backend != Backend::Cholmod || d.parts[0] == 0) return {0, 0};
+  return {static_cast<std::size_t>(d.parts[0]), static_cast<std::size_t>(d.parts[1])};
+}
+
 double SparseCholesky::factor_nonzeros() const {
   const Impl& d = *impl_;
   if (!d.factored) return 0;

@@ -228,7 +228,6 @@ class SteadyDirectSolver {
   }
   Eigen::SparseMatrix<double> A_;
   SparseCholesky chol_;
-  std::size_t split_parts_[2] = {0, 0};  // the factor's two parts, when it is split
   // Kt_FF as the products it is made of, for the residuals of the iterative
   // refinement: g0 M_FF + extra + g1 K_FF + g2 (K_SF)^T D_S K_SF, with K_SF (S = F, then
   // its one ring) kept (about 8 entries a row). The assembled K D K carries rounding of

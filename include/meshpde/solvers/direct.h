@@ -9,6 +9,7 @@
 
 #include <Eigen/Core>
 #include <Eigen/SparseCore>
+#include <array>
 #include <memory>
 #include <string>
 #include <vector>
@@ -60,6 +61,9 @@ class SparseCholesky {
   /// CHOLMOD's choice, or the given order (as CHOLMOD postordered it; as given for a
   /// split factor); empty before a factorization and for the Eigen backend.
   std::vector<int> order() const;
+  /// The given order's two top-level parts when the last factor was split in them
+  /// (CHOLMOD backend), else {0, 0}.
+  std::array<std::size_t, 2> split_parts() const;
   /// Nonzeros of the factor L of the last factorization (memory: about 12 bytes each).
   double factor_nonzeros() const;
   /// Smallest over largest pivot of the last factorization (D of LDL^T, the squared
