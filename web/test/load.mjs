@@ -16,7 +16,8 @@
 //    warning).
 // 4. Cycles: N connect-edit-disconnect cycles, every third one closing in the middle
 //    of a correction, every sixth painting, brushing, dragging (every twelfth closing
-//    in the middle of the drag, the others releasing it), undoing and redoing: the server's resident memory,
+//    in the middle of the drag, the others releasing it), colouring by the correction,
+//    undoing, redoing and asking for a region's rim: the server's resident memory,
 //    threads and open files before and after.
 //
 // Prints one JSON object of figures (gaps in ms: p50, p99, max). Exits 1 when a
@@ -359,10 +360,17 @@ if (!loadOnly) {
         if (k % 12 === 1) { p.close(); return; }  // closed in the middle of the drag
         // Released as the page releases a drag: the preview ends and the correction is sent.
         for (const m of [{ type: 'drag_end' }, { type: 'correct', vertex: v, move: [0, 0, 0.03], radius: 0.4 },
-                         { type: 'undo' }, { type: 'redo' }]) {
+                         { type: 'colour', field: 'moved (mm)' }, { type: 'undo' }, { type: 'redo' }]) {
           const r = await p.request(m);
           check(`cycle ${k}: ${m.type} answered ok`, r.type === 'ok', JSON.stringify(r).slice(0, 300));
         }
+        // The region's rim as the page asks for it on hover (answered by a binary frame,
+        // an error only in words): no error by the time a ping is answered.
+        const from = p.messages.length;
+        p.send({ type: 'rim', point: [0, 0, 1], radius: 0.4, seq: k });
+        await p.request({ type: 'ping' });
+        const bad = p.messages.slice(from).find((m) => m.type === 'error');
+        check(`cycle ${k}: rim answered without an error`, !bad, JSON.stringify(bad || {}).slice(0, 300));
         p.close();
         return;
       }
