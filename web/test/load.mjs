@@ -258,7 +258,8 @@ try {
     // step (0.7 s alone), so the count is not asked of a fixed window.
     const wanted = sanitized ? 1 : 2;
     while (performance.now() - t0 < seconds * 1000 || (times.length < wanted && performance.now() - t0 < 60000)) {
-      const vertex = (sanitized ? 200 + 97 * (k++ % 50) : 20000 + 997 * (k++ % 50));
+      const i = k++ % 50;
+      const vertex = sanitized ? 200 + 97 * i : 20000 + 997 * i;
       const r = await worker.request({ type: 'correct', vertex, move: [0, 0, 0.5], radius: 14 });
       if (r.type === 'ok') times.push(r.time_ms);
     }
@@ -349,21 +350,21 @@ if (!loadOnly) {
         // The other editing requests, each answered 'ok': paint, vectors, the tissue
         // brush, a drag (every other time left open at the close), undo and redo.
         const v = k % 600;
-        for (const m of [{ type: 'paint', vertex: v, value: 1 }, { type: 'paint', vertex: (v + 300) % 600, value: 0 },
-                         { type: 'paint_vector', vertex: (v + 100) % 600, vector: [0, 0, 0.1] }, { type: 'clear_paint' },
-                         { type: 'brush', property: 'stiffness', vertex: v, radius: 0.3, value: 3 },
-                         { type: 'drag_begin', vertex: v, radius: 0.4 }]) {
-          const r = await p.request(m);
-          check(`cycle ${k}: ${m.type} answered ok`, r.type === 'ok', JSON.stringify(r).slice(0, 300));
-        }
+        const answeredOk = async (requests) => {
+          for (const m of requests) {
+            const r = await p.request(m);
+            check(`cycle ${k}: ${m.type} answered ok`, r.type === 'ok', JSON.stringify(r).slice(0, 300));
+          }
+        };
+        await answeredOk([{ type: 'paint', vertex: v, value: 1 }, { type: 'paint', vertex: (v + 300) % 600, value: 0 },
+                          { type: 'paint_vector', vertex: (v + 100) % 600, vector: [0, 0, 0.1] }, { type: 'clear_paint' },
+                          { type: 'brush', property: 'stiffness', vertex: v, radius: 0.3, value: 3 },
+                          { type: 'drag_begin', vertex: v, radius: 0.4 }]);
         p.send({ type: 'drag_move', offset: [0, 0, 0.03] });
         if (k % 12 === 1) { p.close(); return; }  // closed in the middle of the drag
         // Released as the page releases a drag: the preview ends and the correction is sent.
-        for (const m of [{ type: 'drag_end' }, { type: 'correct', vertex: v, move: [0, 0, 0.03], radius: 0.4 },
-                         { type: 'colour', field: 'moved (mm)' }, { type: 'undo' }, { type: 'redo' }]) {
-          const r = await p.request(m);
-          check(`cycle ${k}: ${m.type} answered ok`, r.type === 'ok', JSON.stringify(r).slice(0, 300));
-        }
+        await answeredOk([{ type: 'drag_end' }, { type: 'correct', vertex: v, move: [0, 0, 0.03], radius: 0.4 },
+                          { type: 'colour', field: 'moved (mm)' }, { type: 'undo' }, { type: 'redo' }]);
         // The region's rim as the page asks for it on hover (answered by a binary frame,
         // an error only in words): no error by the time a ping is answered.
         const from = p.messages.length;
