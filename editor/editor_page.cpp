@@ -634,9 +634,14 @@ void EditorPage::handle(const std::string& payload, bool binary) {
                     {"boundary", to_string(p.boundary)},
                     {"handle_radius", r.handle_radius}});
       if (s.image_pull().size() > 0) reply["image_pull_max"] = s.image_pull().maxCoeff();
-      if (const auto& h = p.handles.front(); h.point)
+      if (const auto& h = p.handles.front(); h.point) {
+        nlohmann::json reading = nlohmann::json::array();  // where the handle's motion is read: [vertex, weight] pairs
+        if (!r.handle_reading.empty())
+          for (const auto& [v, w] : r.handle_reading.front()) reading.push_back({v, w});
         reply["handle_point"] = {{"triangle", h.point->face},
-                                 {"barycentric", {h.point->bary.x(), h.point->bary.y(), h.point->bary.z()}}};
+                                 {"barycentric", {h.point->bary.x(), h.point->bary.y(), h.point->bary.z()}},
+                                 {"reading", reading}};
+      }
     } else if (type == "colour") {
       s.show_correction_field(j.value("field", std::string("moved (mm)")));
     } else if (type == "undo" || type == "redo") {

@@ -5,6 +5,7 @@
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 
+#include <Eigen/Geometry>
 #include <cmath>
 #include <random>
 
@@ -13,6 +14,7 @@
 #include "meshpde/mesh/generators.h"
 #include "meshpde/mesh/geodesic_distance.h"
 #include "meshpde/mesh/surface_distance.h"
+#include "meshpde/mesh/surface_point_reading.h"
 #include "meshpde/mesh/topology.h"
 #include "meshpde/operators/fem_operators.h"
 #include "test_support.h"
@@ -87,9 +89,11 @@ TEST(CorrectionHandles, APointOfSizeZeroOnAVertexIsTheVertexHandle) {
   }
 }
 
-// The handle point, wherever it is in its triangle, moves by exactly the drag (the
-// barycentric combination of the corners' displacements), with or without a size, and
-// nothing at or beyond the radius (on the surface) moves.
+// The handle point, wherever it is in its triangle, moves by exactly the drag: a point
+// (size 0) as the barycentric combination of its corners' displacements, a handle with a
+// size as the field's quadratic reading there (mesh/surface_point_reading.h), which the
+// corners' interpolation meets to the mesh's own interpolation error. Nothing at or
+// beyond the radius (on the surface) moves.
 TEST(CorrectionHandles, ThePointMovesByTheDragAndNothingBeyondTheRadiusMoves) {
   const Mesh m = plane_patch(0.5, 0.3, 5, 8);
   const Eigen::Vector3d x(0.137, -0.291, 0), D(0.2, 0.1, 1.0);
@@ -101,7 +105,16 @@ TEST(CorrectionHandles, ThePointMovesByTheDragAndNothingBeyondTheRadiusMoves) {
     p.radius = 5;
     p.handle_radius = size;
     const CorrectionResult r = correct_vessel(m, p);
-    EXPECT_LE((displacement_at(m, r, x) - D).norm(), 1e-9);
+    if (size == 0) {
+      EXPECT_LE((displacement_at(m, r, x) - D).norm(), 1e-9);
+    } else {
+      const auto reading = quadratic_reading(m, sp);
+      ASSERT_TRUE(reading);
+      Eigen::Vector3d read = Eigen::Vector3d::Zero();
+      for (const auto& [v, w] : *reading) read += w * r.displacement.row(v).transpose();
+      EXPECT_LE((read - D).norm(), 1e-9);
+      EXPECT_LE((displacement_at(m, r, x) - D).norm(), 0.03 * D.norm());
+    }
     EXPECT_DOUBLE_EQ(r.handle_radius, size < 0 ? kHandleRadiusFraction * 5 : size);
     const Eigen::VectorXd s = geodesic_distance(m, GeodesicSources{.points = {sp}});
     double near_edge = 0;
@@ -309,4 +322,59 @@ TEST(CorrectionHandles, ASessionTakesPointHandles) {
   EXPECT_LE((s.mesh().positions() - r.V).cwiseAbs().maxCoeff(), 0.0);
   s.undo();
   EXPECT_LE((s.mesh().positions() - m.positions()).cwiseAbs().maxCoeff(), 0.0);
+}
+
+// Independent triangulations of a curved wall: icospheres of radius 10 at three levels,
+// each turned by its own rotation (so no vertex or edge is shared), one drag at a point
+// that is no vertex of any, R = 5 coarse edges. The handle's bump is read to second order
+// (a linear reading scaled the whole field by where the point fell in its triangle), so
+// the coarse result at each coarse vertex meets the finer result at the same point to
+// under 1 % of the drag on the finer pair, converging at better than order 1.5.
+TEST(CorrectionHandles, IndependentTriangulationsOfASphereAgreeAtFiveEdges) {
+  const Eigen::Vector3d x = 10 * Eigen::Vector3d(0.3, 0.5, 0.8).normalized();
+  const Eigen::Vector3d D = -1.5 * x.normalized();
+  std::vector<Mesh> meshes;
+  std::vector<CorrectionResult> results;
+  double R = 0;
+  for (const int level : {3, 4, 5}) {
+    GeneratedMesh g = icosphere(level, 10.0);
+    const Eigen::Matrix3d turn =
+        Eigen::AngleAxisd(0.4 + 0.9 * level, Eigen::Vector3d(1, -2, 0.5 * level).normalized()).toRotationMatrix();
+    g.V = (g.V * turn.transpose()).eval();
+    const Mesh m = make(g);
+    if (level == 3) R = 5 * mean_edge_length(m);
+    CorrectionParams p;
+    p.radius = R;
+    p.prevent_intersections = false;
+    p.handles = {CorrectionHandle(m, point_at(m, x), D)};
+    results.push_back(correct_vessel(m, p));
+    meshes.push_back(m);
+  }
+  std::vector<double> worst;
+  for (int level = 0; level < 2; ++level) {
+    std::vector<int> near;
+    std::vector<Eigen::Vector3d> at;
+    for (int v = 0; v < meshes[level].num_vertices(); ++v) {
+      const Eigen::Vector3d y = meshes[level].positions().row(v).transpose();
+      if ((y - x).norm() > 1.2 * R) continue;
+      near.push_back(v);
+      at.push_back(y);
+    }
+    const Mesh& finer = meshes[level + 1];
+    const std::vector<SurfacePoint> on_finer = closest_surface_points(finer, at);
+    double w = 0;
+    for (std::size_t k = 0; k < near.size(); ++k) {
+      Eigen::Vector3d d = Eigen::Vector3d::Zero();
+      for (int c = 0; c < 3; ++c)
+        d += on_finer[k].bary[c] *
+             results[level + 1].displacement.row(finer.triangles()(on_finer[k].face, c)).transpose();
+      w = std::max(w, (results[level].displacement.row(near[k]).transpose() - d).norm());
+    }
+    worst.push_back(w / D.norm());
+  }
+  RecordProperty("sphere", fmt::format("{:.4f} {:.4f}", worst[0], worst[1]));
+  std::printf("sphere, R = 5 coarse edges: largest difference %.3f %% then %.3f %% of the drag\n", 100 * worst[0],
+              100 * worst[1]);
+  EXPECT_LT(worst[1], 0.01);
+  EXPECT_GT(std::log2(worst[0] / worst[1]), 1.5);
 }

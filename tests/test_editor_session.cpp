@@ -18,6 +18,7 @@
 #include "meshpde/mesh/geodesic_distance.h"
 #include "meshpde/mesh/regions.h"
 #include "meshpde/mesh/surface_distance.h"
+#include "meshpde/mesh/surface_point_reading.h"
 #include "meshpde/mesh/topology.h"
 #include "meshpde/operators/fem_operators.h"
 #include "meshpde/pde/steady_direct.h"
@@ -277,13 +278,19 @@ TEST(EditorSession, APointDragPreviewEqualsTheReleasedPointCorrection) {
   const Eigen::Vector3d offset(-1.2, 0.2, 0.4);
   for (double t : {0.3, 1.0}) s.drag_move(t * offset);
   const Positions preview = s.display_positions();
-  // The picked point itself follows the drag exactly.
-  Eigen::Vector3d moved = Eigen::Vector3d::Zero();
+  // The picked point itself follows the drag exactly, as the handle reads it (the
+  // quadratic reading of a handle with a size), and its triangle's corners to the mesh's
+  // interpolation error.
+  const auto reading = quadratic_reading(mesh, sp);
+  ASSERT_TRUE(reading);
+  Eigen::Vector3d moved = Eigen::Vector3d::Zero(), corners = Eigen::Vector3d::Zero();
+  for (const auto& [v, w] : *reading) moved += w * (preview.row(v) - mesh.positions().row(v)).transpose();
   for (int k = 0; k < 3; ++k)
-    moved +=
+    corners +=
         sp.bary[k] *
         (preview.row(mesh.triangles()(sp.face, k)) - mesh.positions().row(mesh.triangles()(sp.face, k))).transpose();
   EXPECT_LE((moved - offset).norm(), 1e-9);
+  EXPECT_LE((corners - offset).norm(), 0.04 * offset.norm());
   CorrectionParams p;
   p.handles = {CorrectionHandle(mesh, sp, offset)};
   p.radius = 9.0;

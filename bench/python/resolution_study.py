@@ -195,8 +195,11 @@ def remeshed_cases(data, remesher, quick):
     inputs = []
     V, F = meshpde.generate.tube(radius=5.0, length=100.0, rings=88, segments=32)
     V, F = np.asarray(V, float), np.asarray(F, np.int64)
-    zmid = float(V[:, 2].mean())
-    inputs.append(("tube r=5", V, F, [(np.array([5.0, 0.0, zmid]), np.array([-3.0, 0.0, 0.0]))], None, "lps"))
+    # The handle at a wall point that is no vertex of any level (a point on a vertex reads
+    # the same whatever the reading; the remesher happens to keep (5, 0, zmid) a vertex).
+    zmid, a = float(V[:, 2].mean()), 0.37
+    radial = np.array([math.cos(a), math.sin(a), 0.0])
+    inputs.append(("tube r=5", V, F, [(5.0 * radial + [0.0, 0.0, zmid + 0.41], -3.0 * radial)], None, "lps"))
     if not quick:
         V, F = meshpde.generate.bifurcation(cell=0.8)
         V, F = np.asarray(V, float), np.asarray(F, np.int64)

@@ -380,16 +380,23 @@ def test_the_resolution_study_runs_and_the_fade_agrees_better(tmp_path):
 
 
 def test_correct_at_surface_points_with_the_smooth_boundary():
-    # A handle at a surface point moves that point (its triangle's corners combined) by
-    # the move; the default boundary is smooth, with a handle of a quarter of the radius;
-    # nothing at or beyond the radius on the surface moves.
+    # A handle at a surface point moves that point by the move; the default boundary is
+    # smooth, with a handle of a quarter of the radius; nothing at or beyond the radius on
+    # the surface moves.
     V, F = meshpde.generate.tube(radius=5.0, length=60.0, rings=50, segments=32)
     x = np.array([[5.0, 0.4, 30.3]])
     r = meshpde.correct(V, F, points=x, moves=[(1.0, 0.0, 0.5)], radius=8.0)
     assert r.boundary == "smooth" and r.to_dict()["handle_radius"] == pytest.approx(2.0)
     h = r.to_dict()["handle_points"][0]
     tri, w = F[h["triangle"]], np.array(h["barycentric"])
-    assert np.allclose(w @ r.displacement[tri], [1.0, 0.0, 0.5], atol=1e-9)
+    # A handle with a size is read by the quadratic around it: exactly the move there, its
+    # triangle's corners to the mesh's interpolation error (reported)
+    assert h["reading"] == "quadratic"
+    assert np.linalg.norm(w @ r.displacement[tri] - [1.0, 0.0, 0.5]) < 0.05 * np.hypot(1.0, 0.5)
+    assert np.allclose(w @ r.displacement[tri], h["corners_displacement"], atol=1e-12)
+    exact = meshpde.correct(V, F, points=x, moves=[(1.0, 0.0, 0.5)], radius=8.0, handle_radius=0.0)
+    assert exact.to_dict()["handle_points"][0]["reading"] == "corners"
+    assert np.allclose(w @ exact.displacement[tri], [1.0, 0.0, 0.5], atol=1e-9)
     s = meshpde.geodesic_distance(V, F, x)
     moved = np.linalg.norm(r.displacement, axis=1)
     assert moved[s >= 8.0].max() == 0.0 and moved[s < 2.0].min() > 0.3

@@ -143,10 +143,15 @@ async function correctDragBy(page, from, dx, dy) {
 async function handlePointMotion(page, before, after) {
   const reply = await page.evaluate(() => meshpde.lastCorrect);
   const T = await page.evaluate(() => Array.from(meshpde.triangles));
-  const hp = (reply && reply.handle_point) || { triangle: 0, barycentric: [NaN, NaN, NaN] };
+  const hp = (reply && reply.handle_point) || { triangle: 0, barycentric: [NaN, NaN, NaN], reading: [] };
   const blend = (P, c) => [0, 1, 2].reduce((sum, k) => sum + hp.barycentric[k] * P[3 * T[3 * hp.triangle + k] + c], 0);
+  // The handle's motion as the correction reads it (its reply's [vertex, weight] pairs: the
+  // quadratic around a handle with a size), and its triangle's corners' motion, which
+  // follows to the mesh's interpolation error.
+  const read = (P, c) => (hp.reading || []).reduce((sum, [v, w]) => sum + w * P[3 * v + c], 0);
   const at = [0, 1, 2].map((c) => blend(before, c));
-  return { reply, at, moved: [0, 1, 2].map((c) => blend(after, c) - at[c]) };
+  const moved = [0, 1, 2].map((c) => read(after, c) - read(before, c));
+  return { reply, at, moved, corners: [0, 1, 2].map((c) => blend(after, c) - at[c]) };
 }
 
 // The largest distance a vertex moved between two position arrays (x, y, z a vertex).
@@ -402,12 +407,14 @@ async function bifurcationChecks() {
     await page.waitForFunction((n) => meshpde.oks > n && meshpde.lastOk === 'correct', oks, { timeout: 60000 }).catch(() => {});
     await page.waitForTimeout(300);
     const corrected = await positions(page);
-    const { reply, at, moved } = await handlePointMotion(page, rest, corrected);
+    const { reply, at, moved, corners } = await handlePointMotion(page, rest, corrected);
     const offset = await page.evaluate(() => meshpde.lastDrag.offset);
     check(`${label}the wheel pulls the picked point 1.5 mm out along the wall's normal, drawn without redrawing the rest`,
           Math.abs(Math.hypot(...offset) - 1.5) < 1e-6 && Math.hypot(...moved.map((m, c) => m - offset[c])) < 2e-3 &&
           during.active && during.movingTriangles > 0,
           JSON.stringify({ offset, moved, during }));
+    check(`${label}the picked point's triangle follows it to the mesh's interpolation error`,
+          Math.hypot(...corners.map((m, c) => m - offset[c])) < 0.05 * 1.5, JSON.stringify({ offset, corners }));
     const T = await page.evaluate(() => Array.from(meshpde.triangles));
     let far = 0;
     for (let i = 0; i < rest.length / 3; ++i) {

@@ -34,10 +34,10 @@ CorrectionResult correct_vessel_impl(const Mesh& mesh, const CorrectionParams& p
   const FemProblem problem = fem_problem(mesh, p);
   r.region = problem.region;
   r.handle_radius = handle_size(p);
+  r.handle_reading = problem.reading;
   std::set<int> handle_vertices;  // the held handles, and the corners a point is read from
   for (const auto& h : problem.held) handle_vertices.insert(h.vertex);
-  for (const auto& h : problem.loaded)
-    for (const auto& [v, w] : h.point) handle_vertices.insert(v);
+  for (const auto& h : problem.loaded) handle_vertices.insert(h.corners.begin(), h.corners.end());
   if (r.region.size() <= handle_vertices.size()) {
     double sum = 0;  // mean length of the edges at the handles
     int count = 0;

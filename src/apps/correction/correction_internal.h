@@ -43,6 +43,11 @@ inline constexpr double kFadeStart = 0.6, kFadeStrength = 1e3, kFadeReach = 2.0;
 // kSmoothMaxX (the last 2 % of the band) to keep the matrix's scale finite.
 inline constexpr double kSmoothStrength = 1e3, kSmoothMaxX = 0.98;
 
+// A point handle whose size is at least this fraction of its triangle's mean edge is read
+// to second order (LoadedHandle); below it the load is about a point load, and a point
+// load's field has a cusp at the handle that a quadratic fit would read wrongly.
+inline constexpr double kSmoothReadingSize = 0.5;
+
 // ---- Resolving a request (params.cpp) --------------------------------------------
 
 bool fades(const CorrectionParams& p);   ///< the fem method with the fade and a radius
@@ -73,10 +78,14 @@ Eigen::VectorXd operator_weights(const CorrectionParams& p, int nv);
 // ---- The problem (problem.cpp) ---------------------------------------------------
 
 /// A handle that a load pulls to its displacement: the load's weight at each vertex (the
-/// force's profile, summing to 1) and the handle point's weight at each vertex (where its
-/// displacement is read: the barycentric coordinates, or 1 at a vertex).
+/// force's profile, summing to 1), the handle point's weight at each vertex (where its
+/// displacement is read: 1 at a vertex; for a point, the quadratic reading of
+/// mesh/surface_point_reading.h when the handle has a size of at least half its
+/// triangle's edge, else the barycentric coordinates) and the vertices the handle lies on
+/// (its triangle's corners, or its vertex).
 struct LoadedHandle {
   std::vector<std::pair<int, double>> load, point;
+  std::vector<int> corners;
   Eigen::Vector3d displacement = Eigen::Vector3d::Zero();
 };
 
@@ -87,6 +96,9 @@ struct FemProblem {
   std::vector<int> sources;            ///< one vertex per handle (Fade's distances start there)
   std::vector<CorrectionHandle> held;  ///< vertex handles of size 0, held at their displacement
   std::vector<LoadedHandle> loaded;    ///< the others
+  /// Per handle of the request, in its order: where its displacement is read
+  /// (CorrectionResult::handle_reading).
+  std::vector<std::vector<std::pair<int, double>>> reading;
 };
 
 /// The region of influence and the handles' terms of a normalized, valid request.

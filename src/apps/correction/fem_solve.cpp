@@ -51,11 +51,11 @@ Eigen::VectorXd foundations(const Mesh& mesh, const CorrectionParams& p, const F
         kSmoothStrength * (p.dynamic ? p.tissue.elasticity : 1.0) * (p.g2 / std::pow(R, 4) + p.g1 / (R * R));
     if (!std::isfinite(kappa0 * 1e8))
       throw InputError(fmt::format("a region radius of {:g} mm is too small for the smooth boundary", R));
-    // The triangles a handle point is read from carry no foundation: with a radius below
+    // The triangles a handle point lies on carry no foundation: with a radius below
     // an edge they are the whole region, and they must move.
     std::vector<char> own(static_cast<std::size_t>(nv), 0);
     for (const auto& h : problem.loaded)
-      for (const auto& [v, w] : h.point) own[static_cast<std::size_t>(v)] = 1;
+      for (const int v : h.corners) own[static_cast<std::size_t>(v)] = 1;
     for (std::size_t k = 0; k < problem.region.size(); ++k) {
       const int v = problem.region[k];
       if (own[static_cast<std::size_t>(v)]) continue;
@@ -267,8 +267,11 @@ FemProblem localized(const RegionCopy& c, const FemProblem& problem) {
       if (const auto it = c.from_mesh.find(v); it != c.from_mesh.end()) out.emplace_back(it->second, w);
     return out;
   };
-  for (const LoadedHandle& h : problem.loaded)
-    local.loaded.push_back({in_copy(h.load), in_copy(h.point), h.displacement});
+  for (const LoadedHandle& h : problem.loaded) {
+    LoadedHandle l{in_copy(h.load), in_copy(h.point), {}, h.displacement};
+    for (const int v : h.corners) l.corners.push_back(c.local(v));
+    local.loaded.push_back(std::move(l));
+  }
   return local;
 }
 

@@ -10,6 +10,7 @@
 #include "correction_internal.h"
 #include "meshpde/core/errors.h"
 #include "meshpde/mesh/geodesic_distance.h"
+#include "meshpde/mesh/surface_point_reading.h"
 
 namespace meshpde::correction {
 
@@ -29,11 +30,15 @@ LoadedHandle loaded_handle(const Mesh& mesh, const VertexFaces& around, const Co
   std::vector<int> start;
   Eigen::Vector3d x;
   if (h.point) {
-    for (int k = 0; k < 3; ++k) out.point.emplace_back(F(h.point->face, k), h.point->bary[k]);
+    for (int k = 0; k < 3; ++k) {
+      out.point.emplace_back(F(h.point->face, k), h.point->bary[k]);
+      out.corners.push_back(F(h.point->face, k));
+    }
     start.push_back(h.point->face);
     x = position(mesh, *h.point);
   } else {
     out.point.emplace_back(h.vertex, 1.0);
+    out.corners.push_back(h.vertex);
     for (int q = around.offsets[static_cast<std::size_t>(h.vertex)];
          q < around.offsets[static_cast<std::size_t>(h.vertex) + 1]; ++q)
       start.push_back(around.faces[static_cast<std::size_t>(q)]);
@@ -83,6 +88,18 @@ LoadedHandle loaded_handle(const Mesh& mesh, const VertexFaces& around, const Co
   }
   for (const auto& [v, w] : load) out.load.emplace_back(v, w / total);
   std::sort(out.load.begin(), out.load.end());
+  // A bump that the mesh resolves is read to second order: its linear interpolation
+  // would read the peak low by an amount that depends on where in its triangle the point
+  // falls, and the whole field would scale up by that much, differently on every
+  // triangulation. A load far smaller than the edges keeps the point load's reading
+  // (its field has a cusp, which no quadratic reads).
+  if (h.point) {
+    const Eigen::Vector3d a = V.row(F(h.point->face, 0)).transpose(), b = V.row(F(h.point->face, 1)).transpose(),
+                          c = V.row(F(h.point->face, 2)).transpose();
+    const double edge = ((b - a).norm() + (c - b).norm() + (a - c).norm()) / 3;
+    if (size >= kSmoothReadingSize * edge)
+      if (auto reading = quadratic_reading(mesh, *h.point)) out.point = std::move(*reading);
+  }
   return out;
 }
 
@@ -107,6 +124,7 @@ FemProblem fem_problem(const Mesh& mesh, const CorrectionParams& p) {
     if (smooth(p)) out.distance.push_back(dist);
   };
   for (const auto& h : p.handles) {
+    out.reading.push_back({{h.vertex, 1.0}});
     out.sources.push_back(h.vertex);
     if (held_handle(h, size)) {
       out.held.push_back(h);
@@ -152,7 +170,8 @@ FemProblem fem_problem(const Mesh& mesh, const CorrectionParams& p) {
   for (std::size_t k = 0; k < out.region.size() && !anchored; ++k)
     for (const int w : mesh.neighbors(out.region[k]))
       if (!in[static_cast<std::size_t>(w)]) anchored = true;
-  for (const auto& h : p.handles) {
+  for (std::size_t k = 0; k < p.handles.size(); ++k) {
+    const CorrectionHandle& h = p.handles[k];
     if (held_handle(h, size)) continue;
     if (!anchored) {
       out.held.emplace_back(h.vertex, h.displacement);
@@ -160,6 +179,7 @@ FemProblem fem_problem(const Mesh& mesh, const CorrectionParams& p) {
       continue;
     }
     out.loaded.push_back(loaded_handle(mesh, mesh.vertex_faces(), h, size));
+    out.reading[k] = out.loaded.back().point;
   }
   return out;
 }

@@ -35,14 +35,23 @@ std::string correction_report_json(const Positions& V, const Triangles& F, const
             {"solver", to_string(r.solver)},
             {"units", to_string(p.units)}};
   json handle_points = json::array();
-  for (const CorrectionHandle& h : p.handles) {
+  for (std::size_t i = 0; i < p.handles.size(); ++i) {
+    const CorrectionHandle& h = p.handles[i];
     json hj = {{"vertex", h.vertex}, {"displacement", vec(h.displacement)}};
+    // A quadratic reading uses 12 vertices at least; the corners 3, a vertex 1.
+    const bool quadratic = i < r.handle_reading.size() && r.handle_reading[i].size() > 3;
+    hj["reading"] = quadratic ? "quadratic" : h.point ? "corners" : "vertex";
     if (h.point) {
       hj["triangle"] = h.point->face;
       hj["barycentric"] = vec(h.point->bary);
-      Eigen::Vector3d x = Eigen::Vector3d::Zero();
-      for (int k = 0; k < 3; ++k) x += h.point->bary[k] * V.row(F(h.point->face, k)).transpose();
+      Eigen::Vector3d x = Eigen::Vector3d::Zero(), moved = Eigen::Vector3d::Zero();
+      for (int k = 0; k < 3; ++k) {
+        x += h.point->bary[k] * V.row(F(h.point->face, k)).transpose();
+        if (r.displacement.rows() == V.rows())
+          moved += h.point->bary[k] * r.displacement.row(F(h.point->face, k)).transpose();
+      }
       hj["position"] = vec(x);
+      hj["corners_displacement"] = vec(moved);
     }
     handle_points.push_back(hj);
   }
