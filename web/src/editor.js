@@ -368,6 +368,8 @@ function applyField(buf) {
 
 // ---------------------------------------------------------------- connection
 // The status line after an action that has no figures of its own to report.
+const ENDS_CORRECTION_PANEL = new Set(['undo', 'redo', 'paint', 'paint_vector', 'clear_paint', 'brush', 'source',
+  'clear_sources', 'play', 'poke_begin', 'generate']);
 const DONE = {
   undo: 'undone: the surface is as it was before the last correction',
   redo: 'redone: the correction is applied again',
@@ -411,6 +413,7 @@ ws.onmessage = (ev) => {
     pendingPage = m.page || null;
     state.historyStep = m.history_step;
     $('mesh-name').textContent = `${m.name}: ${m.vertices.toLocaleString()} vertices`;
+    $('last-correction').hidden = true;  // a mesh opened: no correction yet
     $('save').title = m.segmentation
       ? `Download the edited surface, and write ${m.segmentation.output} beside ${m.segmentation.input}`
       : 'Download the edited mesh in its own format';
@@ -443,6 +446,9 @@ ws.onmessage = (ev) => {
     state.lastOk = m.request; state.oks += 1;
     // One message per action, replaced by the next: what this one did.
     if (m.request in DONE) status(DONE[m.request]);
+    // The panel of figures describes the correction just made: another edit (undo and
+    // redo included) ends it, so that it never shows one action's figures after another.
+    if (ENDS_CORRECTION_PANEL.has(m.request)) $('last-correction').hidden = true;
     if (m.request === 'drag_begin' && drag)  // (a click's, already released: nothing to say)
       status(`dragging: region of ${m.region_vertices} vertices ready in ${m.setup_ms.toFixed(1)} ms`);
     if (m.request === 'correct') {

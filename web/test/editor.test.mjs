@@ -1354,6 +1354,7 @@ try {
   await page.click('#undo');
   await page.waitForTimeout(500);
   check('undo restores the positions', maxDiff(await positions(page), rest) < 1e-5);
+  check('undo ends the last correction\'s figures: the panel is no longer drawn', await page.isHidden('#last-correction'));
   await page.click('#redo');
   await page.waitForTimeout(500);
   check('redo brings the correction back', maxDiff(await positions(page), corrected) < 1e-5);
