@@ -381,6 +381,10 @@ void add_solve_commands(CLI::App& app) {
       const MeshReport rep = analyze(mesh);
       const DragReport r = run_drag(mesh, DragParams{.vertex = handle, .displacement = move, .radius = a->radius},
                                     parse_laplacian_kind(a->laplacian));
+      // A drag that stopped short is reported, not written as if it were the answer.
+      if (!r.result.cg.converged())
+        throw SolverError(fmt::format("the demo's drag did not converge ({}); {} not written", r.result.cg.message,
+                                      out_path.string()));
       save_mesh(out_path, r.result.V, mesh.triangles(), displacement_fields(r.result));
       if (a->json) {
         auto j = drag_json(r);
@@ -397,7 +401,6 @@ void add_solve_commands(CLI::App& app) {
                    move.y(), move.z(), a->radius);
         print_drag(r, out_path.string());
       }
-      if (!r.result.cg.converged()) throw SolverError(r.result.cg.message);
     });
   }
 }

@@ -29,7 +29,7 @@ std::vector<int> ball_on_sheet(const Mesh& mesh, const std::vector<int>& start, 
     for (const int w : mesh.neighbors(v)) visit(w);
   }
   for (const int v : out) seen[static_cast<std::size_t>(v)] = 0;
-  // The corners are kept whatever rho is; the rest only inside the ball.
+  // Visited includes the ring just outside the ball: only what is inside stays.
   std::erase_if(out, [&](int v) { return (V.row(v).transpose() - x).norm() >= rho; });
   return out;
 }

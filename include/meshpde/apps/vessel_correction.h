@@ -352,9 +352,9 @@ struct CorrectionCaps {
 /// handle_points (each handle's vertex and displacement, reading ("vertex", "corners" or
 /// "quadratic": CorrectionResult::handle_reading), and for a point its triangle,
 /// barycentric coordinates, position and corners_displacement, the barycentric
-/// combination of its corners' displacements: the drawn mesh's motion there), solver, units, caps {rule, label_array,
-/// held_vertices, caps}, and image {pulled_vertices, mean_edge_before,
-/// mean_edge_after, space} when guided). Python's CorrectionResult.to_dict() is the
+/// combination of its corners' displacements: the drawn mesh's motion there), solver,
+/// units, caps {rule, label_array, held_vertices, caps}, and image {pulled_vertices,
+/// mean_edge_before, mean_edge_after, space} when guided). Python's CorrectionResult.to_dict() is the
 /// same object. V and F: the surface the handles were given on (before the correction).
 std::string correction_report_json(const Positions& V, const Triangles& F, const CorrectionParams& params,
                                    const CorrectionResult& result, const CorrectionCaps& caps = {});

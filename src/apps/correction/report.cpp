@@ -38,9 +38,11 @@ std::string correction_report_json(const Positions& V, const Triangles& F, const
   for (std::size_t i = 0; i < p.handles.size(); ++i) {
     const CorrectionHandle& h = p.handles[i];
     json hj = {{"vertex", h.vertex}, {"displacement", vec(h.displacement)}};
-    // A quadratic reading uses 12 vertices at least; the corners 3, a vertex 1.
-    const bool quadratic = i < r.handle_reading.size() && r.handle_reading[i].size() > 3;
-    hj["reading"] = quadratic ? "quadratic" : h.point ? "corners" : "vertex";
+    // A quadratic reading uses 12 vertices at least, the corners 3, a vertex 1 (a point
+    // handle held at its nearest corner, as the springs method and an unanchored region
+    // do, is read there).
+    const std::size_t used = i < r.handle_reading.size() ? r.handle_reading[i].size() : 1;
+    hj["reading"] = used > 3 ? "quadratic" : used == 3 ? "corners" : "vertex";
     if (h.point) {
       hj["triangle"] = h.point->face;
       hj["barycentric"] = vec(h.point->bary);
