@@ -66,6 +66,33 @@ SurfacePoint on_vertex(const Mesh& m, int v) {
   return {};
 }
 
+// The largest difference between the result on meshes[level] at each of its vertices
+// within 1.2 R of x and the result on meshes[level + 1] at the same point (the closest
+// point there, its corners interpolated).
+double largest_difference(const std::vector<Mesh>& meshes, const std::vector<CorrectionResult>& results, int level,
+                          const Eigen::Vector3d& x, double R) {
+  const Mesh& coarse = meshes[static_cast<std::size_t>(level)];
+  const Mesh& finer = meshes[static_cast<std::size_t>(level) + 1];
+  std::vector<int> near;
+  std::vector<Eigen::Vector3d> at;
+  for (int v = 0; v < coarse.num_vertices(); ++v) {
+    const Eigen::Vector3d y = coarse.positions().row(v).transpose();
+    if ((y - x).norm() > 1.2 * R) continue;
+    near.push_back(v);
+    at.push_back(y);
+  }
+  const std::vector<SurfacePoint> on_finer = closest_surface_points(finer, at);
+  const Field& fine = results[static_cast<std::size_t>(level) + 1].displacement;
+  double worst = 0;
+  for (std::size_t k = 0; k < near.size(); ++k) {
+    Eigen::Vector3d d = Eigen::Vector3d::Zero();
+    for (int c = 0; c < 3; ++c) d += on_finer[k].bary[c] * fine.row(finer.triangles()(on_finer[k].face, c)).transpose();
+    worst =
+        std::max(worst, (results[static_cast<std::size_t>(level)].displacement.row(near[k]).transpose() - d).norm());
+  }
+  return worst;
+}
+
 }  // namespace
 
 // A point handle of size 0 at a vertex is the vertex handle: the point constraint's
@@ -223,28 +250,8 @@ TEST(CorrectionHandles, IndependentTriangulationsAgreeWithTheSmoothBoundary) {
       results.push_back(correct_vessel(m, p));
       meshes.push_back(m);
     }
-    std::vector<double> worst;
-    for (int level = 0; level < 2; ++level) {
-      std::vector<int> near;
-      std::vector<Eigen::Vector3d> at;
-      for (int v = 0; v < meshes[level].num_vertices(); ++v) {
-        const Eigen::Vector3d y = meshes[level].positions().row(v).transpose();
-        if ((y - x).norm() > 1.2 * R) continue;
-        near.push_back(v);
-        at.push_back(y);
-      }
-      const Mesh& finer = meshes[level + 1];
-      const std::vector<SurfacePoint> on_finer = closest_surface_points(finer, at);
-      double w = 0;
-      for (std::size_t k = 0; k < near.size(); ++k) {
-        Eigen::Vector3d d = Eigen::Vector3d::Zero();
-        for (int c = 0; c < 3; ++c)
-          d += on_finer[k].bary[c] *
-               results[level + 1].displacement.row(finer.triangles()(on_finer[k].face, c)).transpose();
-        w = std::max(w, (results[level].displacement.row(near[k]).transpose() - d).norm());
-      }
-      worst.push_back(w / D.norm());
-    }
+    const std::vector<double> worst = {largest_difference(meshes, results, 0, x, R) / D.norm(),
+                                       largest_difference(meshes, results, 1, x, R) / D.norm()};
     RecordProperty(smooth ? "smooth" : "clamp", fmt::format("{:.4f} {:.4f}", worst[0], worst[1]));
     std::printf("%s: largest difference %.3f %% then %.3f %% of the drag\n", smooth ? "smooth" : "clamp",
                 100 * worst[0], 100 * worst[1]);
@@ -350,28 +357,8 @@ TEST(CorrectionHandles, IndependentTriangulationsOfASphereAgreeAtFiveEdges) {
     results.push_back(correct_vessel(m, p));
     meshes.push_back(m);
   }
-  std::vector<double> worst;
-  for (int level = 0; level < 2; ++level) {
-    std::vector<int> near;
-    std::vector<Eigen::Vector3d> at;
-    for (int v = 0; v < meshes[level].num_vertices(); ++v) {
-      const Eigen::Vector3d y = meshes[level].positions().row(v).transpose();
-      if ((y - x).norm() > 1.2 * R) continue;
-      near.push_back(v);
-      at.push_back(y);
-    }
-    const Mesh& finer = meshes[level + 1];
-    const std::vector<SurfacePoint> on_finer = closest_surface_points(finer, at);
-    double w = 0;
-    for (std::size_t k = 0; k < near.size(); ++k) {
-      Eigen::Vector3d d = Eigen::Vector3d::Zero();
-      for (int c = 0; c < 3; ++c)
-        d += on_finer[k].bary[c] *
-             results[level + 1].displacement.row(finer.triangles()(on_finer[k].face, c)).transpose();
-      w = std::max(w, (results[level].displacement.row(near[k]).transpose() - d).norm());
-    }
-    worst.push_back(w / D.norm());
-  }
+  const std::vector<double> worst = {largest_difference(meshes, results, 0, x, R) / D.norm(),
+                                     largest_difference(meshes, results, 1, x, R) / D.norm()};
   RecordProperty("sphere", fmt::format("{:.4f} {:.4f}", worst[0], worst[1]));
   std::printf("sphere, R = 5 coarse edges: largest difference %.3f %% then %.3f %% of the drag\n", 100 * worst[0],
               100 * worst[1]);
