@@ -213,29 +213,37 @@ d = json.load(open('$T/upt.json'))
 h = d['handle_points'][0]
 sys.exit(not (d['boundary'] == 'smooth' and abs(d['handle_radius'] - 2.0) < 1e-12 and 'triangle' in h
               and abs(sum(h['barycentric']) - 1) < 1e-9 and min(h['barycentric']) >= 0))"
+# motion(IN, OUT, JSON, beyond): the first handle of JSON's report, the motion of its
+# triangle's corners from IN to OUT (OBJ files) at its barycentric coordinates, and the
+# largest move of a vertex farther than `beyond` from it.
+cat >"$T/handle_motion.py" <<'PY'
+import json, math
+def motion(before, after, report, beyond):
+    v = lambda f: [list(map(float, l.split()[1:4])) for l in open(f) if l.startswith('v ')]
+    t = lambda f: [[int(x.split('/')[0]) - 1 for x in l.split()[1:4]] for l in open(f) if l.startswith('f ')]
+    a, b, F = v(before), v(after), t(before)
+    h = json.load(open(report))['handle_points'][0]
+    tri, w = F[h['triangle']], h['barycentric']
+    moved = [sum(w[k] * (b[tri[k]][c] - a[tri[k]][c]) for k in range(3)) for c in range(3)]
+    far = max([math.dist(p, q) for p, q in zip(a, b) if math.dist(p, h['position']) > beyond], default=0.0)
+    return h, moved, far
+PY
 check "the handle point moved by the move (its corners to 5 %, as reported), nothing beyond the radius moved" python3 -c "
-import json, math, sys
-v = lambda f: [list(map(float, l.split()[1:4])) for l in open(f) if l.startswith('v ')]
-t = lambda f: [[int(x.split('/')[0]) - 1 for x in l.split()[1:4]] for l in open(f) if l.startswith('f ')]
-a, b, F = v('$T/tmm.obj'), v('$T/upt.obj'), t('$T/tmm.obj')
-h = json.load(open('$T/upt.json'))['handle_points'][0]
-tri, w = F[h['triangle']], h['barycentric']
-moved = [sum(w[k] * (b[tri[k]][c] - a[tri[k]][c]) for k in range(3)) for c in range(3)]
-far = max(math.dist(p, q) for p, q in zip(a, b) if math.dist(p, h['position']) > 8.01)
+import math, sys
+sys.path.insert(0, '$T')
+from handle_motion import motion
+h, moved, far = motion('$T/tmm.obj', '$T/upt.obj', '$T/upt.json', 8.01)
 sys.exit(not (h['reading'] == 'quadratic' and math.dist(moved, [1, 0, 0.5]) < 0.05 * math.hypot(1, 0.5)
               and math.dist(moved, h['corners_displacement']) < 1e-5 and far == 0))"
 # with --handle-radius 0 the point is read from its corners: they move by exactly the move
 "$M" correct "$T/tmm.obj" --point 5,0.3,30.2 --move 1,0,0.5 --radius 8 --handle-radius 0 -o "$T/upt0.obj" --json \
   >"$T/upt0.json" 2>"$T/err" || bad "correct --point --handle-radius 0"
 check "a point handle of size 0: its corners move by exactly the move" python3 -c "
-import json, sys
-v = lambda f: [list(map(float, l.split()[1:4])) for l in open(f) if l.startswith('v ')]
-t = lambda f: [[int(x.split('/')[0]) - 1 for x in l.split()[1:4]] for l in open(f) if l.startswith('f ')]
-a, b, F = v('$T/tmm.obj'), v('$T/upt0.obj'), t('$T/tmm.obj')
-h = json.load(open('$T/upt0.json'))['handle_points'][0]
-tri, w = F[h['triangle']], h['barycentric']
-moved = [sum(w[k] * (b[tri[k]][c] - a[tri[k]][c]) for k in range(3)) for c in range(3)]
-sys.exit(not (h['reading'] == 'corners' and max(abs(x - y) for x, y in zip(moved, [1, 0, 0.5])) < 1e-9))"
+import sys
+sys.path.insert(0, '$T')
+from handle_motion import motion
+h, moved, far = motion('$T/tmm.obj', '$T/upt0.obj', '$T/upt0.json', 8.01)
+sys.exit(not (h['reading'] == 'corners' and max(abs(x - y) for x, y in zip(moved, [1, 0, 0.5])) < 1e-9 and far == 0))"
 "$M" correct "$T/tmm.obj" --point 5,0,30 --vertex 600 --move 1,0,0 --radius 8 -o "$T/x.obj" 2>"$T/err" >/dev/null
 check "a --vertex and a --point need two moves" grep -q "1 --vertex and 1 --point but 1 --move" "$T/err"
 "$M" correct "$T/tmm.obj" --point 5,zero,30 --move 1,0,0 --radius 8 -o "$T/x.obj" 2>"$T/err" >/dev/null
