@@ -38,6 +38,7 @@ from ._meshpde import (  # noqa: F401  (re-exported)
     SolverError,
     check_units,
     closest_surface_points,
+    quadratic_reading,
     curvature,
     generate,
     geodesic_ball,
@@ -121,7 +122,7 @@ if has_medical:
 __all__ = [
     "CorrectionResult", "CorrectionSession", "DragSession", "Error", "GlobalBilaplacianSolver", "HapticSession",
     "InputError", "InterpolationSolver", "MeshFields", "OutOfRangeError", "PdeSession", "SolverError", "check_units", "closest_surface_points", "correct", "curvature", "extract_surface", "fair",
-    "from_vtk", "generate", "geodesic_ball", "geodesic_distance", "heat", "info", "interpolate", "intrinsic_delaunay", "mass", "read_mesh",
+    "from_vtk", "generate", "geodesic_ball", "geodesic_distance", "heat", "info", "interpolate", "intrinsic_delaunay", "mass", "quadratic_reading", "read_mesh",
     "read_segmentation", "read_volume", "voxelize", "write_segmentation",
     "hausdorff_distance", "render", "ring_ball", "self_intersections", "stiffness", "to_vtk", "vertex_normals", "wave", "wave_energy",
     "write_mesh",

@@ -59,6 +59,8 @@ def geodesic_ball(V: ArrayLike, F: ArrayLike, vertex: int, radius: float) -> np.
     """Vertices within edge-path distance `radius` of `vertex`, nearest first."""
 def closest_surface_points(V: ArrayLike, F: ArrayLike, points: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     """(faces (k,), barycentric (k, 3)) of the surface point nearest to each point."""
+def quadratic_reading(V: ArrayLike, F: ArrayLike, points: ArrayLike) -> scipy.sparse.csr_matrix:
+    """scipy.sparse.csr_matrix (k, n): W @ field reads a vertex field at the nearest surface points to second order."""
 def geodesic_distance(V: ArrayLike, F: ArrayLike, sources: ArrayLike, radius: float = ...) -> np.ndarray:
     """(n,) distance along the surface from the nearest source (vertex indices or (k, 3) points); inf beyond radius."""
 def ring_ball(V: ArrayLike, F: ArrayLike, vertex: int, rings: int) -> np.ndarray:

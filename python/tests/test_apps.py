@@ -423,6 +423,31 @@ def test_geodesic_distance_is_the_unrolled_straight_line_on_a_cylinder():
         meshpde.geodesic_distance(V, F, [len(V)])
 
 
+def test_quadratic_reading_reads_a_smooth_field_far_closer_than_the_corners():
+    # z on a sphere of radius 10, read at scattered points: W @ z against the value on the
+    # sphere straight out from each point, and against the corners' interpolation.
+    V, F = meshpde.generate.icosphere(4)
+    V = 10 * np.asarray(V)
+    rng = np.random.default_rng(3)
+    P = rng.normal(size=(20, 3))
+    P = 10 * P / np.linalg.norm(P, axis=1)[:, None]
+    W = meshpde.quadratic_reading(V, F, P)
+    assert W.shape == (20, len(V)) and np.allclose(W.sum(axis=1), 1.0)
+    faces, bary = meshpde.closest_surface_points(V, F, P)
+    x = (bary[:, :, None] * V[F[faces]]).sum(1)
+    exact = 10 * x[:, 2] / np.linalg.norm(x, axis=1)
+    quadratic = np.abs(W @ V[:, 2] - exact).max()
+    linear = np.abs(x[:, 2] - exact).max()
+    assert quadratic < 0.05 * linear
+    # a correction's handle with a size reads its displacement with these weights
+    T, TF = meshpde.generate.tube(radius=5.0, length=60.0, rings=50, segments=32)
+    r = meshpde.correct(T, TF, points=[[5.0, 0.4, 30.3]], moves=[(1.0, 0.0, 0.5)], radius=8.0)
+    assert np.allclose(meshpde.quadratic_reading(T, TF, [[5.0, 0.4, 30.3]]) @ r.displacement, [[1.0, 0.0, 0.5]],
+                       atol=1e-9)
+    with pytest.raises(ValueError):
+        meshpde.quadratic_reading(V, F, [[np.nan, 0.0, 0.0]])
+
+
 def test_tissue_brushes_as_the_command_line_takes_them():
     # brushes=["[PROPERTY:]V:RADIUS:VALUE", ...]: the library parses them for both front ends.
     V, F = meshpde.generate.tube(radius=5.0, length=60.0, rings=50, segments=32)
