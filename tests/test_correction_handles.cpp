@@ -365,3 +365,22 @@ TEST(CorrectionHandles, IndependentTriangulationsOfASphereAgreeAtFiveEdges) {
   EXPECT_LT(worst[1], 0.01);
   EXPECT_GT(std::log2(worst[0] / worst[1]), 1.5);
 }
+
+// A vessel only a few edges round (a coarse coronary: 4 mm across, 1.5 mm edges) turns
+// too much around the handle for a quadratic over its triangle's plane: the handle is
+// read at its corners, which move by exactly the drag, and nothing moves much farther
+// than the drag (a bad fit scaled such a field by up to 3 times the drag).
+TEST(CorrectionHandles, AVesselAFewEdgesRoundIsReadAtTheCorners) {
+  const Mesh m = make(tube(2.0, 40.0, 26, 8));
+  const Eigen::Vector3d x(1.9, 0.3, 20.2), D(-0.8, 0, 0);
+  const SurfacePoint sp = point_at(m, x);
+  CorrectionParams p;
+  p.handles = {CorrectionHandle(m, sp, D)};
+  p.radius = 10;
+  p.prevent_intersections = false;
+  const CorrectionResult r = correct_vessel(m, p);
+  ASSERT_EQ(r.handle_reading.size(), 1u);
+  EXPECT_EQ(r.handle_reading[0].size(), 3u);
+  EXPECT_LE((displacement_at(m, r, x) - D).norm(), 1e-9);
+  EXPECT_LE(r.max_displacement, 1.5 * D.norm());
+}

@@ -115,3 +115,16 @@ TEST(SurfacePointReading, GivesNothingWhereNoFitIsPossible) {
   EXPECT_FALSE(quadratic_reading(m, SurfacePoint{0, Eigen::Vector3d(0.3, 0.3, 0.4)}));
   EXPECT_FALSE(quadratic_reading(m, SurfacePoint{5, Eigen::Vector3d(0.3, 0.3, 0.4)}));
 }
+
+// A tube only six edges round turns by 60 degrees from one edge to the next: no quadratic
+// over the triangle's plane fits it, so there is no reading (the caller reads the
+// corners); the same tube 48 edges round is read.
+TEST(SurfacePointReading, GivesNothingWhereTheSurfaceTurnsWithinTheBall) {
+  const Mesh thin = make(tube(1.0, 10.0, 10, 6));
+  const Mesh round = make(tube(1.0, 10.0, 80, 48));
+  const Eigen::Vector3d x(0.97, 0.2, 5.03);
+  for (const Mesh* m : {&thin, &round}) {
+    const SurfacePoint p = closest_surface_points(*m, std::span<const Eigen::Vector3d>(&x, 1))[0];
+    EXPECT_EQ(quadratic_reading(*m, p).has_value(), m == &round);
+  }
+}

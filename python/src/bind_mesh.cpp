@@ -518,9 +518,10 @@ Weights that read a vertex field at the surface point nearest to each of the (k,
 points to second order: ``W @ field`` is, per point, the value of the weighted
 least-squares quadratic fitted to the field at the vertices around it, in the plane of
 its triangle (mesh/surface_point_reading.h; exact on quadratics, 50 to 200 times closer
-than the corners' linear interpolation on a sphere). Where no fit exists (too few
-vertices within 4 edges) a row holds the corners' barycentric weights. A correction
-reads a handle with a size this way.)doc",
+than the corners' linear interpolation on a sphere). Where no sound fit exists (too
+few vertices within 4 edges, a surface that turns more than about 27 degrees around the
+point, a fit that would amplify noise) a row holds the corners' barycentric weights. A
+correction reads a handle with a size this way.)doc",
       py::arg("V"), py::arg("F"), py::arg("points"));
 
   m.def(

@@ -10,6 +10,14 @@ namespace {
 
 constexpr double kStartRadius = 1.5, kGrowth = 1.1, kLargestRadius = 4.0;
 constexpr std::size_t kFewestVertices = 12;
+// The fit is a function over the triangle's plane: no vertex may stand farther off that
+// plane than kSteepest times its distance from the point (about 27 degrees), or the
+// surface turns too much within the ball (a vessel a few edges round) for one.
+constexpr double kSteepest = 0.5;
+// sum |w| of a sound fit is 1.3-1.6 (1 for the corners'); a far larger one amplifies
+// the field's noise (a one-sided fit at an open end extrapolating, near-coincident
+// vertices), so the corners read there instead.
+constexpr double kLargestWeightSum = 3.0;
 
 // The vertices within rho of x reached from `start` along edges inside that ball.
 std::vector<int> ball_on_sheet(const Mesh& mesh, const std::vector<int>& start, const Eigen::Vector3d& x, double rho,
@@ -60,8 +68,10 @@ std::optional<std::vector<std::pair<int, double>>> quadratic_reading(const Mesh&
     const auto m = static_cast<Eigen::Index>(near.size());
     Eigen::MatrixXd A(m, 6);
     Eigen::VectorXd w(m);
+    const Eigen::Vector3d normal = n.normalized();
     for (Eigen::Index i = 0; i < m; ++i) {
       const Eigen::Vector3d y = V.row(near[static_cast<std::size_t>(i)]).transpose() - x;
+      if (std::abs(y.dot(normal)) > kSteepest * y.norm()) return std::nullopt;
       const double u = y.dot(t1) / edge, v = y.dot(t2) / edge, q = y.squaredNorm() / (rho * rho);
       A.row(i) << 1, u, v, u * u, u * v, v * v;
       w[i] = (1 - q) * (1 - q);
@@ -74,7 +84,7 @@ std::optional<std::vector<std::pair<int, double>>> quadratic_reading(const Mesh&
     const Eigen::MatrixXd& Q = eig.eigenvectors();
     const Eigen::VectorXd e0 = Q * Q.row(0).transpose().cwiseQuotient(lambda);
     const Eigen::VectorXd weights = (A * e0).cwiseProduct(w);
-    if (!weights.allFinite()) return std::nullopt;
+    if (!weights.allFinite() || !(weights.lpNorm<1>() <= kLargestWeightSum)) return std::nullopt;
     std::vector<std::pair<int, double>> out;
     for (Eigen::Index i = 0; i < m; ++i) out.emplace_back(near[static_cast<std::size_t>(i)], weights[i]);
     std::sort(out.begin(), out.end());

@@ -28,9 +28,13 @@ namespace meshpde {
 /// (1 - (d / rho)^2)^2, d its distance to the point.
 ///
 /// Exact (to rounding) for fields that are quadratic in (u, v); the weights sum to 1.
-/// Returns nullopt where no well-posed fit exists within 4 mean edges of the point (a
-/// mesh too small or too thin around it, a degenerate triangle): the caller then reads
-/// the corners linearly. Cost: a few dozen vertices and one 6 x 6 solve.
+/// Returns nullopt where no sound fit exists: fewer than 12 vertices within 4 mean edges
+/// (a mesh too small around the point), a degenerate triangle, a vertex of the ball more
+/// than about 27 degrees off the triangle's plane as seen from the point (the surface
+/// turns too much within it: a vessel only a few edges round), or weights whose absolute
+/// values sum to more than 3 (a fit that amplifies the field's noise, as a one-sided one
+/// at an open end can). The caller then reads the corners linearly. Cost: a few dozen
+/// vertices and one 6 x 6 solve.
 std::optional<std::vector<std::pair<int, double>>> quadratic_reading(const Mesh& mesh, const SurfacePoint& point);
 
 }  // namespace meshpde
