@@ -60,7 +60,7 @@ std::optional<std::vector<std::pair<int, double>>> quadratic_reading(const Mesh&
   const Eigen::Vector3d n = (b - a).cross(c - a);
   if (!(edge > 0) || !(n.norm() > 1e-12 * edge * edge) || !x.allFinite()) return std::nullopt;
   // An orthonormal frame of the triangle's plane, lengths in units of its edge.
-  const Eigen::Vector3d t1 = (b - a).normalized(), t2 = n.normalized().cross(t1);
+  const Eigen::Vector3d normal = n.normalized(), t1 = (b - a).normalized(), t2 = normal.cross(t1);
   std::vector<char> seen(static_cast<std::size_t>(mesh.num_vertices()), 0);
   for (double rho = kStartRadius * edge; rho <= kLargestRadius * edge * (1 + 1e-12); rho *= kGrowth) {
     const std::vector<int> near = ball_on_sheet(mesh, corners, x, rho, seen);
@@ -68,7 +68,6 @@ std::optional<std::vector<std::pair<int, double>>> quadratic_reading(const Mesh&
     const auto m = static_cast<Eigen::Index>(near.size());
     Eigen::MatrixXd A(m, 6);
     Eigen::VectorXd w(m);
-    const Eigen::Vector3d normal = n.normalized();
     for (Eigen::Index i = 0; i < m; ++i) {
       const Eigen::Vector3d y = V.row(near[static_cast<std::size_t>(i)]).transpose() - x;
       if (std::abs(y.dot(normal)) > kSteepest * y.norm()) return std::nullopt;
