@@ -185,10 +185,7 @@ CorrectionOptions correction_options(const Mesh& mesh, const py::handle& vertice
   }
   // Handle points: (k, 3) positions in V's coordinates; each is the surface point nearest to it.
   std::vector<Eigen::Vector3d> points;
-  if (const py::object v = get("points"); !v.is_none()) {
-    const Field P = field_arg(v, "points", -1, 3);
-    for (Eigen::Index i = 0; i < P.rows(); ++i) points.emplace_back(P.row(i).transpose());
-  }
+  if (const py::object v = get("points"); !v.is_none()) points = points_arg(v, "points");
   if (handles.empty() && points.empty()) throw InputError("give handles: vertices, points, or both");
   if (moves.is_none() || !py::isinstance<py::sequence>(moves) || py::isinstance<py::str>(moves))
     throw InputError("moves: expected one move per handle: (dx, dy, dz) or 'normal:D'");

@@ -464,9 +464,7 @@ measured exactly to the other (mesh/surface_distance.h). Units of the positions.
       "closest_surface_points",
       [](const ArrayLike& V, const ArrayLike& F, const ArrayLike& points) {
         const Mesh mesh = mesh_arg(V, F);
-        const Field P = field_arg(points, "points", -1, 3);
-        std::vector<Eigen::Vector3d> at;
-        for (Eigen::Index i = 0; i < P.rows(); ++i) at.emplace_back(P.row(i).transpose());
+        const std::vector<Eigen::Vector3d> at = points_arg(points, "points");
         std::vector<SurfacePoint> found;
         {
           py::gil_scoped_release release;
@@ -491,9 +489,7 @@ A field on the vertices at those points is ``(bary[:, :, None] * field[F[faces]]
       "quadratic_reading",
       [](const ArrayLike& V, const ArrayLike& F, const ArrayLike& points) {
         const Mesh mesh = mesh_arg(V, F);
-        const Field P = field_arg(points, "points", -1, 3);
-        std::vector<Eigen::Vector3d> at;
-        for (Eigen::Index i = 0; i < P.rows(); ++i) at.emplace_back(P.row(i).transpose());
+        const std::vector<Eigen::Vector3d> at = points_arg(points, "points");
         std::vector<Eigen::Triplet<double>> weights;
         {
           py::gil_scoped_release release;
@@ -508,7 +504,7 @@ A field on the vertices at those points is ``(bary[:, :, None] * field[F[faces]]
             }
           }
         }
-        Eigen::SparseMatrix<double, Eigen::RowMajor> W(P.rows(), mesh.num_vertices());
+        Eigen::SparseMatrix<double, Eigen::RowMajor> W(static_cast<Eigen::Index>(at.size()), mesh.num_vertices());
         W.setFromTriplets(weights.begin(), weights.end());
         return to_csr(W);
       },
@@ -531,10 +527,7 @@ correction reads a handle with a size this way.)doc",
         GeodesicSources s;
         const py::array a = py::array::ensure(sources);
         if (a && a.ndim() == 2 && a.dtype().kind() == 'f') {
-          const Field P = field_arg(sources, "sources", -1, 3);
-          std::vector<Eigen::Vector3d> points;
-          for (Eigen::Index i = 0; i < P.rows(); ++i) points.emplace_back(P.row(i).transpose());
-          s.points = closest_surface_points(mesh, points);
+          s.points = closest_surface_points(mesh, points_arg(sources, "sources"));
         } else {
           s.vertices = vertices_arg(sources, "sources", mesh.num_vertices());
         }

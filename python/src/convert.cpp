@@ -134,6 +134,14 @@ Field field_arg(const py::handle& obj, const char* name, Eigen::Index rows, Eige
   return out;
 }
 
+std::vector<Eigen::Vector3d> points_arg(const py::handle& obj, const char* name) {
+  const Field P = field_arg(obj, name, -1, 3);
+  std::vector<Eigen::Vector3d> out;
+  out.reserve(static_cast<std::size_t>(P.rows()));
+  for (Eigen::Index i = 0; i < P.rows(); ++i) out.emplace_back(P.row(i).transpose());
+  return out;
+}
+
 int vertex_arg(long long v, const char* name, Eigen::Index num_vertices) {
   if (v < 0 || v >= num_vertices)
     throw IndexOutOfRange(fmt::format("{}: vertex {} is out of range for {} vertices", name, v, num_vertices));

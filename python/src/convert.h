@@ -69,6 +69,9 @@ Eigen::VectorXd vector_arg(const py::handle& obj, const char* name, Eigen::Index
 /// dimension free.
 Field field_arg(const py::handle& obj, const char* name, Eigen::Index rows = -1, Eigen::Index cols = -1);
 
+/// A (k, 3) array of finite positions as points (field_arg's checks).
+std::vector<Eigen::Vector3d> points_arg(const py::handle& obj, const char* name);
+
 /// Vertex indices (an int, a sequence or a 1-D integer array), each in [0, num_vertices).
 std::vector<int> vertices_arg(const py::handle& obj, const char* name, Eigen::Index num_vertices);
 
