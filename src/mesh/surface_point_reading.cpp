@@ -3,6 +3,7 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
+#include <unordered_set>
 
 namespace meshpde {
 
@@ -19,16 +20,18 @@ constexpr double kSteepest = 0.5;
 // vertices), so the corners read there instead.
 constexpr double kLargestWeightSum = 3.0;
 
-// The vertices within rho of x reached from `start` along edges inside that ball.
-std::vector<int> ball_on_sheet(const Mesh& mesh, const std::vector<int>& start, const Eigen::Vector3d& x, double rho,
-                               std::vector<char>& seen) {
+// The vertices within rho of x reached from `start` along edges inside that ball. The
+// set of visited vertices is the ball's size, not the mesh's: a reading costs the same
+// on any mesh.
+std::vector<int> ball_on_sheet(const Mesh& mesh, const std::vector<int>& start, const Eigen::Vector3d& x, double rho) {
   const auto& V = mesh.positions();
+  std::unordered_set<int> seen;
   std::vector<int> out, stack;
   auto visit = [&](int v) {
-    if (seen[static_cast<std::size_t>(v)]) return;
-    seen[static_cast<std::size_t>(v)] = 1;
+    if (!seen.insert(v).second) return;
+    if ((V.row(v).transpose() - x).norm() >= rho) return;  // the ring just outside the ball
     out.push_back(v);
-    if ((V.row(v).transpose() - x).norm() < rho) stack.push_back(v);
+    stack.push_back(v);
   };
   for (const int v : start) visit(v);
   while (!stack.empty()) {
@@ -36,9 +39,6 @@ std::vector<int> ball_on_sheet(const Mesh& mesh, const std::vector<int>& start, 
     stack.pop_back();
     for (const int w : mesh.neighbors(v)) visit(w);
   }
-  for (const int v : out) seen[static_cast<std::size_t>(v)] = 0;
-  // Visited includes the ring just outside the ball: only what is inside stays.
-  std::erase_if(out, [&](int v) { return (V.row(v).transpose() - x).norm() >= rho; });
   return out;
 }
 
@@ -61,9 +61,8 @@ std::optional<std::vector<std::pair<int, double>>> quadratic_reading(const Mesh&
   if (!(edge > 0) || !(n.norm() > 1e-12 * edge * edge) || !x.allFinite()) return std::nullopt;
   // An orthonormal frame of the triangle's plane, lengths in units of its edge.
   const Eigen::Vector3d normal = n.normalized(), t1 = (b - a).normalized(), t2 = normal.cross(t1);
-  std::vector<char> seen(static_cast<std::size_t>(mesh.num_vertices()), 0);
   for (double rho = kStartRadius * edge; rho <= kLargestRadius * edge * (1 + 1e-12); rho *= kGrowth) {
-    const std::vector<int> near = ball_on_sheet(mesh, corners, x, rho, seen);
+    const std::vector<int> near = ball_on_sheet(mesh, corners, x, rho);
     if (near.size() < kFewestVertices) continue;
     const auto m = static_cast<Eigen::Index>(near.size());
     Eigen::MatrixXd A(m, 6);
