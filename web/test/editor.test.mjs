@@ -161,6 +161,22 @@ const maxDiffNorm = (a, b) => {
   return m;
 };
 
+// The rendered pixels of a rectangle of the page, whatever drew them (a screenshot of it,
+// decoded by the browser): RGBA bytes, row by row.
+async function screenPixels(page, box) {
+  const png = await page.screenshot({ clip: box });
+  return page.evaluate(async (b64) => {
+    const img = new Image();
+    img.src = `data:image/png;base64,${b64}`;
+    await img.decode();
+    const c = document.createElement('canvas');
+    c.width = img.width; c.height = img.height;
+    const g = c.getContext('2d');
+    g.drawImage(img, 0, 0);
+    return Array.from(g.getImageData(0, 0, c.width, c.height).data);
+  }, png.toString('base64'));
+}
+
 // Rendered pixels of the 3D view that are not its background (the corner pixel's colour),
 // as a fraction: the surface is drawn, not just sent.
 const drawnFraction = (page) => page.evaluate(() => {
@@ -1351,10 +1367,24 @@ try {
           JSON.stringify({ ...shown, reply: undefined, largest_from_positions: largest }));
   }
   await page.screenshot({ path: join(shots, 'editor-correct.png') });
+  const panelBox = await page.locator('#last-correction').boundingBox();
+  const panelShown = panelBox && await screenPixels(page, panelBox);
   await page.click('#undo');
   await page.waitForTimeout(500);
   check('undo restores the positions', maxDiff(await positions(page), rest) < 1e-5);
-  check('undo ends the last correction\'s figures: the panel is no longer drawn', await page.isHidden('#last-correction'));
+  {
+    // Where the panel's figures were drawn, the screen now shows something else (the
+    // lines below it, moved up), and the panel is hidden.
+    const after = panelBox && await screenPixels(page, panelBox);
+    let changed = 0;
+    for (let i = 0; after && i < after.length; i += 4)
+      if (Math.abs(after[i] - panelShown[i]) + Math.abs(after[i + 1] - panelShown[i + 1]) +
+          Math.abs(after[i + 2] - panelShown[i + 2]) > 48) changed += 1;
+    const fraction = after ? changed / (after.length / 4) : 0;
+    check('undo ends the last correction\'s figures: the panel is no longer drawn (rendered pixels)',
+          fraction > 0.02 && await page.isHidden('#last-correction'), `${(100 * fraction).toFixed(1)} % of its pixels changed`);
+  }
+  await page.screenshot({ path: join(shots, 'editor-undo.png') });
   await page.click('#redo');
   await page.waitForTimeout(500);
   check('redo brings the correction back', maxDiff(await positions(page), corrected) < 1e-5);
