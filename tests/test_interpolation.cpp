@@ -413,3 +413,40 @@ TEST(InterpolationSolver, APartLeftWithoutConstraintsIsASolverError) {
   solver.set_value(on_b + 1, Eigen::VectorXd::Constant(1, -1.0));
   EXPECT_NEAR(solver.solve().values(on_b + 7, 0), -1.0, 1e-9);
 }
+
+// Which factor: the Laplacian's (the mixed form) for a plate with few constraints at
+// the fresh start, K D K's with a membrane part or with more than 64; the same answer
+// as a fresh direct interpolate() either way, and across a fresh start that changes
+// from one to the other.
+TEST(InterpolationSolver, APlateWithFewConstraintsFactorsTheLaplacian) {
+  const Mesh sphere = make(icosphere(4));
+  const FemOperators ops = build_cotan_operators(sphere);
+  std::mt19937 rng(5);
+  std::uniform_int_distribution<int> vertex(0, sphere.num_vertices() - 1);
+  std::uniform_real_distribution<double> value(-1, 1);
+  for (const double g1 : {0.0, 0.5}) {
+    InterpolationSolver solver(sphere, ops, FieldKind::Scalar, InterpolationParams{.g1 = g1, .g2 = 1});
+    for (int k = 0; k < 10; ++k) solver.set_value(vertex(rng), Eigen::VectorXd::Constant(1, value(rng)));
+    const InterpolationParams direct{.g1 = g1, .g2 = 1, .solver = SteadySolver::Direct};
+    auto check = [&](const std::string& what) {
+      const InterpolationResult kept = solver.solve();
+      const InterpolationResult fresh = interpolate(sphere, ops, FieldKind::Scalar, solver.constraints(), direct);
+      EXPECT_LT(relative_difference(kept.values, fresh.values), 1e-10) << what << ", g1 " << g1;
+    };
+    check("first solve");
+    EXPECT_EQ(solver.laplacian_factor(), g1 == 0);
+    solver.set_value(vertex(rng), Eigen::VectorXd::Constant(1, value(rng)));  // a new vertex: bordered
+    check("a new vertex");
+    EXPECT_EQ(solver.factorizations(), 1);
+    // Past 64 constraints a fresh start factors K D K.
+    solver.max_changes = 0;
+    while (solver.num_constraints() <= 64) solver.set_value(vertex(rng), Eigen::VectorXd::Constant(1, value(rng)));
+    check("70 constraints");
+    EXPECT_FALSE(solver.laplacian_factor());
+    EXPECT_EQ(solver.factorizations(), 2);
+    // And back.
+    while (solver.num_constraints() > 20) solver.remove(solver.constraints().front().vertex);
+    check("20 constraints");
+    EXPECT_EQ(solver.laplacian_factor(), g1 == 0);
+  }
+}

@@ -187,6 +187,10 @@ PokeFigures poke(const Mesh& mesh, const FemOperators& ops, int steps, bool full
 // each kind), and the fresh solve of the same
 // constraints after some of them (paint_resolve_ms_*, the median). The largest
 // difference between the two answers is reported relative to the field's largest value.
+// The same clicks run first through K D K's own factor (laplacian_factor_up_to 0:
+// paint_bilaplacian_factor_*), the route InterpolationSolver takes with g1 or many
+// constraints, beside the Laplacian's factor that it takes here; the two routes'
+// answers agree to paint_routes_max_relative_difference_*.
 // Last, a fresh start of the kept solver with those constraints (max_changes 0), which
 // factors in the last factor's order (paint_restart_ms_*, beside paint_first_ms_*, whose
 // factorization ordered afresh).
@@ -208,40 +212,78 @@ void paint_figures(const BenchOptions& options, nlohmann::json& j, bool large) {
     progress("paint on igea-134k" + std::string(level ? " x2" : "") + ": operators");
     const MeshOperators mo = build_mesh_operators(Mesh(g.V, g.F), LaplacianKind::Auto);
     const int nv = mo.mesh.num_vertices();
-    std::mt19937 rng(7);
     std::uniform_int_distribution<int> vertex(0, nv - 1);
     std::uniform_real_distribution<double> value(-1, 1);
+    // The same clicks (the same random sequence) through K D K's own factor first
+    // (laplacian_factor_up_to 0: the kept solver's route before the mixed form, the
+    // baseline of this run), then as InterpolationSolver chooses.
+    struct Clicks {
+      std::vector<double> update_ms, by_kind[2];
+      std::vector<Field> answers;
+    };
+    std::vector<double> resolve_ms;
+    double worst = 0, routes = 0;  // routes: the two kept solvers' answers, click by click
+    Field last_fresh;
+    Clicks base, ours;
+    auto run_clicks = [&](InterpolationSolver& solver, std::mt19937& r, Clicks& out, bool fresh) {
+      const int clicks = options.quick ? 6 : 20;
+      const int resolves = level ? (options.quick ? 1 : 2) : (options.quick ? 2 : 5);
+      for (int c = 0; c < clicks; ++c) {
+        progress(fmt::format("paint on {}{}: click {} of {}", tag, fresh ? "" : " (K D K's factor)", c + 1, clicks));
+        const std::vector<InterpolationConstraint> now = solver.constraints();
+        const int v = c % 2 == 0 ? now[r() % now.size()].vertex : vertex(r);
+        const double x = value(r);
+        const auto t0 = clock_type::now();
+        solver.set_value(v, Eigen::VectorXd::Constant(1, x));
+        const InterpolationResult kept = solver.solve();
+        out.update_ms.push_back(seconds_since(t0) * 1e3);
+        out.by_kind[c % 2].push_back(out.update_ms.back());
+        if (fresh) {
+          const Field& b = base.answers[static_cast<std::size_t>(c)];
+          routes = std::max(routes, (kept.values - b).cwiseAbs().maxCoeff() / b.cwiseAbs().maxCoeff());
+        } else {
+          out.answers.push_back(kept.values);
+        }
+        if (fresh && c >= clicks - resolves) {
+          const auto t1 = clock_type::now();
+          const InterpolationResult f =
+              interpolate(mo.mesh, mo.ops, FieldKind::Scalar, solver.constraints(),
+                          InterpolationParams{.g1 = 0, .g2 = 1, .solver = SteadySolver::Direct});
+          resolve_ms.push_back(seconds_since(t1) * 1e3);
+          worst = std::max(worst, (kept.values - f.values).cwiseAbs().maxCoeff() / f.values.cwiseAbs().maxCoeff());
+          last_fresh = f.values;
+        }
+      }
+    };
+    auto first_constraints = [&](InterpolationSolver& solver, std::mt19937& r) {
+      for (int k = 0; k < 8; ++k) solver.set_value(vertex(r), Eigen::VectorXd::Constant(1, value(r)));
+    };
+    {
+      std::mt19937 r(7);
+      InterpolationSolver solver(mo.mesh, mo.ops, FieldKind::Scalar, InterpolationParams{.g1 = 0, .g2 = 1});
+      solver.laplacian_factor_up_to = 0;
+      first_constraints(solver, r);
+      progress("paint on " + tag + " (K D K's factor): the first solve (factorization)");
+      const auto t0 = clock_type::now();
+      solver.solve();
+      j["paint_bilaplacian_factor_first_ms_" + tag] = seconds_since(t0) * 1e3;
+      run_clicks(solver, r, base, false);
+    }
+    std::mt19937 rng(7);
     InterpolationSolver solver(mo.mesh, mo.ops, FieldKind::Scalar, InterpolationParams{.g1 = 0, .g2 = 1});
-    for (int k = 0; k < 8; ++k) solver.set_value(vertex(rng), Eigen::VectorXd::Constant(1, value(rng)));
+    first_constraints(solver, rng);
     progress("paint on " + tag + ": the first solve (factorization)");
     auto t0 = clock_type::now();
     solver.solve();
     j["paint_first_ms_" + tag] = seconds_since(t0) * 1e3;
-    const int clicks = options.quick ? 6 : 20;
-    const int resolves = level ? (options.quick ? 1 : 2) : (options.quick ? 2 : 5);
-    std::vector<double> update_ms, resolve_ms, by_kind[2];
-    double worst = 0;
-    Field last_fresh;
-    for (int c = 0; c < clicks; ++c) {
-      progress(fmt::format("paint on {}: click {} of {}", tag, c + 1, clicks));
-      const std::vector<InterpolationConstraint> now = solver.constraints();
-      const int v = c % 2 == 0 ? now[rng() % now.size()].vertex : vertex(rng);
-      t0 = clock_type::now();
-      solver.set_value(v, Eigen::VectorXd::Constant(1, value(rng)));
-      const InterpolationResult kept = solver.solve();
-      update_ms.push_back(seconds_since(t0) * 1e3);
-      by_kind[c % 2].push_back(update_ms.back());
-      if (c >= clicks - resolves) {
-        t0 = clock_type::now();
-        const InterpolationResult fresh =
-            interpolate(mo.mesh, mo.ops, FieldKind::Scalar, solver.constraints(),
-                        InterpolationParams{.g1 = 0, .g2 = 1, .solver = SteadySolver::Direct});
-        resolve_ms.push_back(seconds_since(t0) * 1e3);
-        worst =
-            std::max(worst, (kept.values - fresh.values).cwiseAbs().maxCoeff() / fresh.values.cwiseAbs().maxCoeff());
-        last_fresh = fresh.values;
-      }
-    }
+    run_clicks(solver, rng, ours, true);
+    base.answers.clear();
+    const std::vector<double>& update_ms = ours.update_ms;
+    const std::vector<double>* by_kind = ours.by_kind;
+    j["paint_bilaplacian_factor_update_ms_" + tag] = percentiles(base.update_ms).p50;
+    j["paint_bilaplacian_factor_update_value_ms_" + tag] = percentiles(base.by_kind[0]).p50;
+    j["paint_bilaplacian_factor_update_vertex_ms_" + tag] = percentiles(base.by_kind[1]).p50;
+    j["paint_routes_max_relative_difference_" + tag] = routes;
     progress("paint on " + tag + ": a fresh start in the last factor's order");
     solver.max_changes = 0;
     t0 = clock_type::now();
@@ -256,8 +298,11 @@ void paint_figures(const BenchOptions& options, nlohmann::json& j, bool large) {
     j["paint_update_vertex_ms_" + tag] = percentiles(by_kind[1]).p50;
     j["paint_resolve_ms_" + tag] = percentiles(resolve_ms).p50;
     j["paint_update_over_resolve_" + tag] = percentiles(update_ms).p50 / percentiles(resolve_ms).p50;
+    j["paint_update_speedup_over_bilaplacian_factor_" + tag] =
+        percentiles(base.update_ms).p50 / percentiles(update_ms).p50;
     j["paint_max_relative_difference_" + tag] = worst;
     j["paint_factorizations_" + tag] = solver.factorizations();
+    j["paint_laplacian_factor_" + tag] = solver.laplacian_factor();
   }
 }
 

@@ -451,8 +451,9 @@ scalars, (n, 3) for displacements and tangent vectors (componentwise, projected)
 values at the same vertices cost one solve with the kept factor; added or removed
 vertices a small Schur complement against it (factored afresh after max_changes of
 them, in the last factor's order when the free set changed by at most 5 %:
-reused_orders counts those). Answers equal interpolate(..., solver="direct") to
-rounding.)doc")
+reused_orders counts those). With g1 = 0 and at most laplacian_factor_up_to (64) constraints at a
+fresh start the factor is the Laplacian's, applied twice per solve (laplacian_factor: True), else
+the whole operator's. Answers equal interpolate(..., solver="direct") to rounding.)doc")
       .def(py::init([](const ArrayLike& V, const ArrayLike& F, const std::string& kind, double g1, double g2,
                        const std::string& laplacian) {
              const FieldKind k = field_kind_arg(kind);
@@ -497,8 +498,10 @@ rounding.)doc")
                              })
       .def_property_readonly("factorizations", &InterpolationSolver::factorizations)
       .def_property_readonly("reused_orders", &InterpolationSolver::reused_orders)
+      .def_property_readonly("laplacian_factor", &InterpolationSolver::laplacian_factor)
       .def_property_readonly("changed_constraints", &InterpolationSolver::changed_constraints)
-      .def_readwrite("max_changes", &InterpolationSolver::max_changes);
+      .def_readwrite("max_changes", &InterpolationSolver::max_changes)
+      .def_readwrite("laplacian_factor_up_to", &InterpolationSolver::laplacian_factor_up_to);
 
   py::class_<PyCorrectionResult>(
       m, "CorrectionResult",

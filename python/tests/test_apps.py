@@ -101,6 +101,7 @@ def test_interpolation_solver_equals_interpolate_after_every_edit(ico, kind):
         assert u.shape == fresh.shape
         assert rel_diff(u, fresh) <= 1e-10, f"step {step}"
     assert s.factorizations == 1  # every edit an update of the first factor
+    assert not s.laplacian_factor  # a membrane part: the whole operator's factor
     with pytest.raises(meshpde.InputError, match="not constrained"):
         s.remove(next(v for v in range(len(V)) if v not in s.vertices))
     with pytest.raises(ValueError, match="kind"):
@@ -122,6 +123,20 @@ def test_interpolation_solver_fresh_starts_reuse_the_last_order():
         assert rel_diff(u, fresh) <= 1e-10, f"step {step}"
     assert s.factorizations >= 3
     assert s.reused_orders == s.factorizations - 1
+    assert s.laplacian_factor  # a plate with 9-12 constraints: the Laplacian's factor
+
+
+def test_interpolation_solver_both_factors_give_the_same_field():
+    V, F = meshpde.generate.icosphere(4)
+    rng = np.random.default_rng(6)
+    laplacian, bilaplacian = meshpde.InterpolationSolver(V, F), meshpde.InterpolationSolver(V, F)
+    bilaplacian.laplacian_factor_up_to = 0  # always the bi-Laplacian's own factor
+    for v in rng.choice(len(V), 6, replace=False):
+        x = rng.normal()
+        laplacian.set_value(int(v), x)
+        bilaplacian.set_value(int(v), x)
+    assert rel_diff(laplacian.solve(), bilaplacian.solve()) <= 1e-10
+    assert laplacian.laplacian_factor and not bilaplacian.laplacian_factor
 
 
 def test_interpolate_displacement_equals_the_cli(cli, ico, tmp_path):

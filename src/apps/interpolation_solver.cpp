@@ -2,7 +2,8 @@
 // constraints by a bordered system and its Schur complement (apps/interpolation.h).
 //
 // Notation: C0 the constrained vertices when the factor was made, F0 the free ones then
-// (A_00 = A restricted to F0 is what SteadyDirectSolver factored), C the constraints
+// (A_00 = A restricted to F0, inverted by its own factor, or by the Laplacian's
+// through the mixed form: FactoredBlock below), C the constraints
 // now. P = C0 \ C (released: now unknowns outside F0), Q = C \ C0 (added: inside F0,
 // held by Lagrange multipliers). The unknowns y on F0 and P, with y_Q = u_Q, solve
 //
@@ -30,6 +31,7 @@
 #include <map>
 
 #include "../pde/free_parts.h"
+#include "../pde/mixed_bilaplacian.h"
 #include "meshpde/apps/interpolation.h"
 #include "meshpde/core/errors.h"
 
@@ -39,8 +41,11 @@ namespace {
 
 // Residuals above this relative size are refined by another bordered solve, while a
 // step at least halves it: on large meshes the residual's rounding floor lies above the
-// tolerance (5e-13 at 537k vertices), and steps that only graze it cost a pair of
-// sweeps each for nothing.
+// tolerance (1.5e-13 to 5e-13 at 537k vertices), and steps that only graze it cost a
+// solve each for nothing. (Neither a higher tolerance nor skipping answers near the
+// residual a step failed to lower keeps every answer within 1e-10 of a fresh solve on
+// ill-conditioned meshes: on bunny-3k a relative residual of 1.2e-13 was a difference
+// of 1.8e-10; docs/solvers-measurements.md, "Painting".)
 constexpr double kRefineTolerance = 1e-13;
 constexpr double kRefineGain = 0.5;
 constexpr int kMaxRefinements = 4;
@@ -57,6 +62,31 @@ constexpr int kResponsesAhead = 16;
 // A refactorization reuses the last factor's order while the free set changed by at
 // most this fraction of its vertices.
 constexpr double kReuseOrderChanges = 0.05;
+
+// A_00^-1 and A_00's couplings: A_00's own factor, or the Laplacian's with the
+// mixed form's kept columns.
+struct FactoredBlock {
+  std::unique_ptr<SteadyDirectSolver> direct;
+  std::unique_ptr<detail::MixedBilaplacianSolver> mixed;
+
+  int num_free() const { return direct ? direct->num_free() : mixed->num_free(); }
+  const std::vector<int>& free_vertices() const { return direct ? direct->free_vertices() : mixed->free_vertices(); }
+  int free_index(int v) const { return direct ? direct->free_index(v) : mixed->free_index(v); }
+  Eigen::VectorXd coupling(int v) const { return direct ? direct->coupling(v) : mixed->coupling(v); }
+  // Refined (the kept columns), and one plain solve (the refinement of an answer).
+  Eigen::MatrixXd solve_rhs(const Eigen::MatrixXd& B) const {
+    return direct ? direct->solve_rhs(B) : mixed->solve_rhs(B);
+  }
+  Eigen::MatrixXd solve(const Eigen::MatrixXd& B) const { return direct ? direct->factor().solve(B) : mixed->solve(B); }
+  // The column of a vertex added since the factorization (its load a unit row of its
+  // own): refined for K D K's factor, plain through the Laplacian's, whose residual
+  // lies in that vertex's row, which the vertex's multiplier takes (igea-134k: answers
+  // from plain columns at a relative residual of about 2e-13 with no refinement step).
+  Eigen::MatrixXd added_column(const Eigen::MatrixXd& B) const {
+    return direct ? direct->solve_rhs(B) : mixed->solve(B);
+  }
+  NestedDissection vertex_order() const { return direct ? direct->vertex_order() : mixed->vertex_order(); }
+};
 
 // One column of G: its nonzeros on F0's rows (local indices), and for a released vertex
 // its couplings to the other released vertices (the column of A_PP).
@@ -82,7 +112,7 @@ struct InterpolationSolver::Impl {
   std::string laplacian_reason;
   std::map<int, Eigen::VectorXd> cons;
 
-  std::unique_ptr<SteadyDirectSolver> base;
+  std::unique_ptr<FactoredBlock> base;
   std::vector<char> base_held;  // #V: in C0
   std::vector<BorderColumn> border;
   std::vector<int> border_vertices;  // P and Q (sorted), the border S was built for
@@ -130,7 +160,8 @@ struct InterpolationSolver::Impl {
     return Y;
   }
 
-  void factor() {
+  // up_to: InterpolationSolver::laplacian_factor_up_to.
+  void factor(int up_to) {
     const int nv = mesh->num_vertices();
     base_held.assign(static_cast<std::size_t>(nv), 0);
     for (const auto& [v, x] : cons) base_held[static_cast<std::size_t>(v)] = 1;
@@ -153,13 +184,27 @@ struct InterpolationSolver::Impl {
     border_vertices.clear();
     z0_valid = false;
     responses.clear();
-    // CHOLMOD's ordering, one factor: every click sweeps it. The mesh ordering's
-    // factor (solvers/ordering.h) is analyzed faster but has more fill: on igea-134k
-    // in `meshpde bench --only paint` the first solve took 2.7 s against 4.2 s, and a
-    // click 87 ms against 74 ms (docs/solvers-measurements.md).
-    base = std::make_unique<SteadyDirectSolver>(*mesh, *ops, coefficients(), std::move(free),
-                                                SparseCholesky::Backend::Auto, Eigen::VectorXd(),
-                                                DirectOrdering::Cholmod, reuse ? &reused : nullptr);
+    auto block = std::make_unique<FactoredBlock>();
+    const NestedDissection* order = reuse ? &reused : nullptr;
+    if (params.g1 == 0 && static_cast<int>(cons.size()) <= up_to) {
+      try {
+        block->mixed = std::make_unique<detail::MixedBilaplacianSolver>(*mesh, *ops, params.g2, free, order);
+      } catch (const SolverError&) {
+        // K_FF did not factor: K D K's own factor instead, which says what is wrong if
+        // anything is (a part without a constraint fails both).
+        block->mixed.reset();
+      }
+    }
+    if (!block->mixed) {
+      // CHOLMOD's ordering, one factor: every click sweeps it. The mesh ordering's
+      // factor (solvers/ordering.h) is analyzed faster but has more fill: on igea-134k
+      // in `meshpde bench --only paint` the first solve took 2.7 s against 4.2 s, and a
+      // click 87 ms against 74 ms (docs/solvers-measurements.md).
+      block->direct = std::make_unique<SteadyDirectSolver>(*mesh, *ops, coefficients(), std::move(free),
+                                                           SparseCholesky::Backend::Auto, Eigen::VectorXd(),
+                                                           DirectOrdering::Cholmod, order);
+    }
+    base = std::move(block);
     ++factorizations;
     reused_orders += reuse;
   }
@@ -281,7 +326,7 @@ struct InterpolationSolver::Impl {
       } else {
         Eigen::VectorXd gj = Eigen::VectorXd::Zero(base->num_free());
         for (const auto& [li, value] : col.g) gj[li] = value;
-        col.t = base->solve_rhs(gj).col(0);
+        col.t = col.released ? base->solve_rhs(gj).col(0) : base->added_column(gj).col(0);
         if (col.released && static_cast<int>(responses.size()) < kHeldColumns) responses[v] = -col.t;
       }
       border.push_back(std::move(col));
@@ -394,6 +439,10 @@ int InterpolationSolver::factorizations() const {
   return impl_->factorizations;
 }
 
+bool InterpolationSolver::laplacian_factor() const {
+  return impl_->base && impl_->base->mixed;
+}
+
 int InterpolationSolver::reused_orders() const {
   return impl_->reused_orders;
 }
@@ -412,16 +461,20 @@ InterpolationResult InterpolationSolver::solve() {
   Impl& s = *impl_;
   if (s.cons.empty()) throw InputError("interpolation needs at least one constrained vertex");
   const int nv = s.mesh->num_vertices();
-  if (!s.base) s.factor();
+  if (!s.base) s.factor(laplacian_factor_up_to);
   std::vector<int> border = s.changed();
   if (static_cast<int>(border.size()) > max_changes) {
-    s.factor();
+    s.factor(laplacian_factor_up_to);
     border.clear();
   }
   // The vertices free now: the rows of the current system.
+  // Held now, as a flag a vertex (the loops below visit every vertex: a map lookup
+  // each cost several milliseconds a click on igea-134k).
+  std::vector<char> held_now(static_cast<std::size_t>(nv), 0);
+  for (const auto& [v, x] : s.cons) held_now[static_cast<std::size_t>(v)] = 1;
   std::vector<int> now_free;
   for (int v = 0; v < nv; ++v)
-    if (!s.cons.count(v) && s.ops->mass[v] > 0) now_free.push_back(v);
+    if (!held_now[static_cast<std::size_t>(v)] && s.ops->mass[v] > 0) now_free.push_back(v);
   if (border != s.border_vertices) {
     // A released constraint may leave its part of the mesh without any: undetermined,
     // which the bordered system would only show as rounding. Checked on the mesh.
@@ -433,7 +486,8 @@ InterpolationResult InterpolationSolver::solve() {
       detail::require_held_parts(
           *s.mesh, now_free, [&](int v) { return local[static_cast<std::size_t>(v)]; }, [](int) { return false; });
     }
-    if (!s.update_border(border)) s.factor();  // S near singular: start from the current constraints
+    if (!s.update_border(border))
+      s.factor(laplacian_factor_up_to);  // S near singular: start from the current constraints
   }
 
   // u: the held values where they are held now; the unknowns are solved below.
@@ -463,7 +517,7 @@ InterpolationResult InterpolationSolver::solve() {
   // Adds a bordered solve's answer (or correction) to u's unknowns.
   auto place = [&](const Eigen::MatrixXd& x0, const Eigen::MatrixXd& xw) {
     for (std::size_t i = 0; i < free.size(); ++i)
-      if (!s.cons.count(free[i])) u.row(free[i]) += x0.row(static_cast<Eigen::Index>(i));
+      if (!held_now[static_cast<std::size_t>(free[i])]) u.row(free[i]) += x0.row(static_cast<Eigen::Index>(i));
     for (std::size_t j = 0; j < s.border.size(); ++j)
       if (s.border[j].released) u.row(s.border[j].vertex) += xw.row(static_cast<Eigen::Index>(j));
   };
@@ -471,24 +525,24 @@ InterpolationResult InterpolationSolver::solve() {
 
   // Residual of the current system on its free rows, through the products; refined by
   // the same bordered solve (the added vertices' rows are their multipliers') from one
-  // pair of plain sweeps: the kept columns are refined already, so the correction is
-  // small and the sweeps' own rounding in it negligible. (Unrefined columns halve a new
-  // vertex's click, 50 against 105 ms on igea-134k, and keep the residual, but on
-  // ill-conditioned meshes leave answers 4e-9 from a fresh solve's.)
+  // plain solve: the kept columns are as accurate as the factor makes them, so the
+  // correction is small and the solve's own rounding in it negligible.
   const Field load = s.apply(given);
-  auto worst = [&](const Field& AU) {
-    double r = 0;
-    for (int k = 0; k < s.m; ++k) {
-      double rk = 0, bk = 0;
-      for (int v : now_free) {
-        rk += AU(v, k) * AU(v, k);
-        bk += load(v, k) * load(v, k);
-      }
-      r = std::max(r, bk > 0 ? std::sqrt(rk / bk) : std::sqrt(rk));
+  auto relative = [&](const Field& X, int k) {
+    double xk = 0, bk = 0;
+    for (int v : now_free) {
+      xk += X(v, k) * X(v, k);
+      bk += load(v, k) * load(v, k);
     }
-    return r;
+    return bk > 0 ? std::sqrt(xk / bk) : std::sqrt(xk);
   };
   Field AU = s.apply(u);
+  // The worst column's relative residual.
+  auto worst = [&](const Field& X) {
+    double r = 0;
+    for (int k = 0; k < s.m; ++k) r = std::max(r, relative(X, k));
+    return r;
+  };
   double residual = worst(AU);
   int steps = 0;
   while (residual > kRefineTolerance && steps < kMaxRefinements) {
@@ -496,7 +550,7 @@ InterpolationResult InterpolationSolver::solve() {
     for (const auto& [v, x] : s.cons) AUfree.row(v).setZero();
     Eigen::MatrixXd r0, rc;
     s.load_rhs(AUfree, r0, rc);  // -(A u) on the free rows: the residual
-    auto [d0, dw] = s.bordered_solve(s.base->factor().solve(r0), rc);
+    auto [d0, dw] = s.bordered_solve(s.base->solve(r0), rc);
     place(d0, dw);
     // The kept z0 takes the correction too (y0 = z0 - T w: z0 + d0 + T dw gives the
     // refined y0 for the refined w), so that the clicks after this one start from it

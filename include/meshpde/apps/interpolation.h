@@ -81,8 +81,14 @@ InterpolationResult interpolate(const Mesh& mesh, FieldKind kind,
 
 /// Interpolation that keeps its factor between solves, for values set and changed one
 /// at a time (painting; the stateful tier beside interpolate()). The first solve()
-/// factors the free block A_FF of A = g1 K + g2 K D K on the vertices free then
-/// (SteadyDirectSolver). Later solves reuse that factor:
+/// factors what A_FF^-1 needs, A = g1 K + g2 K D K on the vertices free then:
+///  - without g1 and with at most laplacian_factor_up_to (64) constraints, the
+///    Laplacian's free block K_FF; A_FF^-1 is then two solves with it and a correction
+///    of rank #constraints (the mixed form of the bi-Laplacian: a factor with about 2.6
+///    times fewer nonzeros than A_FF's on igea-134k, so a faster first solve and a
+///    cheaper new vertex; docs/solvers.md, "Painting");
+///  - else A_FF itself (SteadyDirectSolver). laplacian_factor() says which.
+/// Later solves reuse that factor:
 ///  - constraints added or removed since the factorization: the factored system is
 ///    bordered by the changed vertices, a released constraint as an extra unknown and a
 ///    new one as a Lagrange multiplier holding its value, and the small dense Schur
@@ -92,7 +98,8 @@ InterpolationResult interpolate(const Mesh& mesh, FieldKind kind,
 ///    the last factor's order where the free set changed by at most 5 % (no new
 ///    fill-reducing ordering: reused_orders()).
 ///  - what each solve needs from the factor is kept as columns of #free doubles, each
-///    solved once (two triangular sweeps and a refinement step) when first needed: the
+///    solved once (with refinement; a vertex added since the factorization, through the
+///    Laplacian's factor, without: its residual lies in its own row) when needed: the
 ///    column A_FF^-1 G of each vertex that joins the border, and the response of each
 ///    originally constrained vertex whose value changes (at most 64; beyond, or for many
 ///    at once, their part of the right-hand side is solved afresh; with at most 16
@@ -142,6 +149,10 @@ class InterpolationSolver {
   /// no constraint (its values would be undetermined) or the factorization fails.
   InterpolationResult solve();
 
+  /// Whether the last factorization was of the Laplacian's free block (the mixed form:
+  /// g1 = 0, at most laplacian_factor_up_to constraints at the fresh start) rather than
+  /// of A_FF.
+  bool laplacian_factor() const;
   /// Numeric factorizations so far (one per fresh start).
   int factorizations() const;
   /// Of those, the ones made in the last factor's order (reuse_ordering,
@@ -154,6 +165,11 @@ class InterpolationSolver {
   /// More changed constraints than this and the next solve() factors afresh (the Schur
   /// complement's cost grows with k^2 per solve and k^3 per change). Default 64.
   int max_changes = 64;
+  /// A fresh start with at most this many constraints, for g1 = 0, factors the
+  /// Laplacian's free block (laplacian_factor()), with more it factors A_FF: the mixed
+  /// form keeps a column of #free doubles per constraint and pays a dense product with
+  /// them at every solve. 0: always A_FF (the bench's baseline). Default 64.
+  int laplacian_factor_up_to = 64;
 
  private:
   struct Impl;
