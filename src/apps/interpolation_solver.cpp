@@ -42,10 +42,8 @@ namespace {
 // Residuals above this relative size are refined by another bordered solve, while a
 // step at least halves it: on large meshes the residual's rounding floor lies above the
 // tolerance (1.5e-13 to 5e-13 at 537k vertices), and steps that only graze it cost a
-// solve each for nothing. (Neither a higher tolerance nor skipping answers near the
-// residual a step failed to lower keeps every answer within 1e-10 of a fresh solve on
-// ill-conditioned meshes: on bunny-3k a relative residual of 1.2e-13 was a difference
-// of 1.8e-10; docs/solvers-measurements.md, "Painting".)
+// solve each for nothing. A higher tolerance would let answers on ill-conditioned
+// meshes drift past 1e-10 of a fresh solve (docs/solvers-measurements.md, "Painting").
 constexpr double kRefineTolerance = 1e-13;
 constexpr double kRefineGain = 0.5;
 constexpr int kMaxRefinements = 4;

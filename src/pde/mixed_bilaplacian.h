@@ -14,11 +14,11 @@
 //     (M_C + N_F^T M_F N_F) lambda = -N_F^T M_F y.
 // So each solve is two solves with the Laplacian's factor and a rank-|C| correction;
 // N_F is solved once. K_FF's factor has a fraction of K D K's fill (a one-ring stencil
-// against a two-ring one: 7.4M against 19.3M nonzeros on igea-134k), so it is made in
-// about half the time, a solve through it (four sweeps) costs about one pair of sweeps
-// of K D K's factor, and its rounding is the Laplacian's, not its square's, so fewer
-// answers need refinement. The price is |C| kept columns, which limits it to few held
-// vertices: scattered-data interpolation (apps/interpolation.h, InterpolationSolver).
+// against a two-ring one), so it is made faster, a solve through it (four sweeps)
+// costs about one pair of sweeps of K D K's factor, and its rounding is the
+// Laplacian's, not its square's, so fewer answers need refinement (measured:
+// docs/solvers-measurements.md, "Painting"). The price is |C| kept columns, which
+// limits it to few held vertices: scattered-data interpolation (InterpolationSolver).
 #pragma once
 
 #include <Eigen/Cholesky>

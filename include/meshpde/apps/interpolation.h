@@ -84,9 +84,9 @@ InterpolationResult interpolate(const Mesh& mesh, FieldKind kind,
 /// factors what A_FF^-1 needs, A = g1 K + g2 K D K on the vertices free then:
 ///  - without g1 and with at most laplacian_factor_up_to (64) constraints, the
 ///    Laplacian's free block K_FF; A_FF^-1 is then two solves with it and a correction
-///    of rank #constraints (the mixed form of the bi-Laplacian: a factor with about 2.6
-///    times fewer nonzeros than A_FF's on igea-134k, so a faster first solve and a
-///    cheaper new vertex; docs/solvers.md, "Painting");
+///    of rank #constraints (the mixed form of the bi-Laplacian: a one-ring factor
+///    instead of a two-ring one, so a faster first solve and a cheaper new vertex;
+///    figures in docs/solvers.md, "Painting");
 ///  - else A_FF itself (SteadyDirectSolver). laplacian_factor() says which.
 /// Later solves reuse that factor:
 ///  - constraints added or removed since the factorization: the factored system is
