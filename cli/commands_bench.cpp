@@ -28,10 +28,11 @@ void add_bench_command(CLI::App& app) {
          "One section alone: haptic (the haptic_* figures), global_real (the global bi-Laplacian on every real "
          "mesh of the data folder, as it is and subdivided once and twice, beside CHOLMOD; ten minutes or more), "
          "paint (the editor's paint clicks on igea-134k; with --large also on it subdivided twice, 2.15M vertices), "
-         "correct_guard (a correction the self-intersection guard limits, beside the same applied as solved) or "
+         "correct_guard (a correction the self-intersection guard limits, beside the same applied as solved), drag "
+         "(DragSession on a 10k-vertex region of the 655k icosphere: set-up and its parts, updates, handles, rings) or "
          "direct (the direct bi-Laplacian solve of fertility-4k subdivided to 1.15M vertices, by CHOLMOD with its own "
          "ordering and in the mesh's nested dissection order: time, fill and memory)")
-      ->check(CLI::IsMember({"haptic", "global_real", "paint", "correct_guard", "direct"}));
+      ->check(CLI::IsMember({"haptic", "global_real", "paint", "correct_guard", "drag", "direct"}));
   cmd->callback([=] {
     options->data_dir = bench_data_dir(*folder);
     options->progress = [](const std::string& what) { fmt::print(stderr, "[bench] {}\n", what); };

@@ -160,6 +160,20 @@ check "no output after usage errors" [ ! -e "$T/never.ply" ]
 "$M" bench --data-dir "$T/no-such-folder" >/dev/null 2>"$T/err"
 check "bench --data-dir that is not a folder exits 1" [ $? -eq 1 ]
 check "bench --data-dir message names the folder" grep -q "no-such-folder: not a folder" "$T/err"
+# One section alone: the drag figures with the set-up's steps (a few seconds).
+"$M" bench --only drag --quick --json >"$T/drag.json" 2>/dev/null || bad "bench --only drag"
+check "bench --only drag times the set-up and each of its steps, and nothing else" python3 -c "
+import json
+d = json.load(open('$T/drag.json'))
+steps = ['drag_setup_region_ms_10k_region', 'drag_setup_order_ms_10k_region', 'drag_setup_assembly_ms_10k_region',
+         'drag_factor_ms_10k_region_split', 'drag_setup_basis_ms_10k_region']
+assert all(d[k] > 0 for k in steps + ['drag_setup_ms_10k_region', 'drag_setup_region_baseline_ms_edge_paths']), d
+assert 9000 < d['drag_region_vertices'] < 10500 and 9000 < d['drag_setup_region_vertices_edge_paths'] < 11000, d
+assert not any(k.startswith('global_') or k.startswith('poke_') for k in d), sorted(d)
+"
+"$M" bench --only bogus >/dev/null 2>"$T/err"
+check "bench --only with an unknown section exits 2 and lists drag" [ $? -eq 2 ]
+check "bench --only's message names the choices" grep -q "drag" "$T/err"
 "$M" --version >/dev/null 2>&1
 check "--version exits 0" [ $? -eq 0 ]
 "$M" info --help >/dev/null 2>&1

@@ -154,6 +154,30 @@ TEST(GeodesicDistance, TheRadiusCutsTheSearchAndSeveralSourcesTakeTheNearest) {
   EXPECT_GE(static_cast<int>(both.size()), inside);
 }
 
+// The search sizes its tables from the radius (a disc at the source's edge length):
+// radii far below an edge, about a region, and beyond the whole mesh, from a vertex and
+// from a point, all give the whole search's distances inside the radius, in order.
+TEST(GeodesicDistance, EveryRadiusGivesTheWholeSearchsDistancesInsideIt) {
+  const Mesh m = make(icosphere(4));
+  const SurfacePoint p{.face = 7, .bary = {0.2, 0.3, 0.5}};
+  for (const GeodesicSources& sources : {GeodesicSources{.vertices = {3}}, GeodesicSources{.points = {p}},
+                                         GeodesicSources{.vertices = {3, 100}, .points = {p}}}) {
+    const Eigen::VectorXd whole = geodesic_distance(m, sources);
+    for (const double radius : {1e-3, 0.05, 0.7, 10.0}) {
+      const auto within = geodesic_distances_from(m, sources, radius);
+      int inside = 0;
+      for (int v = 0; v < m.num_vertices(); ++v) inside += whole[v] < radius;
+      EXPECT_EQ(static_cast<int>(within.size()), inside) << "radius " << radius;
+      double last = 0;
+      for (const auto& [v, d] : within) {
+        EXPECT_NEAR(d, whole[v], 1e-12) << "vertex " << v << ", radius " << radius;
+        EXPECT_GE(d, last);
+        last = d;
+      }
+    }
+  }
+}
+
 TEST(GeodesicDistance, SurfacePointsAreTheClosestAndBadSourcesAreRefused) {
   const Mesh m = make(icosphere(3));
   const Eigen::Vector3d far(0.3, -2.0, 0.1);

@@ -872,6 +872,245 @@ void correct_guard_figures(const BenchOptions& options, nlohmann::json& j) {
   run(bif, carina, Eigen::Vector3d(8, 0, 0), 10.0, "_bifurcation");
 }
 
+// Interactive drags on a region of about 10k free vertices of the 655k mesh
+// (DragSession: the region's factor and basis are built once; an update is a
+// product with the basis). Baselines from the same run: the update as a full solve
+// with the cached factor (the drag path before DragSession), warm-started Jacobi-CG
+// on the same region, Eigen's simplicial factorization for the set-up, and a fresh
+// factorization for adding a handle and for growing the region.
+void drag_figures(const BenchOptions& options, nlohmann::json& j, const Mesh& big, const FemOperators& big_ops) {
+  const auto progress = [&](const std::string& what) {
+    if (options.progress) options.progress(what);
+  };
+  const bool quick = options.quick;
+  const int nv = big.num_vertices();
+  progress("drag session: 10k-vertex region on 655k");
+  int handle = 0;
+  big.positions().col(2).maxCoeff(&handle);
+  const DragSessionParams region_params{.radius = 53.0};  // about 10k vertices at unit edge length (surface distance)
+  auto best_of = [&](int n, auto&& f) {
+    double best = 1e30;
+    for (int r = 0; r < n; ++r) {
+      const auto t = clock_type::now();
+      f();
+      best = std::min(best, seconds_since(t));
+    }
+    return best;
+  };
+  std::unique_ptr<DragSession> session;
+  const double setup_s = best_of(quick ? 2 : 4, [&] {
+    session = std::make_unique<DragSession>(big, big_ops, std::vector<int>{handle}, region_params);
+  });
+  j["drag_setup_ms_10k_region"] = setup_s * 1e3;
+  {
+    const int limit = max_threads();
+    set_max_threads(1);
+    j["drag_setup_ms_10k_region_1thread"] =
+        best_of(quick ? 2 : 4, [&] { DragSession s(big, big_ops, {handle}, region_params); }) * 1e3;
+    set_max_threads(limit);
+  }
+  j["drag_region_vertices"] = session->region().size();
+  const std::vector<int> free = session->region();
+  const double eigen_setup_s = best_of(quick ? 1 : 2, [&] {
+    const SteadyDirectSolver s(big, big_ops, PdeCoefficients{.g0 = 0, .g1 = 0, .g2 = 1}, free,
+                               SparseCholesky::Backend::Eigen);
+  });
+  j["drag_setup_baseline_ms_eigen_simplicial"] = eigen_setup_s * 1e3;
+  j["drag_split_factor"] = session->split_factor();
+  {
+    // The factorization alone, region in nested dissection order: the two halves at
+    // once (SplitCholesky, what the session uses) against one CHOLMOD factor of the
+    // whole region (LeadingBlockCholesky), same matrix, interleaved.
+    const NestedDissection nd = nested_dissection(big, free);
+    const Eigen::SparseMatrix<double> A =
+        assemble_steady_matrix(big, big_ops, PdeCoefficients{.g0 = 0, .g1 = 0, .g2 = 1}, nd.order);
+    double split_best = 1e30, whole_best = 1e30;
+    for (int r = 0; r < (quick ? 2 : 5); ++r) {
+      auto t = clock_type::now();
+      if (SplitCholesky::available() && nd.parts[1] > 0) {
+        SplitCholesky f;
+        f.factorize(A, static_cast<Eigen::Index>(nd.parts[0]), static_cast<Eigen::Index>(nd.parts[1]));
+        split_best = std::min(split_best, seconds_since(t));
+      }
+      t = clock_type::now();
+      LeadingBlockCholesky f;
+      f.factorize(A);
+      whole_best = std::min(whole_best, seconds_since(t));
+    }
+    if (split_best < 1e30) j["drag_factor_ms_10k_region_split"] = split_best * 1e3;
+    j["drag_factor_ms_10k_region_one_factor"] = whole_best * 1e3;
+  }
+  {
+    // The set-up's parts one by one (best of each, interleaved): the region (surface
+    // distance within the radius) beside the edge-path ball of the rule before it,
+    // radius 59 (about as many vertices), then the order, the assembly, the split
+    // factor (drag_factor_ms_10k_region_split above) and the basis (one solve).
+    double region_best = 1e30, edge_best = 1e30, order_best = 1e30, assembly_best = 1e30, basis_best = 1e30;
+    std::size_t edge_vertices = 0;
+    const std::vector<int> sources{handle};
+    for (int r = 0; r < (quick ? 3 : 8); ++r) {
+      auto t = clock_type::now();
+      const std::vector<int> region = region_around(big, handle, RegionSpec{.radius = region_params.radius});
+      region_best = std::min(region_best, seconds_since(t));
+      t = clock_type::now();
+      edge_vertices = geodesic_distances(big, sources, 59.0).size();
+      edge_best = std::min(edge_best, seconds_since(t));
+      t = clock_type::now();
+      const NestedDissection nd = nested_dissection(big, free);
+      order_best = std::min(order_best, seconds_since(t));
+      t = clock_type::now();
+      Eigen::SparseMatrix<double> A =
+          assemble_steady_matrix(big, big_ops, PdeCoefficients{.g0 = 0, .g1 = 0, .g2 = 1}, nd.order);
+      A.makeCompressed();
+      assembly_best = std::min(assembly_best, seconds_since(t));
+      if (SplitCholesky::available() && nd.parts[1] > 0) {
+        SplitCholesky f;
+        f.factorize(A, static_cast<Eigen::Index>(nd.parts[0]), static_cast<Eigen::Index>(nd.parts[1]));
+        const Eigen::MatrixXd b = Eigen::MatrixXd::Ones(A.rows(), 1);
+        t = clock_type::now();
+        const Eigen::MatrixXd x = f.solve(b);
+        basis_best = std::min(basis_best, seconds_since(t));
+      }
+    }
+    j["drag_setup_region_ms_10k_region"] = region_best * 1e3;
+    j["drag_setup_region_baseline_ms_edge_paths"] = edge_best * 1e3;
+    j["drag_setup_region_vertices_edge_paths"] = edge_vertices;
+    j["drag_setup_order_ms_10k_region"] = order_best * 1e3;
+    j["drag_setup_assembly_ms_10k_region"] = assembly_best * 1e3;
+    if (basis_best < 1e30) j["drag_setup_basis_ms_10k_region"] = basis_best * 1e3;
+  }
+  std::unique_ptr<DragSession> with_margin;
+  j["drag_setup_ms_10k_region_with_margin"] =
+      best_of(quick ? 2 : 4,
+              [&] {
+                with_margin = std::make_unique<DragSession>(big, big_ops, std::vector<int>{handle},
+                                                            DragSessionParams{.radius = 53.0, .margin = true});
+              }) *
+      1e3;
+  {
+    // The same region on a mesh of a quarter the size (164k, same edge length): the
+    // set-up follows the region, not the mesh.
+    const Mesh mid = unit_edge_icosphere(7);
+    const FemOperators mid_ops = build_cotan_operators(mid);
+    int h = 0;
+    mid.positions().col(2).maxCoeff(&h);
+    std::size_t mid_region = 0;
+    const double mid_s = best_of(quick ? 2 : 4, [&] {
+      DragSession s(mid, mid_ops, {h}, region_params);
+      mid_region = s.region().size();
+    });
+    j["drag_setup_ms_10k_region_on_164k"] = mid_s * 1e3;
+    j["drag_region_vertices_on_164k"] = mid_region;
+  }
+  const Eigen::Vector3d nrm = big.positions().row(handle).normalized();
+  std::vector<double> us, solve_us;
+  Positions V = big.positions();
+  for (int k = 1; k <= (quick ? 200 : 1000); ++k) {
+    const Eigen::MatrixXd d = (0.01 * k) * nrm.transpose();
+    const auto t = clock_type::now();
+    // What an editor does per mouse move: the region's new positions.
+    const Eigen::MatrixXd x = session->displacements(d);
+    for (std::size_t i = 0; i < free.size(); ++i)
+      V.row(free[i]) = big.positions().row(free[i]) + x.row(static_cast<Eigen::Index>(i));
+    us.push_back(seconds_since(t) * 1e6);
+    if (!x.allFinite()) throw SolverError("drag benchmark produced non-finite values");
+  }
+  Field u = Field::Zero(nv, 3);
+  const SteadyDirectSolver solver(big, big_ops, PdeCoefficients{.g0 = 0, .g1 = 0, .g2 = 1}, free);
+  for (int k = 1; k <= (quick ? 20 : 50); ++k) {
+    u.row(handle) = (0.01 * k) * nrm.transpose();
+    const auto t = clock_type::now();
+    const Eigen::MatrixXd x = solver.solve_free(u);
+    solve_us.push_back(seconds_since(t) * 1e6);
+  }
+  const Percentiles dp = percentiles(us), sp = percentiles(solve_us);
+  j["drag_p50_us_10k_region"] = dp.p50;
+  j["drag_p99_us_10k_region"] = dp.p99;
+  j["drag_solve_with_factor_p99_us_10k_region"] = sp.p99;
+  PdeSession cg(big, big_ops, 3, PdeCoefficients{.alpha = 0, .b1 = 0, .b2 = 0, .g0 = 0, .g1 = 0, .g2 = 1},
+                DomainOptions{.seed_rings = 0});
+  cg.cg_options.tolerance = 1e-8;
+  std::vector<int> cg_region = free;
+  cg_region.push_back(handle);
+  cg.activate(cg_region);
+  std::vector<double> cg_us;
+  int iterations = 0;
+  for (int k = 1; k <= 3; ++k) {
+    const Eigen::Vector3d target = (0.01 * k) * nrm;
+    cg.constrain(handle, std::span<const double>(target.data(), 3));
+    const auto t = clock_type::now();
+    iterations += cg.solve_steady().cg.iterations;
+    cg_us.push_back(seconds_since(t) * 1e6);
+  }
+  j["drag_cg_baseline_us_per_update"] = percentiles(cg_us).p50;
+  j["drag_cg_baseline_iterations_per_update"] = iterations / 3.0;
+  j["drag_speedup_over_cg"] = percentiles(cg_us).p50 / dp.p50;
+  j["drag_speedup_over_solve_with_factor"] = sp.p99 / dp.p99;
+  // A second handle 20 edges from the first: one solve with the same factor.
+  int second = free[0];
+  for (int v : free)
+    if (std::abs((big.positions().row(v) - big.positions().row(handle)).norm() - 20.0) <
+        std::abs((big.positions().row(second) - big.positions().row(handle)).norm() - 20.0))
+      second = v;
+  auto t_add = clock_type::now();
+  session->add_handle(second);
+  j["drag_add_handle_ms"] = seconds_since(t_add) * 1e3;
+  j["drag_add_handle_baseline_ms_refactor"] =
+      best_of(1,
+              [&] {
+                DragSession fresh(big, big_ops, {handle, second}, region_params);
+              }) *
+      1e3;
+  // Growth by one ring: with the margin factored at set-up (one multi-column solve
+  // for all handles) against growing the session without a margin (a new factor),
+  // same run. A growth uses the margin up, so each sample is a new margin session
+  // (set-up not timed); the median of the samples is reported.
+  std::vector<double> grow_ms;
+  for (int k = 0; k < (quick ? 3 : 5); ++k) {
+    if (k > 0)
+      with_margin = std::make_unique<DragSession>(big, big_ops, std::vector<int>{handle},
+                                                  DragSessionParams{.radius = 53.0, .margin = true});
+    with_margin->add_handle(second);
+    const auto t_grow = clock_type::now();
+    with_margin->grow(1);
+    grow_ms.push_back(seconds_since(t_grow) * 1e3);
+  }
+  j["drag_grow_ring_ms"] = percentiles(grow_ms).p50;
+  j["drag_grow_ring_max_ms"] = percentiles(grow_ms).max;
+  j["drag_grow_ring_factorizations"] = with_margin->factorizations();
+  j["drag_grown_region_vertices"] = with_margin->region().size();
+  const auto t_refactor = clock_type::now();
+  session->grow(1);
+  j["drag_grow_ring_baseline_ms_refactor"] = seconds_since(t_refactor) * 1e3;
+  // Shrink by one ring: with the region's outer ring ordered last at set-up
+  // (inner_margin) against a session without it (a new factor), same run.
+  std::vector<double> shrink_ms, inner_setup_ms;
+  for (int k = 0; k < (quick ? 3 : 5); ++k) {
+    const auto t_setup = clock_type::now();
+    DragSession inner(big, big_ops, {handle}, DragSessionParams{.radius = 53.0, .inner_margin = true});
+    inner_setup_ms.push_back(seconds_since(t_setup) * 1e3);
+    inner.add_handle(second);
+    const auto t_shrink = clock_type::now();
+    inner.shrink(1);
+    shrink_ms.push_back(seconds_since(t_shrink) * 1e3);
+    if (k == 0) j["drag_shrunk_region_vertices"] = inner.region().size();
+  }
+  j["drag_shrink_ring_ms"] = percentiles(shrink_ms).p50;
+  j["drag_setup_ms_10k_region_with_inner_margin"] = percentiles(inner_setup_ms).p50;
+  const auto t_shrink_refactor = clock_type::now();
+  session->shrink(1);
+  j["drag_shrink_ring_baseline_ms_refactor"] = seconds_since(t_shrink_refactor) * 1e3;
+  j["drag_setup_ms_10k_region_with_both_margins"] =
+      best_of(quick ? 1 : 2,
+              [&] {
+                DragSession both(big, big_ops, {handle},
+                                 DragSessionParams{.radius = 53.0, .margin = true, .inner_margin = true});
+              }) *
+      1e3;
+  j["drag_setup_ms_2k_region"] =
+      best_of(quick ? 2 : 4, [&] { DragSession s(big, big_ops, {handle}, DragSessionParams{.radius = 26.0}); }) * 1e3;
+}
+
 nlohmann::json run_standard_benchmarks(const BenchOptions& options) {
   const auto progress = [&](const std::string& what) {
     if (options.progress) options.progress(what);
@@ -882,9 +1121,9 @@ nlohmann::json run_standard_benchmarks(const BenchOptions& options) {
   const bool quick = options.quick, large = options.large;
   nlohmann::json j;
   if (!options.only.empty() && options.only != "haptic" && options.only != "global_real" && options.only != "paint" &&
-      options.only != "correct_guard" && options.only != "direct")
+      options.only != "correct_guard" && options.only != "drag" && options.only != "direct")
     throw InputError(fmt::format(
-        "bench: no section '{}' (--only takes: haptic, global_real, paint, correct_guard, direct)", options.only));
+        "bench: no section '{}' (--only takes: haptic, global_real, paint, correct_guard, drag, direct)", options.only));
   const int reps = quick ? 3 : 10;
   const int steps = quick ? 300 : 1000;
   j["quick"] = quick;
@@ -920,6 +1159,10 @@ nlohmann::json run_standard_benchmarks(const BenchOptions& options) {
   const Mesh big = unit_edge_icosphere(8);
   const FemOperators big_ops = build_cotan_operators(big);
   j["build_655k_s"] = seconds_since(t0);
+  if (options.only == "drag") {
+    drag_figures(options, j, big, big_ops);
+    return j;
+  }
   const int nv = big.num_vertices();
   const auto S = static_cast<double>(big.neighbors().size());
   {
@@ -974,200 +1217,7 @@ nlohmann::json run_standard_benchmarks(const BenchOptions& options) {
     j["mesh_topology_bytes_per_vertex"] = static_cast<double>(big.connectivity_bytes()) / nv;
   }
 
-  {
-    // Interactive drags on a region of about 10k free vertices of the 655k mesh
-    // (DragSession: the region's factor and basis are built once; an update is a
-    // product with the basis). Baselines from the same run: the update as a full solve
-    // with the cached factor (the drag path before DragSession), warm-started Jacobi-CG
-    // on the same region, Eigen's simplicial factorization for the set-up, and a fresh
-    // factorization for adding a handle and for growing the region.
-    progress("drag session: 10k-vertex region on 655k");
-    int handle = 0;
-    big.positions().col(2).maxCoeff(&handle);
-    const DragSessionParams region_params{.radius = 53.0};  // about 10k vertices at unit edge length (surface distance)
-    auto best_of = [&](int n, auto&& f) {
-      double best = 1e30;
-      for (int r = 0; r < n; ++r) {
-        const auto t = clock_type::now();
-        f();
-        best = std::min(best, seconds_since(t));
-      }
-      return best;
-    };
-    std::unique_ptr<DragSession> session;
-    const double setup_s = best_of(quick ? 2 : 4, [&] {
-      session = std::make_unique<DragSession>(big, big_ops, std::vector<int>{handle}, region_params);
-    });
-    j["drag_setup_ms_10k_region"] = setup_s * 1e3;
-    {
-      const int limit = max_threads();
-      set_max_threads(1);
-      j["drag_setup_ms_10k_region_1thread"] =
-          best_of(quick ? 2 : 4, [&] { DragSession s(big, big_ops, {handle}, region_params); }) * 1e3;
-      set_max_threads(limit);
-    }
-    j["drag_region_vertices"] = session->region().size();
-    const std::vector<int> free = session->region();
-    const double eigen_setup_s = best_of(quick ? 1 : 2, [&] {
-      const SteadyDirectSolver s(big, big_ops, PdeCoefficients{.g0 = 0, .g1 = 0, .g2 = 1}, free,
-                                 SparseCholesky::Backend::Eigen);
-    });
-    j["drag_setup_baseline_ms_eigen_simplicial"] = eigen_setup_s * 1e3;
-    j["drag_split_factor"] = session->split_factor();
-    {
-      // The factorization alone, region in nested dissection order: the two halves at
-      // once (SplitCholesky, what the session uses) against one CHOLMOD factor of the
-      // whole region (LeadingBlockCholesky), same matrix, interleaved.
-      const NestedDissection nd = nested_dissection(big, free);
-      const Eigen::SparseMatrix<double> A =
-          assemble_steady_matrix(big, big_ops, PdeCoefficients{.g0 = 0, .g1 = 0, .g2 = 1}, nd.order);
-      double split_best = 1e30, whole_best = 1e30;
-      for (int r = 0; r < (quick ? 2 : 5); ++r) {
-        auto t = clock_type::now();
-        if (SplitCholesky::available() && nd.parts[1] > 0) {
-          SplitCholesky f;
-          f.factorize(A, static_cast<Eigen::Index>(nd.parts[0]), static_cast<Eigen::Index>(nd.parts[1]));
-          split_best = std::min(split_best, seconds_since(t));
-        }
-        t = clock_type::now();
-        LeadingBlockCholesky f;
-        f.factorize(A);
-        whole_best = std::min(whole_best, seconds_since(t));
-      }
-      if (split_best < 1e30) j["drag_factor_ms_10k_region_split"] = split_best * 1e3;
-      j["drag_factor_ms_10k_region_one_factor"] = whole_best * 1e3;
-    }
-    std::unique_ptr<DragSession> with_margin;
-    j["drag_setup_ms_10k_region_with_margin"] =
-        best_of(quick ? 2 : 4,
-                [&] {
-                  with_margin = std::make_unique<DragSession>(big, big_ops, std::vector<int>{handle},
-                                                              DragSessionParams{.radius = 53.0, .margin = true});
-                }) *
-        1e3;
-    {
-      // The same region on a mesh of a quarter the size (164k, same edge length): the
-      // set-up follows the region, not the mesh.
-      const Mesh mid = unit_edge_icosphere(7);
-      const FemOperators mid_ops = build_cotan_operators(mid);
-      int h = 0;
-      mid.positions().col(2).maxCoeff(&h);
-      std::size_t mid_region = 0;
-      const double mid_s = best_of(quick ? 2 : 4, [&] {
-        DragSession s(mid, mid_ops, {h}, region_params);
-        mid_region = s.region().size();
-      });
-      j["drag_setup_ms_10k_region_on_164k"] = mid_s * 1e3;
-      j["drag_region_vertices_on_164k"] = mid_region;
-    }
-    const Eigen::Vector3d nrm = big.positions().row(handle).normalized();
-    std::vector<double> us, solve_us;
-    Positions V = big.positions();
-    for (int k = 1; k <= (quick ? 200 : 1000); ++k) {
-      const Eigen::MatrixXd d = (0.01 * k) * nrm.transpose();
-      const auto t = clock_type::now();
-      // What an editor does per mouse move: the region's new positions.
-      const Eigen::MatrixXd x = session->displacements(d);
-      for (std::size_t i = 0; i < free.size(); ++i)
-        V.row(free[i]) = big.positions().row(free[i]) + x.row(static_cast<Eigen::Index>(i));
-      us.push_back(seconds_since(t) * 1e6);
-      if (!x.allFinite()) throw SolverError("drag benchmark produced non-finite values");
-    }
-    Field u = Field::Zero(nv, 3);
-    const SteadyDirectSolver solver(big, big_ops, PdeCoefficients{.g0 = 0, .g1 = 0, .g2 = 1}, free);
-    for (int k = 1; k <= (quick ? 20 : 50); ++k) {
-      u.row(handle) = (0.01 * k) * nrm.transpose();
-      const auto t = clock_type::now();
-      const Eigen::MatrixXd x = solver.solve_free(u);
-      solve_us.push_back(seconds_since(t) * 1e6);
-    }
-    const Percentiles dp = percentiles(us), sp = percentiles(solve_us);
-    j["drag_p50_us_10k_region"] = dp.p50;
-    j["drag_p99_us_10k_region"] = dp.p99;
-    j["drag_solve_with_factor_p99_us_10k_region"] = sp.p99;
-    PdeSession cg(big, big_ops, 3, PdeCoefficients{.alpha = 0, .b1 = 0, .b2 = 0, .g0 = 0, .g1 = 0, .g2 = 1},
-                  DomainOptions{.seed_rings = 0});
-    cg.cg_options.tolerance = 1e-8;
-    std::vector<int> cg_region = free;
-    cg_region.push_back(handle);
-    cg.activate(cg_region);
-    std::vector<double> cg_us;
-    int iterations = 0;
-    for (int k = 1; k <= 3; ++k) {
-      const Eigen::Vector3d target = (0.01 * k) * nrm;
-      cg.constrain(handle, std::span<const double>(target.data(), 3));
-      const auto t = clock_type::now();
-      iterations += cg.solve_steady().cg.iterations;
-      cg_us.push_back(seconds_since(t) * 1e6);
-    }
-    j["drag_cg_baseline_us_per_update"] = percentiles(cg_us).p50;
-    j["drag_cg_baseline_iterations_per_update"] = iterations / 3.0;
-    j["drag_speedup_over_cg"] = percentiles(cg_us).p50 / dp.p50;
-    j["drag_speedup_over_solve_with_factor"] = sp.p99 / dp.p99;
-    // A second handle 20 edges from the first: one solve with the same factor.
-    int second = free[0];
-    for (int v : free)
-      if (std::abs((big.positions().row(v) - big.positions().row(handle)).norm() - 20.0) <
-          std::abs((big.positions().row(second) - big.positions().row(handle)).norm() - 20.0))
-        second = v;
-    auto t_add = clock_type::now();
-    session->add_handle(second);
-    j["drag_add_handle_ms"] = seconds_since(t_add) * 1e3;
-    j["drag_add_handle_baseline_ms_refactor"] =
-        best_of(1,
-                [&] {
-                  DragSession fresh(big, big_ops, {handle, second}, region_params);
-                }) *
-        1e3;
-    // Growth by one ring: with the margin factored at set-up (one multi-column solve
-    // for all handles) against growing the session without a margin (a new factor),
-    // same run. A growth uses the margin up, so each sample is a new margin session
-    // (set-up not timed); the median of the samples is reported.
-    std::vector<double> grow_ms;
-    for (int k = 0; k < (quick ? 3 : 5); ++k) {
-      if (k > 0)
-        with_margin = std::make_unique<DragSession>(big, big_ops, std::vector<int>{handle},
-                                                    DragSessionParams{.radius = 53.0, .margin = true});
-      with_margin->add_handle(second);
-      const auto t_grow = clock_type::now();
-      with_margin->grow(1);
-      grow_ms.push_back(seconds_since(t_grow) * 1e3);
-    }
-    j["drag_grow_ring_ms"] = percentiles(grow_ms).p50;
-    j["drag_grow_ring_max_ms"] = percentiles(grow_ms).max;
-    j["drag_grow_ring_factorizations"] = with_margin->factorizations();
-    j["drag_grown_region_vertices"] = with_margin->region().size();
-    const auto t_refactor = clock_type::now();
-    session->grow(1);
-    j["drag_grow_ring_baseline_ms_refactor"] = seconds_since(t_refactor) * 1e3;
-    // Shrink by one ring: with the region's outer ring ordered last at set-up
-    // (inner_margin) against a session without it (a new factor), same run.
-    std::vector<double> shrink_ms, inner_setup_ms;
-    for (int k = 0; k < (quick ? 3 : 5); ++k) {
-      const auto t_setup = clock_type::now();
-      DragSession inner(big, big_ops, {handle}, DragSessionParams{.radius = 53.0, .inner_margin = true});
-      inner_setup_ms.push_back(seconds_since(t_setup) * 1e3);
-      inner.add_handle(second);
-      const auto t_shrink = clock_type::now();
-      inner.shrink(1);
-      shrink_ms.push_back(seconds_since(t_shrink) * 1e3);
-      if (k == 0) j["drag_shrunk_region_vertices"] = inner.region().size();
-    }
-    j["drag_shrink_ring_ms"] = percentiles(shrink_ms).p50;
-    j["drag_setup_ms_10k_region_with_inner_margin"] = percentiles(inner_setup_ms).p50;
-    const auto t_shrink_refactor = clock_type::now();
-    session->shrink(1);
-    j["drag_shrink_ring_baseline_ms_refactor"] = seconds_since(t_shrink_refactor) * 1e3;
-    j["drag_setup_ms_10k_region_with_both_margins"] =
-        best_of(quick ? 1 : 2,
-                [&] {
-                  DragSession both(big, big_ops, {handle},
-                                   DragSessionParams{.radius = 53.0, .margin = true, .inner_margin = true});
-                }) *
-        1e3;
-    j["drag_setup_ms_2k_region"] =
-        best_of(quick ? 2 : 4, [&] { DragSession s(big, big_ops, {handle}, DragSessionParams{.radius = 26.0}); }) * 1e3;
-  }
+  drag_figures(options, j, big, big_ops);
 
   // Global steady bi-Laplacian (three right-hand sides; the handle moved, a far cap of
   // about 1 % of the vertices held): the default (Auto) preconditioned CG, then each

@@ -18,7 +18,8 @@ struct BenchOptions {
   int threads = 0;     ///< thread limit for the whole run; 0: every core
   /// One section alone: "haptic" (the haptic_* figures), "global_real" (the global
   /// bi-Laplacian on the real meshes, global_bilap_*_<mesh>), "paint" (the paint_*
-  /// figures), "correct_guard" (correct_guarded_*) or "direct" (the direct solve of the
+  /// figures), "correct_guard" (correct_guarded_*), "drag" (the drag_* figures of
+  /// DragSession on the 655k icosphere) or "direct" (the direct solve of the
   /// million-vertex row: global_bilap_direct_baseline_s_1m, direct_bytes_per_vertex_1m);
   /// empty: everything.
   std::string only;

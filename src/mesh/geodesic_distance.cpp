@@ -42,6 +42,35 @@ double through_triangle(const Eigen::Vector3d& a, const Eigen::Vector3d& b, cons
   return std::sqrt(dx * dx + dy * dy);
 }
 
+// About how many vertices lie within `radius` of the sources: a flat disc of that radius
+// at the mean edge length h around the first source, pi R^2 / (sqrt(3)/2 h^2), for each
+// source, between 64 and the mesh's vertex count (at most 2^20). An estimate for sizing
+// the search's tables: growing them from a few entries to a region's thousands cost
+// about a sixth of the search (a 9.6k-vertex region: 7.2 against 6.0 ms).
+std::size_t expected_reach(const Mesh& mesh, const GeodesicSources& sources, double radius) {
+  constexpr double kFew = 64;
+  const int nv = mesh.num_vertices();
+  if (!std::isfinite(radius) || radius <= 0 || nv == 0) return static_cast<std::size_t>(kFew);
+  const auto& V = mesh.positions();
+  double h = 0;
+  if (!sources.vertices.empty() && sources.vertices[0] >= 0 && sources.vertices[0] < nv) {
+    const int s = sources.vertices[0];
+    const auto off = mesh.offsets();
+    const auto nbr = mesh.neighbors();
+    for (int q = off[s]; q < off[s + 1]; ++q) h += (V.row(s) - V.row(nbr[q])).norm();
+    h /= std::max(1, off[s + 1] - off[s]);
+  } else if (!sources.points.empty() && sources.points[0].face >= 0 &&
+             sources.points[0].face < mesh.num_faces()) {
+    const auto& F = mesh.triangles();
+    const int f = sources.points[0].face;
+    for (int k = 0; k < 3; ++k) h += (V.row(F(f, k)) - V.row(F(f, (k + 1) % 3))).norm() / 3;
+  }
+  if (!(h > 0)) return static_cast<std::size_t>(kFew);
+  const auto count = static_cast<double>(sources.vertices.size() + sources.points.size());
+  const double disc = 3.7 * (radius / h) * (radius / h) * count;
+  return static_cast<std::size_t>(std::clamp(disc, kFew, std::max(kFew, std::min(1048576.0, static_cast<double>(nv)))));
+}
+
 // Most rounds of corrections after the first pass (each one over the vertices whose
 // neighbours changed in the round before).
 constexpr int kGeodesicRounds = 64;
@@ -56,9 +85,12 @@ std::vector<std::pair<int, double>> geodesic_distances_from(const Mesh& mesh, co
   // Tentative distances and states of the vertices met so far, by local index (sized to
   // the region, not the mesh): a region of a few thousand vertices in a mesh of millions
   // costs what the region does.
-  IndexMap index(64);
+  const std::size_t expected = expected_reach(mesh, sources, radius);
+  IndexMap index(expected);
   std::vector<double> dist;
   std::vector<char> state;  // 0 tentative, 1 final, 2 final and a source's (kept as it is)
+  dist.reserve(expected);
+  state.reserve(expected);
   auto slot = [&](int v) {
     const auto [k, inserted] = index.insert(v);
     if (inserted) {
@@ -131,6 +163,7 @@ std::vector<std::pair<int, double>> geodesic_distances_from(const Mesh& mesh, co
     }
   };
   std::vector<std::pair<int, double>> out;
+  out.reserve(expected);
   while (!queue.empty()) {
     const auto [d, v] = queue.top();
     queue.pop();
@@ -193,7 +226,9 @@ std::vector<std::pair<int, double>> geodesic_distances_from(const Mesh& mesh, co
     }
   }
   for (auto& [v, d] : out) d = dist[static_cast<std::size_t>(index.find(v))];
-  std::stable_sort(out.begin(), out.end(), [](const auto& x, const auto& y) { return x.second < y.second; });
+  // Only corrections can put the pass's order out of increasing distance.
+  const auto nearer = [](const auto& x, const auto& y) { return x.second < y.second; };
+  if (!std::is_sorted(out.begin(), out.end(), nearer)) std::stable_sort(out.begin(), out.end(), nearer);
   return out;
 }
 
