@@ -1122,8 +1122,9 @@ nlohmann::json run_standard_benchmarks(const BenchOptions& options) {
   nlohmann::json j;
   if (!options.only.empty() && options.only != "haptic" && options.only != "global_real" && options.only != "paint" &&
       options.only != "correct_guard" && options.only != "drag" && options.only != "direct")
-    throw InputError(fmt::format(
-        "bench: no section '{}' (--only takes: haptic, global_real, paint, correct_guard, drag, direct)", options.only));
+    throw InputError(
+        fmt::format("bench: no section '{}' (--only takes: haptic, global_real, paint, correct_guard, drag, direct)",
+                    options.only));
   const int reps = quick ? 3 : 10;
   const int steps = quick ? 300 : 1000;
   j["quick"] = quick;

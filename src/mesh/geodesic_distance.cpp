@@ -59,8 +59,7 @@ std::size_t expected_reach(const Mesh& mesh, const GeodesicSources& sources, dou
     const auto nbr = mesh.neighbors();
     for (int q = off[s]; q < off[s + 1]; ++q) h += (V.row(s) - V.row(nbr[q])).norm();
     h /= std::max(1, off[s + 1] - off[s]);
-  } else if (!sources.points.empty() && sources.points[0].face >= 0 &&
-             sources.points[0].face < mesh.num_faces()) {
+  } else if (!sources.points.empty() && sources.points[0].face >= 0 && sources.points[0].face < mesh.num_faces()) {
     const auto& F = mesh.triangles();
     const int f = sources.points[0].face;
     for (int k = 0; k < 3; ++k) h += (V.row(F(f, k)) - V.row(F(f, (k + 1) % 3))).norm() / 3;
