@@ -222,6 +222,7 @@ void run_correct(const CorrectArgs& a) {
     disp = r.displacement;
     if (!r.accuracy_warning.empty()) fmt::print(stderr, "warning: {}\n", r.accuracy_warning);
     if (!r.region_warning.empty()) fmt::print(stderr, "warning: {}: {}\n", a.mesh, r.region_warning);
+    if (!r.handle_warning.empty()) fmt::print(stderr, "warning: {}: {}\n", a.mesh, r.handle_warning);
     if (r.applied_fraction < 1)
       fmt::print(stderr,
                  "warning: {}: only {:.3f} of the displacement was applied: the whole of it would make the surface "

@@ -227,6 +227,24 @@ d = json.load(open('$T/upt.json'))
 h = d['handle_points'][0]
 sys.exit(not (d['boundary'] == 'smooth' and abs(d['handle_radius'] - 2.0) < 1e-12 and 'triangle' in h
               and abs(sum(h['barycentric']) - 1) < 1e-9 and min(h['barycentric']) >= 0))"
+# a point typed far off the wall (another frame or unit) is warned about on stderr and
+# in the JSON, with the point as given and its distance; its x, y negated on the wall
+# (RAS given for LPS) is named as such
+"$M" correct "$T/tmm.obj" --point 5,0,160 --move 1,0,0.5 --radius 8 -o "$T/ufar.obj" --json >"$T/ufar.json" \
+  2>"$T/err" || bad "correct --point far from the surface"
+check "correct --point far off the surface warns, naming the distance" \
+  grep -q "warning: .*tmm.obj: the handle point (5, 0, 160) lies 100 mm from the surface" "$T/err"
+check "correct --point far off the surface: handle_warning and distance_to_surface in the JSON" python3 -c "
+import json, sys
+d = json.load(open('$T/ufar.json'))
+h = d['handle_points'][0]
+sys.exit(not ('100 mm' in d['handle_warning'] and h['given'] == [5, 0, 160] and abs(h['distance_to_surface'] - 100) < 0.1))"
+"$M" generate icosphere --level 3 -o "$T/ball.obj" >/dev/null
+awk '$1 == "v" { printf "v %.17g %.17g %.17g\n", 10 * $2 + 30, 10 * $3 + 20, 10 * $4; next } { print }' "$T/ball.obj" \
+  >"$T/ball30.obj"
+"$M" correct "$T/ball30.obj" --point -30,-20,10 --move normal:1 --radius 5 -o "$T/ballc.obj" 2>"$T/err" >/dev/null ||
+  bad "correct --point mirrored"
+check "correct --point whose x, y negated lie on the wall names RAS and LPS" grep -q "given in RAS for a mesh in LPS" "$T/err"
 # motion(IN, OUT, JSON, beyond): the first handle of JSON's report, the motion of its
 # triangle's corners from IN to OUT (OBJ files) at its barycentric coordinates, and the
 # largest move of a vertex farther than `beyond` from it.

@@ -7,6 +7,7 @@
 
 #include <Eigen/Geometry>
 #include <cmath>
+#include <nlohmann/json.hpp>
 #include <random>
 
 #include "meshpde/apps/vessel_correction.h"
@@ -318,6 +319,58 @@ TEST(CorrectionHandles, PointHandlesFromTextAndBadOnesAreRefused) {
 }
 
 // A session applies point handles on top of each other, with undo.
+// A handle point typed far from the wall (another frame or unit) still takes the
+// nearest surface point, but the result says how far it was and, when the point with x
+// and y negated lies on the wall, that RAS and LPS were most likely mixed up; the
+// report gives each point as given and its distance in mm, whatever the mesh's unit.
+TEST(CorrectionHandles, APointGivenFarFromTheSurfaceIsWarnedAboutAndAFrameMixUpNamed) {
+  GeneratedMesh g = icosphere(3, 10.0);
+  g.V.rowwise() += Eigen::RowVector3d(30, 20, 0);  // off the origin: negating x and y moves it away
+  const Mesh m = make(g);
+  auto correct_at = [&](const Mesh& mesh, const Eigen::Vector3d& x, LengthUnit units) {
+    CorrectionParams p;
+    p.radius = 5;
+    p.units = units;
+    p.handles = parse_point_handles(mesh, {x}, {"normal:1"});
+    const CorrectionResult r = correct_vessel(mesh, p);
+    EXPECT_GT(r.moved_vertices, 3) << "the handle is the nearest surface point all the same";
+    return std::pair{r, nlohmann::json::parse(correction_report_json(mesh.positions(), mesh.triangles(), p, r))};
+  };
+  {  // on the wall: no warning, distance about 0
+    const auto [r, j] = correct_at(m, Eigen::Vector3d(30, 20, 10), LengthUnit::Millimetre);
+    EXPECT_TRUE(r.handle_warning.empty()) << r.handle_warning;
+    EXPECT_TRUE(j["handle_warning"].is_null());
+    EXPECT_LT(j["handle_points"][0]["distance_to_surface"].get<double>(), 0.2);
+    EXPECT_EQ(j["handle_points"][0]["given"][2].get<double>(), 10.0);
+  }
+  {  // 90 mm above the top, a frame that does not explain it
+    const auto [r, j] = correct_at(m, Eigen::Vector3d(30, 20, 100), LengthUnit::Millimetre);
+    EXPECT_NE(r.handle_warning.find("lies 90 mm from the surface, farther than the region's 5 mm"), std::string::npos)
+        << r.handle_warning;
+    EXPECT_NE(r.handle_warning.find("mesh's coordinates, frame and unit"), std::string::npos) << r.handle_warning;
+    EXPECT_EQ(r.handle_warning.find("RAS"), std::string::npos);
+    EXPECT_NEAR(j["handle_points"][0]["distance_to_surface"].get<double>(), 90.0, 0.2);
+    EXPECT_EQ(j["handle_warning"].get<std::string>(), r.handle_warning);
+  }
+  {  // the top of the wall with x and y negated (RAS given for an LPS mesh)
+    const auto [r, j] = correct_at(m, Eigen::Vector3d(-30, -20, 10), LengthUnit::Millimetre);
+    EXPECT_NE(r.handle_warning.find("(30, 20, 10), lies"), std::string::npos) << r.handle_warning;
+    EXPECT_NE(r.handle_warning.find("RAS"), std::string::npos) << r.handle_warning;
+  }
+  {  // a mesh in cm: distances and the region in mm
+    GeneratedMesh gc = g;
+    gc.V /= 10;
+    const Mesh cm = make(gc);
+    const auto [r, j] = correct_at(cm, Eigen::Vector3d(3, 2, 10), LengthUnit::Centimetre);
+    EXPECT_NE(r.handle_warning.find("lies 90 mm from the surface, farther than the region's 5 mm"), std::string::npos)
+        << r.handle_warning;
+    EXPECT_NEAR(j["handle_points"][0]["distance_to_surface"].get<double>(), 90.0, 0.2);
+    EXPECT_EQ(j["handle_points"][0]["given"][2].get<double>(), 10.0) << "as given, in the mesh's unit";
+    const CorrectionResult near = correct_at(cm, Eigen::Vector3d(3, 2, 1.02), LengthUnit::Centimetre).first;
+    EXPECT_TRUE(near.handle_warning.empty()) << "0.2 mm off is within the 5 mm region: " << near.handle_warning;
+  }
+}
+
 TEST(CorrectionHandles, ASessionTakesPointHandles) {
   const Mesh m = make(icosphere(3, 10.0));
   CorrectionSession s(m);

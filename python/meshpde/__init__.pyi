@@ -150,6 +150,7 @@ class CorrectionResult:
     error_bound: float
     accuracy_warning: str | None
     region_warning: str | None
+    handle_warning: str | None
     applied_fraction: float
     substeps: int
     intersection_action: str

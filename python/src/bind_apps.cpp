@@ -311,6 +311,7 @@ PyCorrectionResult wrap(const Positions& V, const Triangles& F, CorrectionResult
                  1);
   if (!c.units_warning.empty()) PyErr_WarnEx(PyExc_UserWarning, c.units_warning.c_str(), 1);
   if (!out.r.region_warning.empty()) PyErr_WarnEx(PyExc_UserWarning, out.r.region_warning.c_str(), 1);
+  if (!out.r.handle_warning.empty()) PyErr_WarnEx(PyExc_UserWarning, out.r.handle_warning.c_str(), 1);
   if (!out.r.accuracy_warning.empty()) PyErr_WarnEx(PyExc_RuntimeWarning, out.r.accuracy_warning.c_str(), 1);
   return out;
 }
@@ -534,6 +535,10 @@ the whole operator's. Answers equal interpolate(..., solver="direct") to roundin
       .def_property_readonly(
           "region_warning", [](const PyCorrectionResult& c) { return c.get("region_warning"); },
           "set when the region holds only the handles (a radius below one edge): only they move")
+      .def_property_readonly(
+          "handle_warning", [](const PyCorrectionResult& c) { return c.get("handle_warning"); },
+          "set when a handle point was given farther from the surface than the region reaches (another frame or "
+          "unit?); names the RAS/LPS mix-up when the point with x and y negated lies on the surface")
       .def_property_readonly("applied_fraction", [](const PyCorrectionResult& c) { return c.r.applied_fraction; })
       .def_property_readonly("substeps", [](const PyCorrectionResult& c) { return c.r.substeps; })
       .def_property_readonly("intersection_action", [](const PyCorrectionResult& c) { return c.r.intersection_action; })

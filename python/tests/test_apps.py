@@ -422,6 +422,14 @@ def test_correct_at_surface_points_with_the_smooth_boundary():
         meshpde.correct(V, F, points=x, moves=[(1, 0, 0), (1, 0, 0)], radius=8.0)
     session = meshpde.CorrectionSession(V, F)
     assert session.apply(points=x, moves=["normal:1"], radius=8.0, handle_radius=0.0).moved_vertices > 3
+    # a point given 100 mm beyond the tube's end is warned about (and still moves the
+    # nearest wall point); the report gives it as given, with its distance
+    assert r.handle_warning is None and h["distance_to_surface"] < 0.1
+    with pytest.warns(UserWarning, match="lies 100 mm from the surface, farther than the region's 8 mm"):
+        far = meshpde.correct(V, F, points=[[5.0, 0.0, 160.0]], moves=[(1.0, 0.0, 0.5)], radius=8.0)
+    assert "frame and unit" in far.handle_warning and far.moved_vertices > 3
+    assert far.to_dict()["handle_points"][0]["given"] == [5.0, 0.0, 160.0]
+    assert far.to_dict()["handle_points"][0]["distance_to_surface"] == pytest.approx(100.0, abs=0.1)
 
 
 def test_geodesic_distance_is_the_unrolled_straight_line_on_a_cylinder():

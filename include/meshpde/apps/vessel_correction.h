@@ -135,6 +135,11 @@ struct CorrectionHandle {
   /// A point inside a triangle instead of the vertex (mesh/surface_distance.h); the
   /// springs method, which moves vertices, takes the point's nearest corner.
   std::optional<SurfacePoint> point;
+  /// The point as the user gave it (the mesh's coordinates), before the nearest surface
+  /// point replaced it (parse_point_handles sets it): a correction reports how far it
+  /// lies from the surface and warns when that is farther than the region reaches
+  /// (CorrectionResult::handle_warning).
+  std::optional<Eigen::Vector3d> given;
 };
 
 /// Handles from moves written as the user writes them, one per vertex:
@@ -149,7 +154,8 @@ std::vector<CorrectionHandle> parse_handles(const Mesh& mesh, const std::vector<
 
 /// Handles at surface points: the point of the surface nearest to each of `points` (in
 /// the mesh's coordinates), with its move as parse_handles reads it; "normal:D" is along
-/// the outward normal at the point (the corners' outward normals interpolated).
+/// the outward normal at the point (the corners' outward normals interpolated). Each
+/// handle keeps its point as given (CorrectionHandle::given).
 /// \throw InputError as parse_handles, or for a point that is not finite.
 std::vector<CorrectionHandle> parse_point_handles(const Mesh& mesh, const std::vector<Eigen::Vector3d>& points,
                                                   const std::vector<std::string>& moves);
@@ -323,6 +329,12 @@ struct CorrectionResult {
   /// Set when the region holds nothing but the handles (a radius below about one edge
   /// length): only the handles move, the wall around them does not follow.
   std::string region_warning;
+  /// Set when a handle point was given farther from the surface than the region reaches
+  /// (the radius, or the rings times the mean edge length): its handle is the nearest
+  /// surface point all the same, but the coordinates were most likely meant for another
+  /// frame or unit. When the point with x and y negated lies on the surface, the message
+  /// says so (RAS against LPS: 3D Slicer writes LPS, vmtk and older Slicer RAS).
+  std::string handle_warning;
   LaplacianKind laplacian = LaplacianKind::Cotan;
   std::string laplacian_reason;
   double image_mean_edge_before = 0;  ///< image guidance: mean E over the pulled vertices
@@ -347,12 +359,14 @@ struct CorrectionCaps {
 /// A correction's report as one JSON object: the keys of `meshpde correct --json`
 /// (moved_vertices, max_displacement, region_vertices, new_self_intersections, time_ms,
 /// method, boundary, dynamic, laplacian, laplacian_reason, relative_residual,
-/// condition_estimate, error_bound, accuracy_warning and region_warning (null when
-/// none), applied_fraction, substeps, intersection_action, handles, handle_radius,
-/// handle_points (each handle's vertex and displacement, reading ("vertex", "corners" or
-/// "quadratic": CorrectionResult::handle_reading), and for a point its triangle,
-/// barycentric coordinates, position and corners_displacement, the barycentric
-/// combination of its corners' displacements: the drawn mesh's motion there), solver,
+/// condition_estimate, error_bound, accuracy_warning, region_warning and handle_warning
+/// (null when none), applied_fraction, substeps, intersection_action, handles,
+/// handle_radius, handle_points (each handle's vertex and displacement, reading
+/// ("vertex", "corners" or "quadratic": CorrectionResult::handle_reading), and for a
+/// point its triangle, barycentric coordinates, position and corners_displacement, the
+/// barycentric combination of its corners' displacements: the drawn mesh's motion
+/// there; for a point made from coordinates (parse_point_handles) also `given`, the
+/// point as given, and `distance_to_surface`, mm), solver,
 /// units, caps {rule, label_array, held_vertices, caps}, and image {pulled_vertices,
 /// mean_edge_before, mean_edge_after, space} when guided). Python's CorrectionResult.to_dict() is the
 /// same object. V and F: the surface the handles were given on (before the correction).

@@ -9,8 +9,45 @@
 
 #include "correction_internal.h"
 #include "meshpde/core/errors.h"
+#include "meshpde/mesh/surface_distance.h"
+#include "meshpde/mesh/topology.h"
 
 namespace meshpde::correction {
+
+namespace {
+
+// CorrectionResult::handle_warning: the handle points given farther from the surface
+// than the region reaches (mesh in mm here), with the frame hint when the point with x
+// and y negated lies within that reach.
+std::string far_handle_points_warning(const Mesh& mesh, const CorrectionParams& p) {
+  const double reach = p.radius > 0 ? p.radius : p.rings * mean_edge_length(mesh);
+  std::string out;
+  for (const CorrectionHandle& h : p.handles) {
+    if (!h.given || !h.point) continue;
+    const Eigen::Vector3d at = position(mesh, *h.point);
+    const double distance = (*h.given - at).norm();
+    if (!(distance > reach)) continue;
+    const Eigen::Vector3d mirrored(-h.given->x(), -h.given->y(), h.given->z());
+    const Eigen::Vector3d mirrored_at =
+        position(mesh, closest_surface_points(mesh, std::span<const Eigen::Vector3d>(&mirrored, 1))[0]);
+    const double mirrored_distance = (mirrored - mirrored_at).norm();
+    std::string text = fmt::format(
+        "the handle point ({:g}, {:g}, {:g}) lies {:.3g} mm from the surface, farther than the region's {:.3g} mm: "
+        "its handle is the nearest surface point, ({:g}, {:g}, {:g})",
+        h.given->x(), h.given->y(), h.given->z(), distance, reach, at.x(), at.y(), at.z());
+    if (mirrored_distance <= reach && mirrored_distance < 0.1 * distance)
+      text += fmt::format(
+          "; the point with x and y negated, ({:g}, {:g}, {:g}), lies {:.3g} mm from the surface: were the "
+          "coordinates given in RAS for a mesh in LPS (3D Slicer's models), or in LPS for one in RAS?",
+          mirrored.x(), mirrored.y(), mirrored.z(), mirrored_distance);
+    else
+      text += "; check that the point is in the mesh's coordinates, frame and unit";
+    out += (out.empty() ? "" : "\n") + text;
+  }
+  return out;
+}
+
+}  // namespace
 
 CorrectionResult correct_vessel_impl(const Mesh& mesh, const CorrectionParams& p_in,
                                      const SelfIntersectionChecker* checker, std::span<const int> already_moved) {
@@ -22,6 +59,8 @@ CorrectionResult correct_vessel_impl(const Mesh& mesh, const CorrectionParams& p
     const double s = millimetres_per(p_in.units);
     CorrectionParams mm = p_in;
     mm.units = LengthUnit::Millimetre;
+    for (auto& h : mm.handles)
+      if (h.given) *h.given *= s;
     CorrectionResult r = correct_vessel_impl(Mesh(mesh.positions() * s, mesh.triangles()), mm, nullptr, already_moved);
     r.displacement /= s;
     r.V = mesh.positions() + r.displacement;
@@ -52,6 +91,7 @@ CorrectionResult correct_vessel_impl(const Mesh& mesh, const CorrectionParams& p
         p.radius, count ? sum / count : 0.0);
     if (p.radius <= 0) r.region_warning = "the region of influence holds only the handles: only they move";
   }
+  r.handle_warning = far_handle_points_warning(mesh, p);
   const auto& V0 = mesh.positions();
 
   // Intersections are always counted (and reported); prevent_intersections only

@@ -116,6 +116,7 @@ std::vector<CorrectionHandle> parse_point_handles(const Mesh& mesh, const std::v
         mesh, sp,
         parse_move(moves[k], normal,
                    fmt::format("the point ({:g}, {:g}, {:g})", points[k].x(), points[k].y(), points[k].z())));
+    handles.back().given = points[k];
   }
   return handles;
 }

@@ -27,6 +27,7 @@ std::string correction_report_json(const Positions& V, const Triangles& F, const
             {"error_bound", r.error_bound},
             {"accuracy_warning", text_or_null(r.accuracy_warning)},
             {"region_warning", text_or_null(r.region_warning)},
+            {"handle_warning", text_or_null(r.handle_warning)},
             {"applied_fraction", r.applied_fraction},
             {"substeps", r.substeps},
             {"intersection_action", r.intersection_action},
@@ -54,6 +55,10 @@ std::string correction_report_json(const Positions& V, const Triangles& F, const
       }
       hj["position"] = vec(x);
       hj["corners_displacement"] = vec(moved);
+      if (h.given) {
+        hj["given"] = vec(*h.given);
+        hj["distance_to_surface"] = (*h.given - x).norm() * millimetres_per(p.units);
+      }
     }
     handle_points.push_back(hj);
   }
