@@ -304,6 +304,23 @@ const DicomSeries& choose_dicom_series(const DicomListing& listing, const std::s
   throw InputError(fmt::format("{}: no series '{}'; the series are:{}", name, choice, list()));
 }
 
+namespace {
+
+// A volume on a series' grid, its values allocated (zero) after the size is checked
+// against `max_voxels` (the message names `what`).
+Volume volume_on(const detail::DicomGrid& g, const std::string& name, const std::string& what, std::size_t max_voxels) {
+  Volume v;
+  v.name = name;
+  v.dims = g.size;
+  v.spacing = g.spacing;
+  v.origin = g.origin;
+  v.direction = g.direction;
+  v.values.resize(detail::checked_voxels({g.size[0], g.size[1], g.size[2]}, what, max_voxels));
+  return v;
+}
+
+}  // namespace
+
 Volume read_dicom_series(const std::filesystem::path& path, const std::string& choice, std::size_t max_voxels) {
   Scan scan = scan_path(path);
   const DicomListing listing = listing_of(path, scan);
@@ -317,14 +334,7 @@ Volume read_dicom_series(const std::filesystem::path& path, const std::string& c
   const std::vector<detail::DicomFrame>& frames = scan.by_uid.at(series.uid);
   const std::string name = fmt::format("{}: {}", path.string(), series_name(series));
   const detail::DicomGrid g = detail::dicom_grid(frames, name);
-  const std::size_t voxels = detail::checked_voxels({g.size[0], g.size[1], g.size[2]}, name, max_voxels);
-  Volume v;
-  v.name = path.string();
-  v.dims = g.size;
-  v.spacing = g.spacing;
-  v.origin = g.origin;
-  v.direction = g.direction;
-  v.values.resize(voxels);
+  Volume v = volume_on(g, path.string(), name, max_voxels);
   const std::size_t slice = static_cast<std::size_t>(g.size[0]) * static_cast<std::size_t>(g.size[1]);
   // Each file decoded once, its frames placed where the order puts them.
   std::map<std::filesystem::path, std::vector<std::size_t>> slots;  // file -> slice index of each of its frames
@@ -358,16 +368,9 @@ Volume read_dicom_file_from_memory(const std::string& bytes, const std::string& 
   const std::vector<detail::DicomFrame> frames = detail::read_dicom_frames_from_memory(bytes, name, why_not);
   if (frames.empty()) throw InputError(fmt::format("{}: {}", name, why_not));
   const detail::DicomGrid g = detail::dicom_grid(frames, name);
-  const std::size_t voxels = detail::checked_voxels({g.size[0], g.size[1], g.size[2]}, name, 1u << 26);
+  Volume v = volume_on(g, name, name, 1u << 26);
   const detail::DicomFrame& f = frames.front();
   const std::vector<float> pixels = detail::read_dicom_pixels_from_memory(bytes, name, f);
-  Volume v;
-  v.name = name;
-  v.dims = g.size;
-  v.spacing = g.spacing;
-  v.origin = g.origin;
-  v.direction = g.direction;
-  v.values.resize(voxels);
   const std::size_t slice = static_cast<std::size_t>(g.size[0]) * static_cast<std::size_t>(g.size[1]);
   for (std::size_t k = 0; k < g.order.size(); ++k) {
     const detail::DicomFrame& fr = frames[g.order[k]];
