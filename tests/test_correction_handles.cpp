@@ -362,10 +362,14 @@ TEST(CorrectionHandles, APointGivenFarFromTheSurfaceIsWarnedAboutAndAFrameMixUpN
     gc.V /= 10;
     const Mesh cm = make(gc);
     const auto [r, j] = correct_at(cm, Eigen::Vector3d(3, 2, 10), LengthUnit::Centimetre);
-    EXPECT_NE(r.handle_warning.find("lies 90 mm from the surface, farther than the region's 5 mm"), std::string::npos)
-        << r.handle_warning;
+    EXPECT_NE(r.handle_warning.find("the handle point (3, 2, 10) lies 90 mm from the surface, farther than the "
+                                    "region's 5 mm"),
+              std::string::npos)
+        << "the point as given, in cm; distances in mm: " << r.handle_warning;
     EXPECT_NEAR(j["handle_points"][0]["distance_to_surface"].get<double>(), 90.0, 0.2);
     EXPECT_EQ(j["handle_points"][0]["given"][2].get<double>(), 10.0) << "as given, in the mesh's unit";
+    const CorrectionResult mirrored = correct_at(cm, Eigen::Vector3d(-3, -2, 1), LengthUnit::Centimetre).first;
+    EXPECT_NE(mirrored.handle_warning.find("(3, 2, 1), lies"), std::string::npos) << mirrored.handle_warning;
     const CorrectionResult near = correct_at(cm, Eigen::Vector3d(3, 2, 1.02), LengthUnit::Centimetre).first;
     EXPECT_TRUE(near.handle_warning.empty()) << "0.2 mm off is within the 5 mm region: " << near.handle_warning;
   }

@@ -17,20 +17,21 @@ namespace meshpde::correction {
 namespace {
 
 // CorrectionResult::handle_warning: the handle points given farther from the surface
-// than the region reaches (mesh in mm here), with the frame hint when the point with x
-// and y negated lies within that reach.
-std::string far_handle_points_warning(const Mesh& mesh, const CorrectionParams& p) {
-  const double reach = p.radius > 0 ? p.radius : p.rings * mean_edge_length(mesh);
+// than the region reaches, with the frame hint when the point with x and y negated lies
+// within that reach. Coordinates in the mesh's unit (as the user gave them), distances
+// in mm (`mm_per_unit` of them to the mesh's unit).
+std::string far_handle_points_warning(const Mesh& mesh, const CorrectionParams& p, double mm_per_unit) {
+  const double reach = p.radius > 0 ? p.radius : p.rings * mean_edge_length(mesh) * mm_per_unit;
   std::string out;
   for (const CorrectionHandle& h : p.handles) {
     if (!h.given || !h.point) continue;
     const Eigen::Vector3d at = position(mesh, *h.point);
-    const double distance = (*h.given - at).norm();
+    const double distance = (*h.given - at).norm() * mm_per_unit;
     if (!(distance > reach)) continue;
     const Eigen::Vector3d mirrored(-h.given->x(), -h.given->y(), h.given->z());
     const Eigen::Vector3d mirrored_at =
         position(mesh, closest_surface_points(mesh, std::span<const Eigen::Vector3d>(&mirrored, 1))[0]);
-    const double mirrored_distance = (mirrored - mirrored_at).norm();
+    const double mirrored_distance = (mirrored - mirrored_at).norm() * mm_per_unit;
     std::string text = fmt::format(
         "the handle point ({:g}, {:g}, {:g}) lies {:.3g} mm from the surface, farther than the region's {:.3g} mm: "
         "its handle is the nearest surface point, ({:g}, {:g}, {:g})",
@@ -59,11 +60,11 @@ CorrectionResult correct_vessel_impl(const Mesh& mesh, const CorrectionParams& p
     const double s = millimetres_per(p_in.units);
     CorrectionParams mm = p_in;
     mm.units = LengthUnit::Millimetre;
-    for (auto& h : mm.handles)
-      if (h.given) *h.given *= s;
+    for (auto& h : mm.handles) h.given.reset();  // warned about here, in the coordinates given
     CorrectionResult r = correct_vessel_impl(Mesh(mesh.positions() * s, mesh.triangles()), mm, nullptr, already_moved);
     r.displacement /= s;
     r.V = mesh.positions() + r.displacement;
+    r.handle_warning = far_handle_points_warning(mesh, p_in, s);
     return r;
   }
   const auto t0 = std::chrono::steady_clock::now();
@@ -91,7 +92,7 @@ CorrectionResult correct_vessel_impl(const Mesh& mesh, const CorrectionParams& p
         p.radius, count ? sum / count : 0.0);
     if (p.radius <= 0) r.region_warning = "the region of influence holds only the handles: only they move";
   }
-  r.handle_warning = far_handle_points_warning(mesh, p);
+  r.handle_warning = far_handle_points_warning(mesh, p, 1.0);
   const auto& V0 = mesh.positions();
 
   // Intersections are always counted (and reported); prevent_intersections only
