@@ -174,6 +174,8 @@ void run_correct(const CorrectArgs& a) {
   }
   try {
     p.handles = parse_handles(mesh, handle_vertices, vertex_moves);
+    for (std::size_t k = 0; k < a.vertices.size(); ++k)  // @X,Y,Z: the nearest vertex, warned about when far
+      if (a.vertices[k].starts_with('@')) p.handles[k].given = parse_point_spec(a.vertices[k].substr(1));
     for (auto& h : parse_point_handles(mesh, points, point_moves)) p.handles.push_back(std::move(h));
   } catch (const InputError& e) {
     throw InputError(fmt::format("--move: {}", e.what()));

@@ -234,6 +234,10 @@ sys.exit(not (d['boundary'] == 'smooth' and abs(d['handle_radius'] - 2.0) < 1e-1
   2>"$T/err" || bad "correct --point far from the surface"
 check "correct --point far off the surface warns, naming the distance" \
   grep -q "warning: .*tmm.obj: the handle point (5, 0, 160) lies 100 mm from the surface" "$T/err"
+"$M" correct "$T/tmm.obj" --vertex @5,0,160 --move 1,0,0.5 --radius 8 -o "$T/ufarv.obj" 2>"$T/err" >/dev/null ||
+  bad "correct --vertex @X,Y,Z far from the surface"
+check "correct --vertex @X,Y,Z far off the surface warns too, naming the vertex taken" \
+  grep -q "the handle point (5, 0, 160) lies 100 mm from the nearest vertex, .*its handle is the nearest vertex, " "$T/err"
 check "correct --point far off the surface: handle_warning and distance_to_surface in the JSON" python3 -c "
 import json, sys
 d = json.load(open('$T/ufar.json'))

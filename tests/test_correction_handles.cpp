@@ -352,6 +352,16 @@ TEST(CorrectionHandles, APointGivenFarFromTheSurfaceIsWarnedAboutAndAFrameMixUpN
     EXPECT_NEAR(j["handle_points"][0]["distance_to_surface"].get<double>(), 90.0, 0.2);
     EXPECT_EQ(j["handle_warning"].get<std::string>(), r.handle_warning);
   }
+  {  // a vertex spelled @X,Y,Z far off (the nearest vertex): the same warning
+    CorrectionParams p;
+    p.radius = 5;
+    p.handles = parse_handles(m, {0}, {"normal:1"});
+    p.handles[0].given = m.positions().row(0).transpose() + Eigen::Vector3d(0, 0, 0.5);
+    EXPECT_TRUE(correct_vessel(m, p).handle_warning.empty()) << "half a mm from its vertex";
+    p.handles[0].given = m.positions().row(0).transpose() * 4;
+    const std::string w = correct_vessel(m, p).handle_warning;
+    EXPECT_NE(w.find("its handle is the nearest vertex, 0,"), std::string::npos) << w;
+  }
   {  // the top of the wall with x and y negated (RAS given for an LPS mesh)
     const auto [r, j] = correct_at(m, Eigen::Vector3d(-30, -20, 10), LengthUnit::Millimetre);
     EXPECT_NE(r.handle_warning.find("(30, 20, 10), lies"), std::string::npos) << r.handle_warning;

@@ -166,6 +166,7 @@ CorrectionOptions correction_options(const Mesh& mesh, const py::handle& vertice
   auto get = [&](const char* key) -> py::object { return o.contains(key) ? o[key] : py::object(py::none()); };
   // Handle vertices: indices, or "@X,Y,Z" (the nearest vertex) as the command line takes them.
   std::vector<int> handles;
+  std::vector<std::optional<Eigen::Vector3d>> spelled_at;  // per handle: the @X,Y,Z point
   if (!vertices.is_none()) {
     const bool listed = py::isinstance<py::list>(vertices) || py::isinstance<py::tuple>(vertices);
     bool spelled = py::isinstance<py::str>(vertices);
@@ -175,10 +176,13 @@ CorrectionOptions correction_options(const Mesh& mesh, const py::handle& vertice
     if (spelled) {
       const py::tuple vs = py::isinstance<py::str>(vertices) ? py::make_tuple(vertices)
                                                              : py::tuple(py::reinterpret_borrow<py::object>(vertices));
-      for (const py::handle x : vs)
-        handles.push_back(py::isinstance<py::str>(x)
-                              ? parse_vertex_spec(mesh, x.cast<std::string>())
-                              : vertex_arg(x.cast<long long>(), "vertices", mesh.num_vertices()));
+      for (const py::handle x : vs) {
+        const bool text = py::isinstance<py::str>(x);
+        const std::string spec = text ? x.cast<std::string>() : std::string();
+        handles.push_back(text ? parse_vertex_spec(mesh, spec)
+                               : vertex_arg(x.cast<long long>(), "vertices", mesh.num_vertices()));
+        spelled_at.push_back(spec.starts_with('@') ? std::optional(parse_point_spec(spec.substr(1))) : std::nullopt);
+      }
     } else {
       handles = vertices_arg(vertices, "vertices", mesh.num_vertices());
     }
@@ -208,8 +212,10 @@ CorrectionOptions correction_options(const Mesh& mesh, const py::handle& vertice
     }
     if (is_point)
       p.handles.push_back(parse_point_handles(mesh, {points[k - handles.size()]}, {text})[0]);
-    else
+    else {
       p.handles.push_back(parse_handles(mesh, {handles[k]}, {text})[0]);
+      if (k < spelled_at.size()) p.handles.back().given = spelled_at[k];
+    }
   }
   if (const py::object v = get("handle_radius"); !v.is_none()) p.handle_radius = v.cast<double>();
   auto num = [&](const char* key, double& x) {

@@ -430,6 +430,8 @@ def test_correct_at_surface_points_with_the_smooth_boundary():
     assert "frame and unit" in far.handle_warning and far.moved_vertices > 3
     assert far.to_dict()["handle_points"][0]["given"] == [5.0, 0.0, 160.0]
     assert far.to_dict()["handle_points"][0]["distance_to_surface"] == pytest.approx(100.0, abs=0.1)
+    with pytest.warns(UserWarning, match="lies 100 mm from the nearest vertex"):
+        meshpde.correct(V, F, ["@5,0,160"], [(1.0, 0.0, 0.5)], radius=8.0)
 
 
 def test_geodesic_distance_is_the_unrolled_straight_line_on_a_cylinder():

@@ -136,9 +136,10 @@ struct CorrectionHandle {
   /// springs method, which moves vertices, takes the point's nearest corner.
   std::optional<SurfacePoint> point;
   /// The point as the user gave it (the mesh's coordinates), before the nearest surface
-  /// point replaced it (parse_point_handles sets it): a correction reports how far it
-  /// lies from the surface and warns when that is farther than the region reaches
-  /// (CorrectionResult::handle_warning).
+  /// point (parse_point_handles sets it) or the nearest vertex (a vertex spelled
+  /// "@X,Y,Z": the command line and Python set it) replaced it: a correction warns when
+  /// it lies farther from its handle than the region reaches
+  /// (CorrectionResult::handle_warning), and reports a point's distance.
   std::optional<Eigen::Vector3d> given;
 };
 
@@ -329,11 +330,12 @@ struct CorrectionResult {
   /// Set when the region holds nothing but the handles (a radius below about one edge
   /// length): only the handles move, the wall around them does not follow.
   std::string region_warning;
-  /// Set when a handle point was given farther from the surface than the region reaches
-  /// (the radius, or the rings times the mean edge length): its handle is the nearest
-  /// surface point all the same, but the coordinates were most likely meant for another
-  /// frame or unit. When the point with x and y negated lies on the surface, the message
-  /// says so (RAS against LPS: 3D Slicer writes LPS, vmtk and older Slicer RAS).
+  /// Set when a handle point (or a vertex spelled "@X,Y,Z") was given farther from the
+  /// surface than the region reaches (the radius, or the rings times the mean edge
+  /// length): its handle is the nearest surface point (vertex) all the same, but the
+  /// coordinates were most likely meant for another frame or unit. When the point with x
+  /// and y negated lies on the surface, the message says so (RAS against LPS: 3D Slicer
+  /// writes LPS, vmtk and older Slicer RAS).
   std::string handle_warning;
   LaplacianKind laplacian = LaplacianKind::Cotan;
   std::string laplacian_reason;

@@ -24,8 +24,8 @@ std::string far_handle_points_warning(const Mesh& mesh, const CorrectionParams& 
   const double reach = p.radius > 0 ? p.radius : p.rings * mean_edge_length(mesh) * mm_per_unit;
   std::string out;
   for (const CorrectionHandle& h : p.handles) {
-    if (!h.given || !h.point) continue;
-    const Eigen::Vector3d at = position(mesh, *h.point);
+    if (!h.given) continue;
+    const Eigen::Vector3d at = h.point ? position(mesh, *h.point) : Eigen::Vector3d(mesh.positions().row(h.vertex));
     const double distance = (*h.given - at).norm() * mm_per_unit;
     if (!(distance > reach)) continue;
     const Eigen::Vector3d mirrored(-h.given->x(), -h.given->y(), h.given->z());
@@ -33,9 +33,10 @@ std::string far_handle_points_warning(const Mesh& mesh, const CorrectionParams& 
         position(mesh, closest_surface_points(mesh, std::span<const Eigen::Vector3d>(&mirrored, 1))[0]);
     const double mirrored_distance = (mirrored - mirrored_at).norm() * mm_per_unit;
     std::string text = fmt::format(
-        "the handle point ({:g}, {:g}, {:g}) lies {:.3g} mm from the surface, farther than the region's {:.3g} mm: "
-        "its handle is the nearest surface point, ({:g}, {:g}, {:g})",
-        h.given->x(), h.given->y(), h.given->z(), distance, reach, at.x(), at.y(), at.z());
+        "the handle point ({:g}, {:g}, {:g}) lies {:.3g} mm from the {}, farther than the region's {:.3g} mm: "
+        "its handle is the nearest {}, ({:g}, {:g}, {:g})",
+        h.given->x(), h.given->y(), h.given->z(), distance, h.point ? "surface" : "nearest vertex", reach,
+        h.point ? "surface point" : fmt::format("vertex, {}", h.vertex), at.x(), at.y(), at.z());
     if (mirrored_distance <= reach && mirrored_distance < 0.1 * distance)
       text += fmt::format(
           "; the point with x and y negated, ({:g}, {:g}, {:g}), lies {:.3g} mm from the surface: were the "
