@@ -318,7 +318,6 @@ TEST(CorrectionHandles, PointHandlesFromTextAndBadOnesAreRefused) {
   EXPECT_EQ(std::string(to_string(CorrectionParams{}.boundary)), "smooth");
 }
 
-// A session applies point handles on top of each other, with undo.
 // A handle point typed far from the wall (another frame or unit) still takes the
 // nearest surface point, but the result says how far it was and, when the point with x
 // and y negated lies on the wall, that RAS and LPS were most likely mixed up; the
@@ -358,8 +357,10 @@ TEST(CorrectionHandles, APointGivenFarFromTheSurfaceIsWarnedAboutAndAFrameMixUpN
     p.handles = parse_handles(m, {0}, {"normal:1"});
     p.handles[0].given = m.positions().row(0).transpose() + Eigen::Vector3d(0, 0, 0.5);
     EXPECT_TRUE(correct_vessel(m, p).handle_warning.empty()) << "half a mm from its vertex";
-    p.handles[0].given = m.positions().row(0).transpose() * 4;
+    const Eigen::Vector3d centre(30, 20, 0);  // 50 mm straight out from vertex 0: still its nearest vertex
+    p.handles[0].given = centre + 6 * (m.positions().row(0).transpose() - centre);
     const std::string w = correct_vessel(m, p).handle_warning;
+    EXPECT_NE(w.find("lies 50 mm from the nearest vertex"), std::string::npos) << w;
     EXPECT_NE(w.find("its handle is the nearest vertex, 0,"), std::string::npos) << w;
   }
   {  // the top of the wall with x and y negated (RAS given for an LPS mesh)
@@ -385,6 +386,7 @@ TEST(CorrectionHandles, APointGivenFarFromTheSurfaceIsWarnedAboutAndAFrameMixUpN
   }
 }
 
+// A session applies point handles on top of each other, with undo.
 TEST(CorrectionHandles, ASessionTakesPointHandles) {
   const Mesh m = make(icosphere(3, 10.0));
   CorrectionSession s(m);
