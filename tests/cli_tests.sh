@@ -109,6 +109,13 @@ if [ -f "$DATA/aorta-closed-6k.vtp" ]; then
       --image "$DATA/aorta-mra.mha" --space ras --cube 3 -o "$T/as.vtp" --json >"$T/as.json" ||
       bad "correct --method springs --dynamic --image --cube 3"
     check "springs' image step pulled vertices" [ "$(json "$T/as.json" "d['image']['pulled_vertices'] > 0")" = True ]
+    # the aorta is in RAS: read as LPS (the default without a SPACE field) it lies outside
+    # the image, and a guided correction is refused, naming RAS, and writes nothing
+    "$M" correct "$DATA/aorta-closed-6k.vtp" --vertex 500 --move 1,0,0 --radius 9 --image "$DATA/aorta-mra.mha" \
+      -o "$T/alps.vtp" 2>"$T/err" >/dev/null
+    check "a guided correction outside the image exits 1" [ $? -eq 1 ]
+    check "a guided correction outside the image names the other frame" grep -q "read as RAS, .* is the mesh in RAS?" "$T/err"
+    check "no output after a refused guided correction" [ ! -e "$T/alps.vtp" ]
     "$M" correct "$DATA/aorta-closed-6k.vtp" --vertex 500 --move normal:2 --rings 9 --method springs \
       --image "$DATA/aorta-mra.mha" --space ras -o "$T/x.vtp" 2>"$T/err" >/dev/null
     check "springs with an image but no cube are refused in words" grep -q "direction cube" "$T/err"

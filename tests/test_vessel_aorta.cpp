@@ -18,6 +18,7 @@
 #include "meshpde/operators/laplacian.h"
 #include "meshpde/pde/steady_direct.h"
 #include "test_data.h"
+#include "test_support.h"
 
 using namespace meshpde;
 
@@ -388,4 +389,32 @@ TEST(AortaCorrection, TheEditorsImagePullIsTheGuidedMinusTheUnguidedCorrection) 
   s.correct(p);
   EXPECT_EQ(s.image_pull().size(), 0);
   EXPECT_THROW(s.show_correction_field("image pull (mm)"), InputError);
+}
+
+// The aorta meshes are in RAS, the MRA in LPS (MANIFEST). A guided correction with the
+// mesh read in the wrong frame lies wholly outside the image: refused, naming the frame
+// in which the region lies inside it, instead of tying every region vertex to where it
+// is (which stiffened the wall with no edge to pull it to); a mesh far from the image in
+// both frames is refused too. The right frame is guided as before.
+TEST(AortaCorrection, AGuidedCorrectionOutsideTheImageIsRefusedNamingTheOtherFrame) {
+  Mesh mesh;
+  if (!load_vtp("aorta-closed-6k.vtp", mesh) || !test::have_data("aorta-mra.mha")) return;
+  const Volume mra = read_volume(test::data_dir() / "aorta-mra.mha");
+  CorrectionParams p;
+  p.handles = {{kTrunk, 2.0 * vertex_normals(mesh).row(kTrunk).transpose()}};
+  p.radius = 9;
+  p.image.edges = std::make_shared<const Volume>(gradient_magnitude(mra, 1.0));
+  p.image.space = Space::LPS;
+  const std::string wrong = test::error_of([&] { correct_vessel(mesh, p); });
+  EXPECT_NE(wrong.find("none of the region's"), std::string::npos) << wrong;
+  EXPECT_NE(wrong.find("read as LPS"), std::string::npos) << wrong;
+  EXPECT_NE(wrong.find("is the mesh in RAS?"), std::string::npos) << wrong;
+  Mesh far = mesh;
+  far.set_positions(mesh.positions().rowwise() + Eigen::RowVector3d(0, 0, 500));
+  const std::string nowhere = test::error_of([&] { correct_vessel(far, p); });
+  EXPECT_NE(nowhere.find("same scan"), std::string::npos) << nowhere;
+  p.image.space = Space::RAS;
+  const CorrectionResult r = correct_vessel(mesh, p);
+  EXPECT_GT(r.pulled_vertices, 50);
+  EXPECT_GT(r.image_mean_edge_before, 0);
 }

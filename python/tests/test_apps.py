@@ -313,6 +313,9 @@ def test_correct_with_image_guidance_reports_the_image(data):
     values, affine = meshpde.read_volume(data("aorta-mra.mha"))
     r2 = meshpde.correct(V, F, [500], ["normal:1"], radius=9.0, image=(values, affine), space="ras")
     assert np.abs(r2.V - r.V).max() <= 1e-9
+    # the aorta is in RAS: read as LPS its region lies outside the image, refused in words
+    with pytest.raises(meshpde.InputError, match="none of the region.s .* vertices lies inside the image.*is the mesh in RAS"):
+        meshpde.correct(V, F, [500], ["normal:1"], radius=9.0, image=(values, affine), space="lps")
 
 
 @pytest.mark.parametrize("solver", ["global", "iterative"])

@@ -9,6 +9,7 @@
 
 #include "correction_internal.h"
 #include "meshpde/core/errors.h"
+#include "meshpde/image/volume.h"
 #include "meshpde/mesh/surface_distance.h"
 #include "meshpde/mesh/topology.h"
 
@@ -49,6 +50,29 @@ std::string far_handle_points_warning(const Mesh& mesh, const CorrectionParams& 
   return out;
 }
 
+// A guided correction whose region lies wholly outside the image cannot be guided:
+// there is no edge to pull a vertex to, and every region vertex would be tied to where
+// it is, stiffening the wall instead. Refused, naming the other frame when the region
+// lies inside the image read in it (RAS and LPS differ by the sign of x and y).
+void check_region_in_image(const Mesh& mesh, const CorrectionParams& p, const std::vector<int>& region) {
+  const Volume& E = *p.image.edges;
+  const auto inside = [&](Space space) {
+    int n = 0;
+    for (const int v : region) n += E.sample(mesh.positions().row(v).transpose(), space).has_value();
+    return n;
+  };
+  if (region.empty() || inside(p.image.space) > 0) return;
+  const Space other = p.image.space == Space::LPS ? Space::RAS : Space::LPS;
+  const int other_inside = inside(other);
+  throw InputError(fmt::format(
+      "image guidance: none of the region's {} vertices lies inside the image ({} x {} x {} voxels) with the mesh's "
+      "coordinates read as {}, so the image cannot guide the correction{}",
+      region.size(), E.dims[0], E.dims[1], E.dims[2], to_string(p.image.space),
+      other_inside > 0 ? fmt::format("; read as {}, {} of them do: is the mesh in {}?", to_string(other), other_inside,
+                                     to_string(other))
+                       : std::string("; are the mesh and the image of the same scan, in the same unit?")));
+}
+
 }  // namespace
 
 CorrectionResult correct_vessel_impl(const Mesh& mesh, const CorrectionParams& p_in,
@@ -73,6 +97,7 @@ CorrectionResult correct_vessel_impl(const Mesh& mesh, const CorrectionParams& p
   const CorrectionParams p = normalized(p_in, mesh);
   CorrectionResult r;
   const FemProblem problem = fem_problem(mesh, p);
+  if (p.image.edges) check_region_in_image(mesh, p, problem.region);
   r.region = problem.region;
   r.handle_radius = handle_size(p);
   r.handle_reading = problem.reading;
