@@ -413,6 +413,9 @@ TEST(AortaCorrection, AGuidedCorrectionOutsideTheImageIsRefusedNamingTheOtherFra
   far.set_positions(mesh.positions().rowwise() + Eigen::RowVector3d(0, 0, 500));
   const std::string nowhere = test::error_of([&] { correct_vessel(far, p); });
   EXPECT_NE(nowhere.find("same scan"), std::string::npos) << nowhere;
+  p.image.weight = 0;  // the image attached but not pulling: nothing to refuse
+  EXPECT_NO_THROW(correct_vessel(mesh, p));
+  p.image.weight = ImageGuidance{}.weight;
   p.image.space = Space::RAS;
   const CorrectionResult r = correct_vessel(mesh, p);
   EXPECT_GT(r.pulled_vertices, 50);

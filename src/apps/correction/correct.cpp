@@ -97,7 +97,7 @@ CorrectionResult correct_vessel_impl(const Mesh& mesh, const CorrectionParams& p
   const CorrectionParams p = normalized(p_in, mesh);
   CorrectionResult r;
   const FemProblem problem = fem_problem(mesh, p);
-  if (p.image.edges) check_region_in_image(mesh, p, problem.region);
+  if (p.image.edges && p.image.weight > 0) check_region_in_image(mesh, p, problem.region);
   r.region = problem.region;
   r.handle_radius = handle_size(p);
   r.handle_reading = problem.reading;
