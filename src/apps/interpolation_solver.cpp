@@ -188,9 +188,8 @@ struct InterpolationSolver::Impl {
       try {
         block->mixed = std::make_unique<detail::MixedBilaplacianSolver>(*mesh, *ops, params.g2, free, order);
       } catch (const SolverError&) {
-        // K_FF did not factor: K D K's own factor instead, which says what is wrong if
-        // anything is (a part without a constraint fails both).
-        block->mixed.reset();
+        // K_FF did not factor: K D K's own factor instead (below), which says what is
+        // wrong if anything is (a part without a constraint fails both).
       }
     }
     if (!block->mixed) {
@@ -465,9 +464,9 @@ InterpolationResult InterpolationSolver::solve() {
     s.factor(laplacian_factor_up_to);
     border.clear();
   }
-  // The vertices free now: the rows of the current system.
   // Held now, as a flag a vertex (the loops below visit every vertex: a map lookup
-  // each cost several milliseconds a click on igea-134k).
+  // each cost several milliseconds a click on igea-134k), and the vertices free now:
+  // the rows of the current system.
   std::vector<char> held_now(static_cast<std::size_t>(nv), 0);
   for (const auto& [v, x] : s.cons) held_now[static_cast<std::size_t>(v)] = 1;
   std::vector<int> now_free;
