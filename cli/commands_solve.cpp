@@ -394,14 +394,15 @@ void add_solve_commands(CLI::App& app) {
         j["mesh_vertices"] = mesh.num_vertices();
         j["handle"] = handle;
         j["move"] = {move.x(), move.y(), move.z()};
+        j["boundary"] = to_string(DragParams{}.boundary);
         j["input"] = in_path.string();
         j["output"] = out_path.string();
         print_json(j);
       } else {
         fmt::print("generated a dented Y bifurcation: {} vertices, {} triangles, smallest angle {:.1f} deg\n",
                    mesh.num_vertices(), mesh.num_faces(), rep.min_angle_deg);
-        fmt::print("dragged wall vertex {} by ({:.3f}, {:.3f}, {:.3f}) mm, region radius {} mm\n", handle, move.x(),
-                   move.y(), move.z(), a->radius);
+        fmt::print("dragged wall vertex {} by ({:.3f}, {:.3f}, {:.3f}) mm, region radius {} mm ({} boundary)\n", handle,
+                   move.x(), move.y(), move.z(), a->radius, to_string(DragParams{}.boundary));
         print_drag(r, out_path.string());
       }
     });

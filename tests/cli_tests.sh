@@ -180,7 +180,7 @@ import json
 d = json.load(open('$T/drag.json'))
 steps = ['drag_setup_region_ms_10k_region', 'drag_setup_order_ms_10k_region', 'drag_setup_assembly_ms_10k_region',
          'drag_factor_ms_10k_region_split', 'drag_setup_basis_ms_10k_region']
-assert all(d[k] > 0 for k in steps + ['drag_setup_ms_10k_region', 'drag_setup_region_baseline_ms_edge_paths']), d
+assert all(d[k] > 0 for k in steps + ['drag_setup_ms_10k_region', 'drag_setup_ms_10k_region_clamp', 'drag_setup_region_baseline_ms_edge_paths']), d
 assert 9000 < d['drag_region_vertices'] < 10500 and 9000 < d['drag_setup_region_vertices_edge_paths'] < 11000, d
 assert not any(k.startswith('global_') or k.startswith('poke_') for k in d), sorted(d)
 "
@@ -495,6 +495,7 @@ check "path error names the line" grep -q "line 3" "$T/err"
 "$M" demo -o "$T/demo" --json >"$T/d.json" || bad "demo"
 check "demo moved vertices" [ "$(json "$T/d.json" "d['moved_vertices'] > 100")" = True ]
 check "demo converged" [ "$(json "$T/d.json" "d['converged']")" = True ]
+check "demo ends the region by the smooth boundary" [ "$(json "$T/d.json" "d['boundary']")" = smooth ]
 check "demo output" [ -s "$T/demo/bifurcation-corrected.ply" ]
 
 # CFD models: caps from face labels, cell arrays and their types kept by correct.

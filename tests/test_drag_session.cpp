@@ -69,7 +69,7 @@ TEST(DragSession, UpdatesAreTheDirectSolveAndLinearInTheHandle) {
   const FemOperators ops = build_cotan_operators(mesh);
   int handle = 0;
   mesh.positions().col(2).maxCoeff(&handle);
-  DragSession s(mesh, ops, {handle}, DragSessionParams{.radius = 0.6});
+  DragSession s(mesh, ops, {handle}, DragSessionParams{.radius = 0.6, .boundary = RegionBoundary::Clamp});
   EXPECT_EQ(s.factorizations(), 1);
   EXPECT_GT(s.region().size(), 150u);
   // The region: the vertices within the radius on the surface (the handle held), the
@@ -84,8 +84,10 @@ TEST(DragSession, UpdatesAreTheDirectSolveAndLinearInTheHandle) {
   EXPECT_GT(region.size() + 1, geodesic_ball(mesh, handle, 0.6).size());
   for (const Eigen::RowVector3d& move : {Eigen::RowVector3d(0, 0, 0.1), Eigen::RowVector3d(0.05, -0.02, 0.3)}) {
     const Eigen::MatrixXd d = move;
-    const DragResult r =
-        drag_vertex(mesh, ops, DragParams{.vertex = handle, .displacement = move.transpose(), .radius = 0.6});
+    const DragResult r = drag_vertex(
+        mesh, ops,
+        DragParams{
+            .vertex = handle, .displacement = move.transpose(), .radius = 0.6, .boundary = RegionBoundary::Clamp});
     EXPECT_LE((session_field(mesh, s, d) - r.displacement).cwiseAbs().maxCoeff(), 1e-12 + 1e-10 * move.norm());
   }
   // Still one factorization: updates are products with the basis.
@@ -99,7 +101,7 @@ TEST(DragSession, AddedHandlesAndGrownRegionsMatchFreshFactorizations) {
   const FemOperators ops = build_cotan_operators(mesh);
   int h0 = 0;
   mesh.positions().col(2).maxCoeff(&h0);
-  DragSession s(mesh, ops, {h0}, DragSessionParams{.radius = 0.7, .margin = true});
+  DragSession s(mesh, ops, {h0}, DragSessionParams{.radius = 0.7, .boundary = RegionBoundary::Clamp, .margin = true});
   // Two more handles inside the region, far enough from each other and the first.
   const std::vector<int> region0 = s.region();
   std::vector<int> extra;
@@ -145,7 +147,7 @@ TEST(DragSession, AddedHandlesAndGrownRegionsMatchFreshFactorizations) {
   // One factor for the set-up and the first ring; the second and third growths refactor.
   EXPECT_EQ(s.factorizations(), 3);
   // Without a margin the first growth refactors too.
-  DragSession plain(mesh, ops, {h0}, DragSessionParams{.radius = 0.7});
+  DragSession plain(mesh, ops, {h0}, DragSessionParams{.radius = 0.7, .boundary = RegionBoundary::Clamp});
   plain.grow(1);
   EXPECT_EQ(plain.factorizations(), 2);
 }
@@ -158,7 +160,7 @@ TEST(DragSession, LargeRegionsFactoredOnTwoThreadsMatchFreshFactorizations) {
   const FemOperators ops = build_cotan_operators(mesh);
   int h0 = 0;
   mesh.positions().col(2).maxCoeff(&h0);
-  DragSession s(mesh, ops, {h0}, DragSessionParams{.radius = 0.6});
+  DragSession s(mesh, ops, {h0}, DragSessionParams{.radius = 0.6, .boundary = RegionBoundary::Clamp});
   ASSERT_GT(s.region().size(), 2500u);
   EXPECT_EQ(s.split_factor(), SplitCholesky::available());
   int second = s.region()[0];
@@ -185,7 +187,9 @@ TEST(DragSession, LargeRegionsFactoredOnTwoThreadsMatchFreshFactorizations) {
       tol);
   EXPECT_LE(s.last_relative_residual(), 1e-10);
   // With a margin the factor keeps its leading-block form (the ring ordered last).
-  EXPECT_FALSE(DragSession(mesh, ops, {h0}, DragSessionParams{.radius = 0.6, .margin = true}).split_factor());
+  EXPECT_FALSE(
+      DragSession(mesh, ops, {h0}, DragSessionParams{.radius = 0.6, .boundary = RegionBoundary::Clamp, .margin = true})
+          .split_factor());
 }
 
 TEST(DragSession, ShrunkRegionsReuseTheFactorAndMatchFreshFactorizations) {
@@ -194,7 +198,9 @@ TEST(DragSession, ShrunkRegionsReuseTheFactorAndMatchFreshFactorizations) {
   const FemOperators ops = build_cotan_operators(mesh);
   int h0 = 0;
   mesh.positions().col(2).maxCoeff(&h0);
-  DragSession s(mesh, ops, {h0}, DragSessionParams{.radius = 0.7, .margin = true, .inner_margin = true});
+  DragSession s(
+      mesh, ops, {h0},
+      DragSessionParams{.radius = 0.7, .boundary = RegionBoundary::Clamp, .margin = true, .inner_margin = true});
   const std::vector<int> region0 = s.region();
   // A second handle on the region's outermost ring: shrinking holds it, as a handle.
   const std::unordered_set<int> inside(region0.begin(), region0.end());
@@ -235,7 +241,7 @@ TEST(DragSession, ShrunkRegionsReuseTheFactorAndMatchFreshFactorizations) {
   EXPECT_LT(s.region().size(), shrunk);
   matches_fresh();
   // Without margins the same shrink refactors and peels the same ring.
-  DragSession plain(mesh, ops, {h0}, DragSessionParams{.radius = 0.7});
+  DragSession plain(mesh, ops, {h0}, DragSessionParams{.radius = 0.7, .boundary = RegionBoundary::Clamp});
   plain.shrink(1);
   EXPECT_EQ(plain.factorizations(), 2);
   EXPECT_EQ(plain.region().size(), shrunk);
@@ -258,4 +264,102 @@ TEST(DragSession, BadRequestsAreRefused) {
   EXPECT_THROW(s.add_handle(outside), InputError);
   EXPECT_THROW(s.add_handle(0), InputError);
   EXPECT_THROW((void)s.displacements(Eigen::MatrixXd::Zero(2, 3)), InputError);
+}
+
+// The smooth boundary (the default): the region within R of the handles on the surface,
+// the foundation of pde/region_boundary.h on the diagonal. Checked against the
+// foundation built here from its documented formula and factored by Eigen, against
+// correct_vessel with the same vertex handles of size 0 (the corrections' rule), and
+// drag_vertex; nothing at R or beyond moves and little beyond 0.95 R.
+TEST(DragSession, TheSmoothBoundaryIsTheCorrectionsRuleWithVertexHandles) {
+  const GeneratedMesh g = tube(5.0, 40.0, 60, 48);  // mm, about 0.65 mm edges
+  const Mesh mesh(g.V, g.F);
+  const FemOperators ops = build_cotan_operators(mesh);
+  auto nearest = [&](const Eigen::RowVector3d& x) {
+    int best = 0;
+    (mesh.positions().rowwise() - x).rowwise().squaredNorm().minCoeff(&best);
+    return best;
+  };
+  const int h0 = nearest(Eigen::RowVector3d(5, 0, 20)), h1 = nearest(Eigen::RowVector3d(0, 5, 23));
+  const double R = 6.0;
+  Eigen::MatrixXd moves(2, 3);
+  moves << -0.8, 0.1, 0.2, 0.05, -0.6, 0;
+  const DragSession s(mesh, ops, {h0, h1}, DragSessionParams{.radius = R});
+  EXPECT_EQ(s.boundary(), RegionBoundary::Smooth);
+  const Field d = session_field(mesh, s, moves);
+
+  // The reference: K D K plus kappa(s) M_i on the free rows, factored by Eigen.
+  const Eigen::VectorXd dist = geodesic_distance(mesh, GeodesicSources{.vertices = {h0, h1}});
+  std::vector<int> free;
+  for (int v = 0; v < mesh.num_vertices(); ++v)
+    if (dist[v] < R && v != h0 && v != h1) free.push_back(v);
+  std::vector<int> sorted_region = s.region();
+  std::sort(sorted_region.begin(), sorted_region.end());
+  EXPECT_EQ(sorted_region, free);
+  Eigen::VectorXd extra = Eigen::VectorXd::Zero(mesh.num_vertices());
+  for (const int v : free) {
+    const double x = std::clamp((dist[v] / R - 0.5) / 0.5, 0.0, 0.98);
+    extra[v] = 1e3 / std::pow(R, 4) * x * x / std::pow(1 - x, 4) * ops.mass[v];
+  }
+  const PdeCoefficients plate{.g0 = 0, .g1 = 0, .g2 = 1};
+  const Eigen::SparseMatrix<double> A = assemble_steady_matrix(mesh, ops, plate, free, extra);
+  Eigen::MatrixXd b = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(free.size()), 3);
+  const std::vector<int> handles{h0, h1};
+  for (std::size_t k = 0; k < handles.size(); ++k) {
+    const auto coupling = steady_coupling(mesh, ops, plate, handles[k]);
+    for (std::size_t i = 0; i < free.size(); ++i)
+      for (const auto& [w, value] : coupling)
+        if (w == free[i]) b.row(static_cast<Eigen::Index>(i)) += value * moves.row(static_cast<Eigen::Index>(k));
+  }
+  const Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt(A);
+  ASSERT_EQ(ldlt.info(), Eigen::Success);
+  const Eigen::MatrixXd x = ldlt.solve(b);
+  double diff = 0;
+  for (std::size_t i = 0; i < free.size(); ++i)
+    diff = std::max(diff, (d.row(free[i]) - x.row(static_cast<Eigen::Index>(i))).cwiseAbs().maxCoeff());
+  EXPECT_LE(diff, 1e-9 * moves.norm());
+  // Nothing at R or beyond moves; beyond 0.95 R below 0.2 % of the drag.
+  for (int v = 0; v < mesh.num_vertices(); ++v) {
+    if (dist[v] >= R) {
+      ASSERT_EQ(d.row(v).norm(), 0.0) << v;
+    }
+    if (dist[v] > 0.95 * R) {
+      EXPECT_LE(d.row(v).norm(), 2e-3 * 0.8) << v;
+    }
+  }
+
+  // The correction's smooth rule with the same handles as vertices of size 0.
+  CorrectionParams cp;
+  cp.handles = {CorrectionHandle(h0, moves.row(0).transpose()), CorrectionHandle(h1, moves.row(1).transpose())};
+  cp.radius = R;
+  cp.handle_radius = 0;
+  cp.laplacian = LaplacianKind::Cotan;
+  cp.prevent_intersections = false;
+  const CorrectionResult c = correct_vessel(mesh, cp);
+  EXPECT_LE((c.displacement - d).cwiseAbs().maxCoeff(), 1e-9 * moves.norm());
+  // The clamp differs (no foundation): the smooth rule is not the clamp under another name.
+  const DragSession clamp(mesh, ops, {h0, h1}, DragSessionParams{.radius = R, .boundary = RegionBoundary::Clamp});
+  EXPECT_GT((session_field(mesh, clamp, moves) - d).cwiseAbs().maxCoeff(), 0.05 * moves.norm());
+
+  // drag_vertex takes the same rule by default.
+  const DragResult one =
+      drag_vertex(mesh, ops, DragParams{.vertex = h0, .displacement = moves.row(0).transpose(), .radius = R});
+  const DragSession single(mesh, ops, {h0}, DragSessionParams{.radius = R});
+  EXPECT_LE((one.displacement - session_field(mesh, single, moves.topRows(1))).cwiseAbs().maxCoeff(), 1e-12);
+  EXPECT_EQ(one.solver, SteadySolver::Direct);
+  EXPECT_THROW(
+      drag_vertex(mesh, ops,
+                  DragParams{.vertex = h0, .displacement = {0, 0, 1}, .radius = R, .solver = SteadySolver::Global}),
+      InputError);
+
+  // The smooth region is fixed by its radius: margins, grow and shrink ask for the clamp;
+  // the fade is a correction's only.
+  DragSession grown(mesh, ops, {h0}, DragSessionParams{.radius = R});
+  EXPECT_THROW(grown.grow(1), InputError);
+  EXPECT_THROW(grown.shrink(1), InputError);
+  EXPECT_THROW(DragSession(mesh, ops, {h0}, DragSessionParams{.radius = R, .margin = true}), InputError);
+  EXPECT_THROW(DragSession(mesh, ops, {h0}, DragSessionParams{.radius = R, .boundary = RegionBoundary::Fade}),
+               InputError);
+  // A region given by rings ends by the clamp whatever the boundary asked.
+  EXPECT_EQ(DragSession(mesh, ops, {h0}, DragSessionParams{.rings = 3}).boundary(), RegionBoundary::Clamp);
 }

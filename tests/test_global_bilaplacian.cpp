@@ -247,7 +247,8 @@ TEST(GlobalBilaplacian, AppsGetTheDirectSolversAnswerFromIt) {
 
   int top = 0;
   m.positions().col(2).maxCoeff(&top);
-  DragParams dp{.vertex = top, .displacement = Eigen::Vector3d(0.01, 0, 0.05), .radius = 0.8};
+  DragParams dp{
+      .vertex = top, .displacement = Eigen::Vector3d(0.01, 0, 0.05), .radius = 0.8, .boundary = RegionBoundary::Clamp};
   const DragResult d_direct = drag_vertex(m, ops, dp);
   dp.solver = SteadySolver::Global;
   const DragResult d_global = drag_vertex(m, ops, dp);

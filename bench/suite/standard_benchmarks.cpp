@@ -902,6 +902,15 @@ void drag_figures(const BenchOptions& options, nlohmann::json& j, const Mesh& bi
     session = std::make_unique<DragSession>(big, big_ops, std::vector<int>{handle}, region_params);
   });
   j["drag_setup_ms_10k_region"] = setup_s * 1e3;
+  // The same region ended by the clamp (no foundation: the rule before the smooth
+  // boundary became the default; the same matrix pattern).
+  j["drag_setup_ms_10k_region_clamp"] =
+      best_of(quick ? 2 : 4,
+              [&] {
+                DragSession s(big, big_ops, {handle},
+                              DragSessionParams{.radius = 53.0, .boundary = RegionBoundary::Clamp});
+              }) *
+      1e3;
   {
     const int limit = max_threads();
     set_max_threads(1);
@@ -971,8 +980,9 @@ void drag_figures(const BenchOptions& options, nlohmann::json& j, const Mesh& bi
   j["drag_setup_ms_10k_region_with_margin"] =
       best_of(quick ? 2 : 4,
               [&] {
-                with_margin = std::make_unique<DragSession>(big, big_ops, std::vector<int>{handle},
-                                                            DragSessionParams{.radius = 53.0, .margin = true});
+                with_margin = std::make_unique<DragSession>(
+                    big, big_ops, std::vector<int>{handle},
+                    DragSessionParams{.radius = 53.0, .boundary = RegionBoundary::Clamp, .margin = true});
               }) *
       1e3;
   {
@@ -1056,8 +1066,9 @@ void drag_figures(const BenchOptions& options, nlohmann::json& j, const Mesh& bi
   std::vector<double> grow_ms;
   for (int k = 0; k < (quick ? 3 : 5); ++k) {
     if (k > 0)
-      with_margin = std::make_unique<DragSession>(big, big_ops, std::vector<int>{handle},
-                                                  DragSessionParams{.radius = 53.0, .margin = true});
+      with_margin = std::make_unique<DragSession>(
+          big, big_ops, std::vector<int>{handle},
+          DragSessionParams{.radius = 53.0, .boundary = RegionBoundary::Clamp, .margin = true});
     with_margin->add_handle(second);
     const auto t_grow = clock_type::now();
     with_margin->grow(1);
@@ -1067,15 +1078,20 @@ void drag_figures(const BenchOptions& options, nlohmann::json& j, const Mesh& bi
   j["drag_grow_ring_max_ms"] = percentiles(grow_ms).max;
   j["drag_grow_ring_factorizations"] = with_margin->factorizations();
   j["drag_grown_region_vertices"] = with_margin->region().size();
+  // The baselines grow and shrink a session without margins: the clamp's, since the
+  // smooth boundary's region is fixed by its radius.
+  DragSession plain(big, big_ops, {handle}, DragSessionParams{.radius = 53.0, .boundary = RegionBoundary::Clamp});
+  plain.add_handle(second);
   const auto t_refactor = clock_type::now();
-  session->grow(1);
+  plain.grow(1);
   j["drag_grow_ring_baseline_ms_refactor"] = seconds_since(t_refactor) * 1e3;
   // Shrink by one ring: with the region's outer ring ordered last at set-up
   // (inner_margin) against a session without it (a new factor), same run.
   std::vector<double> shrink_ms, inner_setup_ms;
   for (int k = 0; k < (quick ? 3 : 5); ++k) {
     const auto t_setup = clock_type::now();
-    DragSession inner(big, big_ops, {handle}, DragSessionParams{.radius = 53.0, .inner_margin = true});
+    DragSession inner(big, big_ops, {handle},
+                      DragSessionParams{.radius = 53.0, .boundary = RegionBoundary::Clamp, .inner_margin = true});
     inner_setup_ms.push_back(seconds_since(t_setup) * 1e3);
     inner.add_handle(second);
     const auto t_shrink = clock_type::now();
@@ -1086,13 +1102,15 @@ void drag_figures(const BenchOptions& options, nlohmann::json& j, const Mesh& bi
   j["drag_shrink_ring_ms"] = percentiles(shrink_ms).p50;
   j["drag_setup_ms_10k_region_with_inner_margin"] = percentiles(inner_setup_ms).p50;
   const auto t_shrink_refactor = clock_type::now();
-  session->shrink(1);
+  plain.shrink(1);
   j["drag_shrink_ring_baseline_ms_refactor"] = seconds_since(t_shrink_refactor) * 1e3;
   j["drag_setup_ms_10k_region_with_both_margins"] =
       best_of(quick ? 1 : 2,
               [&] {
-                DragSession both(big, big_ops, {handle},
-                                 DragSessionParams{.radius = 53.0, .margin = true, .inner_margin = true});
+                DragSession both(
+                    big, big_ops, {handle},
+                    DragSessionParams{
+                        .radius = 53.0, .boundary = RegionBoundary::Clamp, .margin = true, .inner_margin = true});
               }) *
       1e3;
   j["drag_setup_ms_2k_region"] =

@@ -316,21 +316,30 @@ propose_us, publish_us.)doc");
   const DragSessionParams g0;
   py::class_<PyDragSession>(
       m, "DragSession",
-      R"doc(DragSession(V, F, handles, radius=0, rings=0, g1=0, g2=1, margin=False, inner_margin=False)
+      R"doc(DragSession(V, F, handles, radius=0, rings=0, g1=0, g2=1, boundary="smooth", margin=False, inner_margin=False)
 
 Interactive drags of handle vertices over one region with one factorization:
 positions(d) for handle displacements d (k, 3) costs a product, not a solve;
 add_handle, grow and shrink reuse the factor where they can. The region: the
-vertices within `radius` of the first handle on the surface (geodesic_distance),
-or `rings` rings of neighbours; held at zero outside.)doc")
+vertices within `radius` of the handles on the surface (geodesic_distance), or
+`rings` rings of neighbours of the first; held at zero outside. boundary="smooth"
+(the default for a radius) ends it as correct() does, displacement and slope zero at
+the radius, so a drag equals correct(..., handle_radius=0) with the same vertices;
+"clamp" holds the field at zero just outside (the rule before; margins, grow and
+shrink need it).)doc")
       .def(py::init([](const ArrayLike& V, const ArrayLike& F, const ArrayLike& handles, double radius, int rings,
-                       double g1, double g2, bool margin, bool inner_margin) {
+                       double g1, double g2, const std::string& boundary, bool margin, bool inner_margin) {
              auto p = std::make_unique<PyDragSession>();
              p->mesh = mesh_arg(V, F);
              p->ops = build_cotan_operators(p->mesh);
              const std::vector<int> h = vertices_arg(handles, "handles", p->mesh.num_vertices());
-             DragSessionParams q{
-                 .radius = radius, .rings = rings, .g1 = g1, .g2 = g2, .margin = margin, .inner_margin = inner_margin};
+             DragSessionParams q{.radius = radius,
+                                 .rings = rings,
+                                 .g1 = g1,
+                                 .g2 = g2,
+                                 .boundary = parse_region_boundary(boundary),
+                                 .margin = margin,
+                                 .inner_margin = inner_margin};
              {
                py::gil_scoped_release release;
                p->s = std::make_unique<DragSession>(p->mesh, p->ops, h, q);
@@ -338,8 +347,8 @@ or `rings` rings of neighbours; held at zero outside.)doc")
              return p;
            }),
            py::arg("V"), py::arg("F"), py::arg("handles"), py::arg("radius") = g0.radius, py::arg("rings") = g0.rings,
-           py::arg("g1") = g0.g1, py::arg("g2") = g0.g2, py::arg("margin") = g0.margin,
-           py::arg("inner_margin") = g0.inner_margin)
+           py::arg("g1") = g0.g1, py::arg("g2") = g0.g2, py::arg("boundary") = to_string(g0.boundary),
+           py::arg("margin") = g0.margin, py::arg("inner_margin") = g0.inner_margin)
       .def(
           "displacements",
           [](const PyDragSession& p, const ArrayLike& d) {
@@ -378,6 +387,9 @@ or `rings` rings of neighbours; held at zero outside.)doc")
           py::arg("rings") = 1)
       .def_property_readonly("handles", [](const PyDragSession& p) { return to_numpy(p.s->handles()); })
       .def_property_readonly("region", [](const PyDragSession& p) { return to_numpy(p.s->region()); })
+      .def_property_readonly(
+          "boundary", [](const PyDragSession& p) { return std::string(to_string(p.s->boundary())); },
+          "'smooth' or 'clamp': the boundary in use (a region given by rings ends by the clamp)")
       .def_property_readonly("basis", [](const PyDragSession& p) { return to_numpy(p.s->basis()); })
       .def_property_readonly("factorizations", [](const PyDragSession& p) { return p.s->factorizations(); });
 

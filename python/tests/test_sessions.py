@@ -89,20 +89,49 @@ def test_pde_session_poke_grows_a_local_domain():
 
 def test_drag_session_equals_a_direct_solve_on_its_region():
     V, F = meshpde.generate.icosphere(4, radius=10)
-    d = meshpde.DragSession(V, F, [0], radius=3.0)
+    K, M = meshpde.stiffness(V, F), meshpde.mass(V, F)
+    A = K @ sp.diags(1 / M.diagonal()) @ K
+    R = 3.0
+    # The clamp: the region held at zero outside, K M^-1 K inside.
+    d = meshpde.DragSession(V, F, [0], radius=R, boundary="clamp")
+    assert d.boundary == "clamp"
     P = d.positions([[0, 0, 1]])
     region = d.region
     assert 0 not in region and len(region) > 10
-    K, M = meshpde.stiffness(V, F), meshpde.mass(V, F)
     held = np.setdiff1d(np.arange(len(V)), region)
     move = np.zeros((len(held), 3))
     move[held == 0] = [0, 0, 1]
-    ref = dirichlet_solve(K @ sp.diags(1 / M.diagonal()) @ K, held, move)
+    ref = dirichlet_solve(A, held, move)
     assert np.abs((P - V) - ref).max() <= 1e-9
     # linear in the handle's displacement: no new solve
     P2 = d.positions([[0, 0, 2]])
     assert np.abs((P2 - V) - 2 * (P - V)).max() <= 1e-12
     assert d.factorizations == 1
+    # The smooth boundary (the default): the same region plus the documented foundation
+    # 1e3 / R^4 x^2 / (1 - x)^4 M_i, x = (s / R - 0.5) / 0.5 capped to [0, 0.98], s the
+    # surface distance from the handle, built here from geodesic_distance.
+    s = meshpde.DragSession(V, F, [0], radius=R)
+    assert s.boundary == "smooth"
+    assert np.array_equal(np.sort(s.region), np.sort(region))
+    dist = meshpde.geodesic_distance(V, F, [0])
+    x = np.clip((dist / R - 0.5) / 0.5, 0, 0.98)
+    kappa = np.where(np.isin(np.arange(len(V)), region), 1e3 / R**4 * x**2 / (1 - x) ** 4 * M.diagonal(), 0)
+    smooth_ref = dirichlet_solve(A + sp.diags(kappa), held, move)
+    Ps = s.positions([[0, 0, 1]])
+    assert np.abs((Ps - V) - smooth_ref).max() <= 1e-9
+    assert np.abs((Ps - V) - ref).max() > 0.01  # the foundation changes the answer
+    # Nothing beyond 0.95 R moves more than 0.2 % of the drag.
+    assert np.linalg.norm(Ps - V, axis=1)[dist > 0.95 * R].max() <= 2e-3
+    # It is correct()'s smooth rule with the same vertex handle of size 0.
+    c = meshpde.correct(V, F, [0], ["0,0,1"], radius=R, handle_radius=0, laplacian="cotan",
+                        allow_intersections=True)
+    assert np.abs(c.V - Ps).max() <= 1e-9
+    with pytest.raises(meshpde.InputError, match="clamp"):
+        s.grow()
+    with pytest.raises(meshpde.InputError, match="clamp"):
+        meshpde.DragSession(V, F, [0], radius=R, margin=True)
+    with pytest.raises(meshpde.InputError, match="smooth, clamp or fade"):
+        meshpde.DragSession(V, F, [0], radius=R, boundary="soft")
 
 
 def test_global_solver_equals_a_direct_solve():

@@ -10,6 +10,7 @@
 
 #include "../core/index_map.h"
 #include "meshpde/core/errors.h"
+#include "meshpde/mesh/geodesic_distance.h"
 #include "meshpde/solvers/direct.h"
 #include "meshpde/solvers/ordering.h"
 #include "meshpde/solvers/refinement.h"
@@ -24,18 +25,37 @@ DragResult drag_vertex(const Mesh& mesh, const FemOperators& ops, const DragPara
   if (p.radius <= 0 && p.rings <= 0) throw InputError("give a region of influence: a radius > 0 or rings > 0");
   if (ops.mass[p.vertex] <= 0) throw InputError(fmt::format("handle vertex {} has no incident area", p.vertex));
   DragResult r;
-  r.region = region_around(mesh, p.vertex, RegionSpec{.radius = p.radius, .rings = p.radius > 0 ? 0 : p.rings});
-  r.region.erase(std::remove(r.region.begin(), r.region.end(), p.vertex), r.region.end());
-  std::vector<int> free;
-  for (int v : r.region)
-    if (ops.mass[v] > 0) free.push_back(v);
-  Field held = Field::Zero(mesh.num_vertices(), 3);
-  held.row(p.vertex) = p.displacement.transpose();
-  SteadySolveResult s = solve_steady(mesh, ops, PdeCoefficients{.g0 = 0, .g1 = p.g1, .g2 = p.g2}, free, held, p.solver,
-                                     kAutoGlobalFromFreeVertices, p.cg);
-  r.displacement = std::move(s.values);
-  r.solver = s.solver;
-  r.cg = s.cg();
+  if (p.boundary == RegionBoundary::Smooth && p.radius > 0) {
+    if (p.solver == SteadySolver::Global || p.solver == SteadySolver::Iterative)
+      throw InputError(
+          fmt::format("the smooth boundary solves with the direct solver, not '{}': ask for the clamp "
+                      "boundary to solve with it",
+                      to_string(p.solver)));
+    // The smooth rule's solve is DragSession's (one factor, refined), so both agree.
+    const DragSession s(mesh, ops, {p.vertex},
+                        DragSessionParams{.radius = p.radius, .g1 = p.g1, .g2 = p.g2, .boundary = p.boundary});
+    r.region = s.region();
+    const Eigen::MatrixXd x = s.displacements(p.displacement.transpose());
+    r.displacement = Field::Zero(mesh.num_vertices(), 3);
+    for (std::size_t k = 0; k < r.region.size(); ++k)
+      r.displacement.row(r.region[k]) = x.row(static_cast<Eigen::Index>(k));
+    r.displacement.row(p.vertex) = p.displacement.transpose();
+    r.solver = SteadySolver::Direct;
+    r.cg.relative_residual = s.last_relative_residual();
+  } else {
+    r.region = region_around(mesh, p.vertex, RegionSpec{.radius = p.radius, .rings = p.radius > 0 ? 0 : p.rings});
+    r.region.erase(std::remove(r.region.begin(), r.region.end(), p.vertex), r.region.end());
+    std::vector<int> free;
+    for (int v : r.region)
+      if (ops.mass[v] > 0) free.push_back(v);
+    Field held = Field::Zero(mesh.num_vertices(), 3);
+    held.row(p.vertex) = p.displacement.transpose();
+    SteadySolveResult s = solve_steady(mesh, ops, PdeCoefficients{.g0 = 0, .g1 = p.g1, .g2 = p.g2}, free, held,
+                                       p.solver, kAutoGlobalFromFreeVertices, p.cg);
+    r.displacement = std::move(s.values);
+    r.solver = s.solver;
+    r.cg = s.cg();
+  }
   // Reaction at the handle: row of Kt applied to the solution (steady: no inertia).
   for (int c = 0; c < 3; ++c) {
     auto d = [&](int j) { return r.displacement(j, c); };
@@ -115,26 +135,58 @@ constexpr Eigen::Index kSplitFactorFrom = 1000;
 DragSession::~DragSession() = default;
 DragSession::DragSession(DragSession&&) noexcept = default;
 
-namespace {
+struct DragSession::Region {
+  std::vector<int> vertices;
+  bool smooth = false;
+  std::vector<std::pair<int, double>> foundation;  // Smooth: (vertex, kappa(s) M_i)
+};
 
-std::vector<int> region_of(const Mesh& mesh, const std::vector<int>& handles, const DragSessionParams& p) {
+DragSession::Region DragSession::region_of(const Mesh& mesh, const FemOperators& ops, const std::vector<int>& handles,
+                                           const DragSessionParams& p) {
   if (handles.empty()) throw InputError("a drag session needs at least one handle");
-  if (handles[0] < 0 || handles[0] >= mesh.num_vertices())
-    throw InputError(
-        fmt::format("handle vertex {} does not exist (the mesh has {} vertices)", handles[0], mesh.num_vertices()));
+  for (const int h : handles)
+    if (h < 0 || h >= mesh.num_vertices())
+      throw InputError(
+          fmt::format("handle vertex {} does not exist (the mesh has {} vertices)", h, mesh.num_vertices()));
   if (p.radius <= 0 && p.rings <= 0) throw InputError("give a region of influence: a radius > 0 or rings > 0");
-  return region_around(mesh, handles[0], RegionSpec{.radius = p.radius, .rings = p.radius > 0 ? 0 : p.rings});
+  if (p.boundary == RegionBoundary::Fade)
+    throw InputError("a drag session's region ends by the smooth boundary or the clamp, not the fade");
+  Region r;
+  if (p.radius <= 0 || p.boundary == RegionBoundary::Clamp) {
+    r.vertices = region_around(mesh, handles[0], RegionSpec{.radius = p.radius, .rings = p.radius > 0 ? 0 : p.rings});
+    return r;
+  }
+  if (p.margin || p.inner_margin)
+    throw InputError(
+        "margins grow and shrink a region by rings, and the smooth boundary's region is fixed by its radius: "
+        "ask for the clamp boundary with margins");
+  // The correction's smooth rule: the surface within the radius of every handle, each
+  // free vertex tied by the foundation of its distance from the nearest.
+  r.smooth = true;
+  for (const auto& [v, s] : geodesic_distances_from(mesh, GeodesicSources{.vertices = handles}, p.radius)) {
+    r.vertices.push_back(v);
+    if (const double k = smooth_foundation(s, p.radius, p.g1, p.g2) * ops.mass[v]; k > 0)
+      r.foundation.emplace_back(v, k);
+  }
+  return r;
 }
-
-}  // namespace
 
 DragSession::DragSession(const Mesh& mesh, const FemOperators& ops, std::vector<int> handles,
                          const DragSessionParams& params)
-    : DragSession(mesh, ops, handles, region_of(mesh, handles, params), params) {}
+    : DragSession(mesh, ops, handles, region_of(mesh, ops, handles, params), params) {}
 
 DragSession::DragSession(const Mesh& mesh, const FemOperators& ops, std::vector<int> handles,
                          const std::vector<int>& region, const DragSessionParams& params)
-    : mesh_(mesh), ops_(ops), params_(params), handles_(std::move(handles)) {
+    : DragSession(mesh, ops, std::move(handles), Region{region, false, {}}, params) {}
+
+DragSession::DragSession(const Mesh& mesh, const FemOperators& ops, std::vector<int> handles, const Region& region,
+                         const DragSessionParams& params)
+    : mesh_(mesh),
+      ops_(ops),
+      params_(params),
+      handles_(std::move(handles)),
+      smooth_(region.smooth),
+      foundation_(region.foundation) {
   const int nv = mesh.num_vertices();
   if (handles_.empty()) throw InputError("a drag session needs at least one handle");
   for (int h : handles_) {
@@ -146,7 +198,7 @@ DragSession::DragSession(const Mesh& mesh, const FemOperators& ops, std::vector<
   }
   auto handle = [&](int v) { return std::find(handles_.begin(), handles_.end(), v) != handles_.end(); };
   std::vector<int> free;
-  for (int v : region) {
+  for (int v : region.vertices) {
     if (v < 0 || v >= nv) throw InputError(fmt::format("region vertex {} does not exist (the mesh has {})", v, nv));
     if (!handle(v) && ops.mass[v] > 0) free.push_back(v);
   }
@@ -229,6 +281,9 @@ void DragSession::build(std::vector<int> free) {
   f->level = inner.empty() ? 0 : 1;
   f->A = assemble_steady_matrix(mesh_, ops_, coef, f->vertices);
   f->A.makeCompressed();  // the products read its arrays directly
+  // The smooth boundary's foundation on the diagonal (its vertices are all free rows).
+  for (const auto& [v, k] : foundation_)
+    if (const int row = f->row.find(v); row >= 0) f->A.coeffRef(row, row) += k;
   try {
     if (f->use_split)
       f->split.factorize(f->A, static_cast<Eigen::Index>(nd.parts[0]), static_cast<Eigen::Index>(nd.parts[1]));
@@ -347,6 +402,10 @@ void DragSession::add_handle(int vertex) {
 
 void DragSession::grow(int rings) {
   if (rings < 1) throw InputError("grow by at least one ring");
+  if (boundary() == RegionBoundary::Smooth)
+    throw InputError(
+        "the smooth boundary's region is fixed by its radius: make a session with a larger radius, or ask for the "
+        "clamp boundary to grow it by rings");
   if (rings == 1 && factor_->level + 1 < factor_->levels.size()) {
     // The next ring was factored with the region, ordered after it: the grown region's
     // factor is a leading block of rows the factor already has.
@@ -362,6 +421,10 @@ void DragSession::grow(int rings) {
 
 void DragSession::shrink(int rings) {
   if (rings < 1) throw InputError("shrink by at least one ring");
+  if (boundary() == RegionBoundary::Smooth)
+    throw InputError(
+        "the smooth boundary's region is fixed by its radius: make a session with a smaller radius, or ask for the "
+        "clamp boundary to shrink it by rings");
   if (rings == 1 && factor_->level > 0) {
     // The region's outermost ring was factored last: the smaller region's factor is
     // the leading block without it.

@@ -16,6 +16,7 @@
 #include "meshpde/mesh/regions.h"
 #include "meshpde/operators/fem_operators.h"
 #include "meshpde/operators/laplacian.h"
+#include "meshpde/pde/region_boundary.h"
 #include "meshpde/pde/steady_direct.h"
 #include "meshpde/solvers/cg.h"
 
@@ -28,9 +29,12 @@ struct DragParams {
   int rings = 0;      ///< region of influence in rings of neighbours (used when radius == 0)
   double g1 = 0;      ///< membrane stiffness
   double g2 = 1;      ///< plate (bi-Laplacian) stiffness
-  /// Auto (default: the multigrid on large, well-shaped regions where it converges, else
-  /// Direct: SteadySolver's rule), Direct, Global (g2 > 0) or Iterative,
-  /// pde/steady_direct.h
+  /// How a region given by radius ends (pde/region_boundary.h): Smooth (default; the
+  /// corrections' foundation, a DragSession's solve) or Clamp (held at zero outside).
+  RegionBoundary boundary = RegionBoundary::Smooth;
+  /// Auto (default: with the clamp, the multigrid on large, well-shaped regions where it
+  /// converges, else Direct: SteadySolver's rule; Direct with the smooth boundary),
+  /// Direct, Global (g2 > 0) or Iterative (both with the clamp only), pde/steady_direct.h
   SteadySolver solver = SteadySolver::Auto;
   CgOptions cg{.tolerance = 1e-10, .max_iterations = 50000};  ///< for SteadySolver::Iterative
 };
@@ -46,13 +50,16 @@ struct DragResult {
   SteadySolver solver = SteadySolver::Iterative;  ///< the solver that ran (Auto resolved)
 };
 
-// The region is mesh/regions.h's region_around: the vertices nearer than the radius on
-// the surface (mesh/geodesic_distance.h, the rule of a correction's region), else the
-// ring ball; when both radius and rings are given the radius is used. The field is
-// held at zero outside it (a correction's RegionBoundary::Clamp without its pull-in of
-// one edge; the smooth boundary is the correction's, apps/vessel_correction.h).
+// The region is the vertices nearer than the radius on the surface
+// (mesh/geodesic_distance.h, the rule of a correction's region), else the ring ball;
+// when both radius and rings are given the radius is used. The field is held at zero
+// outside it, and with the smooth boundary (the default for a radius) tied inside by
+// the corrections' foundation, which takes it and its slope to zero at the radius: the
+// answer is DragSession's with the same parameters, and correct_vessel's with the vertex
+// handle of size 0 (apps/vessel_correction.h).
 
-/// \throw InputError for a bad vertex or region; SolverError on a breakdown.
+/// \throw InputError for a bad vertex or region, or the smooth boundary with solver
+///        Global or Iterative; SolverError on a breakdown.
 DragResult drag_vertex(const Mesh& mesh, const FemOperators& ops, const DragParams& params);
 
 /// Interactive drags of one or more handles over one region of influence, with the
@@ -76,7 +83,8 @@ DragResult drag_vertex(const Mesh& mesh, const FemOperators& ops, const DragPara
 ///     up by shrink() can be grown back the same way. Other changes build a new factor
 ///     (with new margins).
 /// The region is held at zero displacement outside (two frozen rings make the join C1
-/// for g2 > 0), exactly as drag_vertex(). The region is ordered by nested dissection
+/// for g2 > 0), as drag_vertex() does, and by default ended inside by the smooth
+/// boundary's foundation (DragSessionParams::boundary). The region is ordered by nested dissection
 /// from its positions (solvers/ordering.h) and assembled once in that order. Without
 /// margins (from 1,000 vertices, with CHOLMOD) the two halves of the top level are
 /// factored at the same time (SplitCholesky, split_factor()); with margins the factor
@@ -85,10 +93,20 @@ DragResult drag_vertex(const Mesh& mesh, const FemOperators& ops, const DragPara
 /// sweep, with iterative refinement to a relative residual of 1e-12 or a
 /// backward-stable answer (solvers/refinement.h).
 struct DragSessionParams {
-  double radius = 0;  ///< region: surface distance from the first handle (mesh units); 0: use rings
-  int rings = 0;      ///< region in rings of neighbours of the first handle (when radius == 0)
-  double g1 = 0;      ///< membrane stiffness
-  double g2 = 1;      ///< plate (bi-Laplacian) stiffness
+  /// Region: the surface within this distance of the handles (mesh units; Smooth) or of
+  /// the first handle (Clamp); 0: use rings. Default 0.
+  double radius = 0;
+  int rings = 0;  ///< region in rings of neighbours of the first handle (when radius == 0); default 0
+  double g1 = 0;  ///< membrane stiffness; default 0
+  double g2 = 1;  ///< plate (bi-Laplacian) stiffness; default 1
+  /// How a region given by radius ends (pde/region_boundary.h): Smooth (default) adds
+  /// the corrections' foundation, so that the displacement and its slope reach zero at
+  /// the radius on the surface and a drag equals correct_vessel with the same vertex
+  /// handles of size 0 (`--handle-radius 0`); Clamp holds the field at zero just
+  /// outside the region, as sessions did before. Fade is not offered. A region given by
+  /// rings or as a vertex list ends by the clamp. With Smooth the region is fixed by the
+  /// radius: margins, grow() and shrink() ask for Clamp.
+  RegionBoundary boundary = RegionBoundary::Smooth;
   /// Factor one ring outside the region at set-up, ordered last, so that grow(1) needs
   /// no new factor. Costs set-up time: the ring's rows fill in against the region's top
   /// separators, and the factor is one piece, not the two-thread split (10k-vertex
@@ -107,7 +125,8 @@ class DragSession {
   ///        cannot be factored.
   DragSession(const Mesh& mesh, const FemOperators& ops, std::vector<int> handles, const DragSessionParams& params);
   /// The same on a region given as a vertex list (handles in it are skipped; its
-  /// vertices without area too); params.radius and params.rings are not used.
+  /// vertices without area too), ended by the clamp; params.radius, params.rings and
+  /// params.boundary are not used.
   DragSession(const Mesh& mesh, const FemOperators& ops, std::vector<int> handles, const std::vector<int>& region,
               const DragSessionParams& params);
   ~DragSession();
@@ -124,7 +143,8 @@ class DragSession {
   /// existing factor and a rank-one update of the basis. \throw InputError if the vertex
   /// is not a free region vertex.
   void add_handle(int vertex);
-  /// Grows the region by `rings` rings of neighbours: by one ring that is already
+  /// Grows the region by `rings` rings of neighbours (\throw InputError with the smooth
+  /// boundary, whose region is fixed by its radius): by one ring that is already
   /// factored (the margin, or a ring given up by shrink()) one multi-column solve for
   /// all handles; otherwise a new factor.
   void grow(int rings = 1);
@@ -132,7 +152,7 @@ class DragSession {
   /// vertex that is not a handle; those vertices are then held at zero, handles in them
   /// stay handles). With a margin the first shrink by one ring is one multi-column
   /// solve with the same factor; otherwise a new factor. \throw InputError if no free
-  /// vertex would be left.
+  /// vertex would be left, or with the smooth boundary.
   void shrink(int rings = 1);
 
   const std::vector<int>& handles() const { return handles_; }
@@ -148,9 +168,16 @@ class DragSession {
   bool split_factor() const;
   int solves() const { return solves_; }                       ///< solves with a factor so far
   double last_relative_residual() const { return residual_; }  ///< of the last solve, after refinement
+  /// The boundary in use: Smooth only for a region given by radius with params.boundary Smooth.
+  RegionBoundary boundary() const { return smooth_ ? RegionBoundary::Smooth : RegionBoundary::Clamp; }
 
  private:
   struct Factor;
+  struct Region;  // the region's vertices and, for Smooth, its foundation
+  static Region region_of(const Mesh& mesh, const FemOperators& ops, const std::vector<int>& handles,
+                          const DragSessionParams& params);
+  DragSession(const Mesh& mesh, const FemOperators& ops, std::vector<int> handles, const Region& region,
+              const DragSessionParams& params);
   void build(std::vector<int> free);
   void activate();  // the region is the factor's current level: region_, handle flags, basis
   void compute_basis();
@@ -168,9 +195,11 @@ class DragSession {
   const FemOperators& ops_;
   DragSessionParams params_;
   std::vector<int> handles_;
-  std::vector<bool> handle_in_region_;  // per handle: added by add_handle (a row of the factor)
-  std::unique_ptr<Factor> factor_;      // of the region and its margin rings, those last
-  std::vector<int> region_;             // the factored vertices in use: the leading rows
+  std::vector<bool> handle_in_region_;              // per handle: added by add_handle (a row of the factor)
+  std::unique_ptr<Factor> factor_;                  // of the region and its margin rings, those last
+  std::vector<int> region_;                         // the factored vertices in use: the leading rows
+  bool smooth_ = false;                             // the smooth boundary: foundation_ on the diagonal
+  std::vector<std::pair<int, double>> foundation_;  // (vertex, kappa(s) M_i) for the region's vertices
   Eigen::MatrixXd basis_;
   int factorizations_ = 0, solves_ = 0;
   double residual_ = 0;

@@ -77,6 +77,7 @@
 #include "meshpde/operators/fem_operators.h"
 #include "meshpde/operators/intrinsic_delaunay.h"
 #include "meshpde/operators/laplacian.h"
+#include "meshpde/pde/region_boundary.h"
 #include "meshpde/pde/steady_direct.h"
 #include "meshpde/solvers/cg.h"
 
@@ -87,28 +88,14 @@ enum class CorrectionMethod { Fem, Springs };
 CorrectionMethod parse_correction_method(const std::string& text);
 const char* to_string(CorrectionMethod method);
 
-/// How a Fem correction's region of radius R ends (`--boundary`).
-///  - Smooth (default): the region is the surface within distance R of the handles,
-///    measured on the surface (mesh/geodesic_distance.h), and an elastic foundation that
-///    starts at kSmoothStart R and grows steeply towards R takes the displacement and
-///    its slope to zero at R: where the boundary lies is a property of the surface, not
-///    of where the mesh's vertices fall, so independent triangulations of one wall agree
-///    (docs/vessel-correction.md, "Handles at surface points, regions on the surface,
-///    the smooth boundary"). Nothing at R or beyond moves.
-///  - Clamp: the free set ends at R - h by edge paths from the handles' vertices, and
-///    the rings beyond are held at zero (mesh/regions.h's influence_region): nothing
-///    beyond R moves, but the boundary moves with h.
-///  - Fade: the free set reaches 2 R by edge paths and a foundation, zero up to 0.6 R
-///    and growing as the cube of the distance beyond, takes the displacement down
-///    smoothly; vertices between R and 2 R move a little (a few % of the drag at 1.2 R).
-/// All three work static or dynamic, with or without image guidance. Smooth and Fade
-/// solve with the direct solver only.
-enum class RegionBoundary { Clamp, Fade, Smooth };
-/// Where Smooth's foundation starts, as a fraction of the radius.
-inline constexpr double kSmoothStart = 0.5;
-/// "smooth", "clamp" or "fade". \throw InputError otherwise.
-RegionBoundary parse_region_boundary(const std::string& text);
-const char* to_string(RegionBoundary boundary);
+// How a Fem correction's region of radius R ends (`--boundary`): RegionBoundary,
+// pde/region_boundary.h. Smooth (the default) ends it by a foundation that takes the
+// displacement and its slope to zero at R on the surface, so independent
+// triangulations of one wall agree; Clamp (the rule before, for comparison) ends the
+// free set at R - h by edge paths from the handles' vertices (mesh/regions.h's
+// influence_region); Fade reaches 2 R by edge paths with a cubic foundation from 0.6 R.
+// All three work static or dynamic, with or without image guidance; Smooth and Fade
+// solve with the direct solver only.
 
 /// A handle: a vertex or a point of the surface, moved by a prescribed displacement.
 /// A Fem correction moves the handle's point by exactly `displacement`; with a handle

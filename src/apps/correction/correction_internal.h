@@ -34,14 +34,7 @@ namespace meshpde::correction {
 // resolution to the next than the clamp does.
 inline constexpr double kFadeStart = 0.6, kFadeStrength = 1e3, kFadeReach = 2.0;
 
-// Smooth's foundation (RegionBoundary::Smooth): kSmoothStrength (g2 / R^4 + g1 / R^2)
-// x^2 / (1 - x)^4 M_i with x = (s / R - kSmoothStart) / (1 - kSmoothStart), s the surface
-// distance from the nearest handle: zero up to kSmoothStart R, then growing without
-// bound towards R, so that the displacement falls like a power of (R - s) and reaches
-// R with zero value and slope in the continuous problem; the last vertices before R,
-// wherever they fall, see a field that is already nearly zero. x is capped at
-// kSmoothMaxX (the last 2 % of the band) to keep the matrix's scale finite.
-inline constexpr double kSmoothStrength = 1e3, kSmoothMaxX = 0.98;
+// Smooth's foundation: pde/region_boundary.h's smooth_foundation.
 
 // A point handle whose size is at least this fraction of its triangle's mean edge is read
 // to second order (LoadedHandle); below it the load is about a point load, and a point

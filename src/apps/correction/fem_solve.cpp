@@ -46,11 +46,11 @@ Eigen::VectorXd foundations(const Mesh& mesh, const CorrectionParams& p, const F
     }
   }
   if (smooth(p)) {
-    const double R = p.radius;
-    const double kappa0 =
-        kSmoothStrength * (p.dynamic ? p.tissue.elasticity : 1.0) * (p.g2 / std::pow(R, 4) + p.g1 / (R * R));
-    if (!std::isfinite(kappa0 * 1e8))
-      throw InputError(fmt::format("a region radius of {:g} mm is too small for the smooth boundary", R));
+    // Scaled as the operator is (the dynamic mode weighs it by the elasticity).
+    const double e = p.dynamic ? p.tissue.elasticity : 1.0;
+    // Refuses a radius too small for the foundation's scale even when every region
+    // vertex is a handle's own (below), which carries none.
+    (void)smooth_foundation(0.0, p.radius, e * p.g1, e * p.g2);
     // The triangles a handle point lies on carry no foundation: with a radius below
     // an edge they are the whole region, and they must move.
     std::vector<char> own(static_cast<std::size_t>(nv), 0);
@@ -59,8 +59,7 @@ Eigen::VectorXd foundations(const Mesh& mesh, const CorrectionParams& p, const F
     for (std::size_t k = 0; k < problem.region.size(); ++k) {
       const int v = problem.region[k];
       if (own[static_cast<std::size_t>(v)]) continue;
-      const double x = std::clamp((problem.distance[k] / R - kSmoothStart) / (1 - kSmoothStart), 0.0, kSmoothMaxX);
-      extra[v] += kappa0 * x * x / std::pow(1 - x, 4) * s.mo.ops.mass[v];
+      extra[v] += smooth_foundation(problem.distance[k], p.radius, e * p.g1, e * p.g2) * s.mo.ops.mass[v];
     }
   }
   return extra;

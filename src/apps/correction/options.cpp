@@ -121,25 +121,6 @@ std::vector<CorrectionHandle> parse_point_handles(const Mesh& mesh, const std::v
   return handles;
 }
 
-RegionBoundary parse_region_boundary(const std::string& text) {
-  if (text == "smooth") return RegionBoundary::Smooth;
-  if (text == "clamp") return RegionBoundary::Clamp;
-  if (text == "fade") return RegionBoundary::Fade;
-  throw InputError(fmt::format("region boundary '{}': expected smooth, clamp or fade", text));
-}
-
-const char* to_string(RegionBoundary boundary) {
-  switch (boundary) {
-    case RegionBoundary::Smooth:
-      return "smooth";
-    case RegionBoundary::Clamp:
-      return "clamp";
-    case RegionBoundary::Fade:
-      return "fade";
-  }
-  return "smooth";
-}
-
 }  // namespace meshpde
 
 namespace meshpde::correction {
