@@ -225,6 +225,11 @@ void run_correct(const CorrectArgs& a) {
     if (!r.accuracy_warning.empty()) fmt::print(stderr, "warning: {}\n", r.accuracy_warning);
     if (!r.region_warning.empty()) fmt::print(stderr, "warning: {}: {}\n", a.mesh, r.region_warning);
     if (!r.handle_warning.empty()) fmt::print(stderr, "warning: {}: {}\n", a.mesh, r.handle_warning);
+    if (r.image_outside_vertices > 0)
+      fmt::print(stderr,
+                 "note: {}: {} of the region's vertices lie outside the image; they follow the drag unguided "
+                 "(image.outside_vertices)\n",
+                 a.mesh, r.image_outside_vertices);
     if (r.applied_fraction < 1)
       fmt::print(stderr,
                  "warning: {}: only {:.3f} of the displacement was applied: the whole of it would make the surface "

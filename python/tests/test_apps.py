@@ -316,6 +316,17 @@ def test_correct_with_image_guidance_reports_the_image(data):
     # the aorta is in RAS: read as LPS its region lies outside the image, refused in words
     with pytest.raises(meshpde.InputError, match="none of the region.s .* vertices lies inside the image.*is the mesh in RAS"):
         meshpde.correct(V, F, [500], ["normal:1"], radius=9.0, image=(values, affine), space="lps")
+    # An image cut through the handle (the edge of a field of view across the region):
+    # the vertices beyond it are counted and follow the drag unguided, the rest are pulled.
+    lps = V[500] * [-1, -1, 1]  # the mesh is RAS
+    ijk = np.linalg.solve(affine[:3, :3], lps - affine[:3, 3])
+    region = r.region
+    span = np.ptp([np.linalg.solve(affine[:3, :3], V[v] * [-1, -1, 1] - affine[:3, 3]) for v in region], axis=0)
+    axis = int(np.argmax(span))
+    cut = np.take(values, np.arange(int(np.floor(ijk[axis])) + 1), axis=axis)
+    half = meshpde.correct(V, F, [500], ["normal:1"], radius=9.0, image=(cut, affine), space="ras")
+    assert half.image["outside_vertices"] > 10 and half.image["pulled_vertices"] > 10
+    assert half.image["outside_vertices"] + half.image["pulled_vertices"] == r.image["pulled_vertices"]
 
 
 @pytest.mark.parametrize("solver", ["global", "iterative"])

@@ -329,6 +329,9 @@ struct CorrectionResult {
   double image_mean_edge_before = 0;  ///< image guidance: mean E over the pulled vertices
   double image_mean_edge_after = 0;
   int pulled_vertices = 0;
+  /// Image guidance: free vertices of the region outside the image (not pulled: they
+  /// follow the drag unguided). Springs: region vertices outside it.
+  int image_outside_vertices = 0;
   double time_ms = 0;
   /// Per handle (CorrectionParams::handles' order): the vertices and weights its
   /// displacement is read from, sum w d[vertex] = the handle's displacement. A vertex:

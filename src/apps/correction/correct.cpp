@@ -156,6 +156,7 @@ CorrectionResult correct_vessel_impl(const Mesh& mesh, const CorrectionParams& p
       for (int v : r.region)
         if (p.image.edges->sample(V0.row(v).transpose(), p.image.space)) pulled.push_back(v);
       r.pulled_vertices = static_cast<int>(pulled.size());
+      r.image_outside_vertices = static_cast<int>(r.region.size() - pulled.size());
       r.image_mean_edge_before = mean_edge_strength(p.image, pulled, V0);
       r.image_mean_edge_after = mean_edge_strength(p.image, pulled, V0 + d);
     }

@@ -117,13 +117,21 @@ Field fem_solve_local(const Mesh& mesh, const CorrectionParams& p, const FemProb
   // Stiffness of the region's slowest mode (wavelength about 2 L), per unit area.
   const double stiff = std::max(p.g2 * std::pow(M_PI / L, 4) + p.g1 * std::pow(M_PI / L, 2), 1e-300);
   Eigen::VectorXd extra = foundations(mesh, p, problem, s);
-  // Image guidance: every free vertex of the region is tied to its target by a
-  // spring lambda M_i; weight 1 makes the pull as strong as the region's slowest
-  // bending mode, so edges win over smoothness at that scale and above.
+  // Image guidance: every free vertex of the region inside the image is tied to its
+  // target by a spring lambda M_i; weight 1 makes the pull as strong as the region's
+  // slowest bending mode, so edges win over smoothness at that scale and above. A
+  // vertex outside the image (a region across the edge of the scan's field of view)
+  // has nothing to be pulled to: it gets no spring and follows the drag unguided,
+  // instead of being tied to where it was.
   std::vector<int> pulled;
+  int outside = 0;
   const double lambda = p.image.weight * stiff;
   if (guided)
     for (int v : s.free) {
+      if (!p.image.edges->sample(mesh.positions().row(v).transpose(), p.image.space)) {
+        ++outside;
+        continue;
+      }
       pulled.push_back(v);
       extra[v] += lambda * s.mo.ops.mass[v];
     }
@@ -224,6 +232,7 @@ Field fem_solve_local(const Mesh& mesh, const CorrectionParams& p, const FemProb
   if (!cond.sufficient) r.accuracy_warning = cond.message;
   if (guided) {
     r.pulled_vertices = static_cast<int>(pulled.size());
+    r.image_outside_vertices = outside;
     r.image_mean_edge_before = mean_edge_strength(p.image, pulled, V);
     r.image_mean_edge_after = mean_edge_strength(p.image, pulled, V + d);
   }

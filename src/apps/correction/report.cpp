@@ -76,6 +76,7 @@ std::string correction_report_json(const Positions& V, const Triangles& F, const
                {"caps", found}};
   if (p.image.edges)
     j["image"] = {{"pulled_vertices", r.pulled_vertices},
+                  {"outside_vertices", r.image_outside_vertices},
                   {"mean_edge_before", r.image_mean_edge_before},
                   {"mean_edge_after", r.image_mean_edge_after},
                   {"space", to_string(p.image.space)}};
