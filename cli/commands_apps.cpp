@@ -228,6 +228,9 @@ void add_fair_command(CLI::App& app) {
       ->check(CLI::IsMember({"auto", "direct", "global", "iterative"}))
       ->capture_default_str();
   add_laplacian_option(cmd, a->laplacian, "--regularize always re-assembles area-weighted cotangent operators");
+  cmd->add_option("--tolerance", a->p.cg.tolerance,
+                  "CG relative residual tolerance (--solver iterative, and the --regularize steps)")
+      ->capture_default_str();
   cmd->add_option("--dt", a->p.dt, "Regularization step (unit-free)")->capture_default_str();
   cmd->add_option("--steps", a->p.steps, "Regularization steps")->capture_default_str();
   cmd->add_option("--damping", a->p.damping, "Regularization damping relative to the mean area (0: quasi-static)")
@@ -245,6 +248,7 @@ void add_fair_command(CLI::App& app) {
       throw InputError("every vertex is fixed: nothing to fair");
     const auto t0 = std::chrono::steady_clock::now();
     FairParams params = a->p;
+    check_tolerance(params.cg.tolerance, "--tolerance");
     params.solver = parse_steady_solver(a->solver);
     params.laplacian = parse_laplacian_kind(a->laplacian);
     const FairResult r = fair(mesh, fixed, params);
@@ -303,6 +307,7 @@ void add_interpolate_command(CLI::App& app) {
                                    laplacian = "auto";
     std::string view = "30,20", up = "y", size = "960x720";
     double g1 = 0, g2 = 1;
+    CgOptions cg = InterpolationParams{}.cg;
     bool json = false;
     RenderOptions r;
   };
@@ -324,6 +329,8 @@ void add_interpolate_command(CLI::App& app) {
       ->check(CLI::IsMember({"auto", "direct", "global", "iterative"}))
       ->capture_default_str();
   add_laplacian_option(cmd, a->laplacian, "tangent fields always use cotan");
+  cmd->add_option("--tolerance", a->cg.tolerance, "CG relative residual tolerance (--solver iterative)")
+      ->capture_default_str();
   cmd->add_option("--method", a->method, "tangent fields: componentwise (seed) | connection | both")
       ->check(CLI::IsMember({"componentwise", "connection", "both"}))
       ->capture_default_str();
@@ -337,6 +344,7 @@ void add_interpolate_command(CLI::App& app) {
   cmd->callback([=] {
     if (format_from_path(a->out) != MeshFormat::Ply)
       throw InputError(fmt::format("{}: fields need a .ply output", a->out));
+    check_tolerance(a->cg.tolerance, "--tolerance");
     const Mesh mesh = load_mesh(a->mesh);
     warn_about_shape(mesh, a->mesh);
     const FieldKind kind = a->kind == "scalar"         ? FieldKind::Scalar
@@ -359,6 +367,7 @@ void add_interpolate_command(CLI::App& app) {
                                                                     .g2 = a->g2,
                                                                     .method = method,
                                                                     .solver = parse_steady_solver(a->solver),
+                                                                    .cg = a->cg,
                                                                     .laplacian = parse_laplacian_kind(a->laplacian)});
       if (!r.cg.converged()) throw SolverError(fmt::format("interpolation did not converge: {}", r.cg.message));
       report["laplacian"] = to_string(r.laplacian);

@@ -213,6 +213,7 @@ void run_correct(const CorrectArgs& a) {
   }
 
   p.solver = parse_steady_solver(a.solver);
+  check_tolerance(a.tol, "--tolerance");
   p.cg.tolerance = a.tol;
   nlohmann::json j;
   Positions V;

@@ -474,6 +474,24 @@ printf '0,abc\n' >"$T/bad.csv"
 "$M" interpolate "$T/ico.off" --constraints "$T/bad.csv" -o "$T/x.ply" 2>"$T/err" >/dev/null
 check "bad constraint value exits 1" [ $? -eq 1 ]
 check "bad constraint named by line" grep -q "line 1" "$T/err"
+# --tolerance: the iterative solve stops at the residual asked (fewer iterations for a
+# looser one); a tolerance outside (0, 1) is refused naming the flag
+"$M" interpolate "$T/ico.off" --constraints "$T/c.csv" --solver iterative --tolerance 1e-4 -o "$T/i4.ply" --json \
+  >"$T/i4.json" || bad "interpolate --tolerance 1e-4"
+"$M" interpolate "$T/ico.off" --constraints "$T/c.csv" --solver iterative --tolerance 1e-12 -o "$T/i12.ply" --json \
+  >"$T/i12.json" || bad "interpolate --tolerance 1e-12"
+check "interpolate --tolerance 1e-4 meets it" [ "$(json "$T/i4.json" "d['result']['relative_residual'] <= 1e-4")" = True ]
+check "interpolate --tolerance 1e-12 meets it" [ "$(json "$T/i12.json" "d['result']['relative_residual'] <= 1e-12")" = True ]
+check "a looser tolerance takes fewer iterations" [ "$(python3 -c "import json; a=json.load(open('$T/i4.json'))['result']; b=json.load(open('$T/i12.json'))['result']; print(0 < a['cg_iterations'] < b['cg_iterations'])")" = True ]
+"$M" interpolate "$T/ico.off" --constraints "$T/c.csv" --solver iterative --tolerance 0 -o "$T/x.ply" 2>"$T/err" >/dev/null
+check "interpolate --tolerance 0 exits 1" [ $? -eq 1 ]
+check "interpolate --tolerance 0 named" grep -q -- "--tolerance: 0 is not a relative residual" "$T/err"
+"$M" fair "$T/pl.off" --fixed boundary --order 2 --solver iterative --tolerance 1e-5 -o "$T/pf5.ply" --json >"$T/f5.json" ||
+  bad "fair --tolerance 1e-5"
+check "fair --tolerance 1e-5 meets it" [ "$(json "$T/f5.json" "0 < d['relative_residual'] <= 1e-5 and d['cg_iterations'] > 0")" = True ]
+"$M" fair "$T/pl.off" --fixed boundary --tolerance 2 -o "$T/x.ply" 2>"$T/err" >/dev/null
+check "fair --tolerance 2 exits 1" [ $? -eq 1 ]
+check "fair --tolerance 2 named" grep -q -- "--tolerance: 2 is not" "$T/err"
 
 # poke: replay a path, JSON report with latency percentiles, the force pushes back
 printf 't,dx,dy,dz\n0,0,0,0\n0.2,0,0,-0.05\n' >"$T/path.csv"

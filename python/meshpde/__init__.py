@@ -161,7 +161,7 @@ def wave(V, F, *, sources=None, flux=None, impulses=None, dt=1e-3, steps=100, sp
 
 
 def fair(V, F, fixed, *, order=2, regularize=False, dt=1.0, steps=15, damping=0.0, solver="auto",
-         laplacian="auto"):
+         laplacian="auto", tolerance=1e-10):
     """Fairing: the free vertices solve the membrane (order 1) or thin-plate (order 2)
     equation with ``fixed`` held, as ``meshpde fair``.
 
@@ -174,16 +174,18 @@ def fair(V, F, fixed, *, order=2, regularize=False, dt=1.0, steps=15, damping=0.
     "iterative".
     laplacian: "auto" (intrinsic Delaunay on badly shaped or non-manifold meshes),
     "cotan" or "intrinsic"; ``regularize`` always uses area-weighted cotangent operators.
+    tolerance: CG's relative residual for solver="iterative" and the regularization's
+    steps (between 0 and 1; default 1e-10).
 
     Returns a namespace with ``V`` (n, 3), triangle quality ``before`` and ``after``
     (dicts), ``cg_iterations``, ``worst_residual``, ``solver`` (the one that ran: "direct",
     "global" or "iterative"), ``laplacian`` (the operators used) and ``laplacian_reason``.
     """
-    return _meshpde._fair(V, F, fixed, order, regularize, dt, steps, damping, solver, laplacian)
+    return _meshpde._fair(V, F, fixed, order, regularize, dt, steps, damping, solver, laplacian, tolerance)
 
 
 def interpolate(V, F, vertices, values, *, kind=None, method="componentwise", g1=0.0, g2=1.0, solver="auto",
-                laplacian="auto"):
+                laplacian="auto", tolerance=1e-11):
     """Scattered-data interpolation (g1 K + g2 K D K) u = 0 with u given at ``vertices``.
 
     values: (k,) for scalars, (k, 3) for displacements or tangent vectors.
@@ -195,12 +197,13 @@ def interpolate(V, F, vertices, values, *, kind=None, method="componentwise", g1
     solver: "auto" (default: with g2 > 0, the multigrid on meshes of 50,000 free
     vertices or more without angles under 20 degrees, kept where it converges; else
     "direct"), "direct", "global" (multigrid-CG; g2 > 0) or "iterative" (Jacobi-CG).
+    tolerance: CG's relative residual for solver="iterative" (between 0 and 1; default 1e-11).
     Returns (n,) or (n, 3).
     """
     if kind is None:
         import numpy as np
         kind = "scalar" if np.ndim(values) == 1 else "displacement"
-    return _meshpde._interpolate(V, F, vertices, values, kind, method, g1, g2, solver, laplacian)
+    return _meshpde._interpolate(V, F, vertices, values, kind, method, g1, g2, solver, laplacian, tolerance)
 
 
 def _correction_options(*, radius, rings, method, g1, g2, laplacian, stiffness, dynamic, steps, mass, elasticity,

@@ -377,7 +377,8 @@ void bind_apps(py::module_& m) {
   m.def(
       "_fair",
       [](const ArrayLike& V, const ArrayLike& F, const py::handle& fixed, int order, bool regularize, double dt,
-         int steps, double damping, const std::string& solver, const std::string& laplacian) {
+         int steps, double damping, const std::string& solver, const std::string& laplacian, double tolerance) {
+        check_tolerance(tolerance);
         const Mesh mesh = mesh_arg(V, F);
         const std::vector<int> held = selection_arg(mesh, fixed, "fixed");
         FairParams p;
@@ -386,6 +387,7 @@ void bind_apps(py::module_& m) {
         p.dt = dt;
         p.steps = steps;
         p.damping = damping;
+        p.cg.tolerance = tolerance;
         p.solver = solver_arg(solver);
         p.laplacian = parse_laplacian_kind(laplacian);
         FairResult r;
@@ -413,13 +415,15 @@ void bind_apps(py::module_& m) {
         return py::module_::import("types").attr("SimpleNamespace")(**d);
       },
       py::arg("V"), py::arg("F"), py::arg("fixed"), py::arg("order"), py::arg("regularize"), py::arg("dt"),
-      py::arg("steps"), py::arg("damping"), py::arg("solver"), py::arg("laplacian"));
+      py::arg("steps"), py::arg("damping"), py::arg("solver"), py::arg("laplacian"),
+      py::arg("tolerance") = FairParams{}.cg.tolerance);
 
   m.def(
       "_interpolate",
       [](const ArrayLike& V, const ArrayLike& F, const ArrayLike& vertices, const ArrayLike& values,
          const std::string& kind, const std::string& method, double g1, double g2, const std::string& solver,
-         const std::string& laplacian) {
+         const std::string& laplacian, double tolerance) {
+        check_tolerance(tolerance);
         const Mesh mesh = mesh_arg(V, F);
         const std::vector<int> at = vertices_arg(vertices, "vertices", mesh.num_vertices());
         const FieldKind k = field_kind_arg(kind);
@@ -435,6 +439,7 @@ void bind_apps(py::module_& m) {
         p.g2 = g2;
         p.method = method == "connection" ? TangentMethod::Connection : TangentMethod::Componentwise;
         p.solver = solver_arg(solver);
+        p.cg.tolerance = tolerance;
         p.laplacian = parse_laplacian_kind(laplacian);
         InterpolationResult r;
         {
@@ -446,7 +451,8 @@ void bind_apps(py::module_& m) {
         return py::object(to_numpy(r.values));
       },
       py::arg("V"), py::arg("F"), py::arg("vertices"), py::arg("values"), py::arg("kind"), py::arg("method"),
-      py::arg("g1"), py::arg("g2"), py::arg("solver"), py::arg("laplacian"));
+      py::arg("g1"), py::arg("g2"), py::arg("solver"), py::arg("laplacian"),
+      py::arg("tolerance") = InterpolationParams{}.cg.tolerance);
 
   py::class_<InterpolationSolver>(m, "InterpolationSolver",
                                   R"doc(InterpolationSolver(V, F, kind="scalar", g1=0, g2=1, laplacian="auto")

@@ -73,6 +73,24 @@ def test_interpolate_scalar_equals_the_cli_and_is_exact_at_constraints(cli, ico,
     assert np.allclose(u[[0, 10, 100]], [1, -2, 0.5], rtol=0, atol=1e-12)
 
 
+def test_iterative_solves_stop_at_the_tolerance_asked(sphere):
+    V, F = sphere
+    direct = meshpde.interpolate(V, F, [0, 40], [1.5, -1.0], solver="direct")
+    loose = meshpde.interpolate(V, F, [0, 40], [1.5, -1.0], solver="iterative", tolerance=1e-3)
+    tight = meshpde.interpolate(V, F, [0, 40], [1.5, -1.0], solver="iterative", tolerance=1e-12)
+    # the tight solve is the direct answer; the loose one measurably is not
+    assert np.abs(tight - direct).max() <= 1e-8 * np.abs(direct).max()
+    assert np.abs(loose - direct).max() > 1e2 * np.abs(tight - direct).max()
+    fixed = np.flatnonzero(V[:, 2] < 0)
+    f = meshpde.fair(V, F, fixed, solver="iterative", tolerance=1e-4)
+    assert 0 < f.worst_residual <= 1e-4 and f.cg_iterations > 0
+    for bad in (0.0, -1e-8, 1.0, float("nan")):
+        with pytest.raises(meshpde.InputError, match="tolerance"):
+            meshpde.interpolate(V, F, [0, 40], [1.5, -1.0], solver="iterative", tolerance=bad)
+        with pytest.raises(meshpde.InputError, match="tolerance"):
+            meshpde.fair(V, F, fixed, tolerance=bad)
+
+
 def test_interpolate_reproduces_linear_fields():
     V, F = meshpde.generate.plane(nx=8, ny=8)
     f = lambda P: 1 + 2 * P[:, 0] - P[:, 1]  # noqa: E731

@@ -25,6 +25,7 @@
 #include <type_traits>
 #include <vector>
 
+#include "meshpde/core/errors.h"
 #include "meshpde/core/parallel.h"
 #include "meshpde/mesh/field.h"
 
@@ -52,6 +53,15 @@ struct CgOptions {
   /// it saves one product).
   bool residual_given = false;
 };
+
+/// A tolerance a user gives (`--tolerance`, Python `tolerance=`): a relative residual
+/// strictly between 0 and 1 (0 or less is never reached, so CG would run to its cap;
+/// 1 or more is met by the starting guess). \throw InputError naming `name` otherwise.
+inline void check_tolerance(double tolerance, const char* name = "tolerance") {
+  if (!(tolerance > 0 && tolerance < 1))
+    throw InputError(
+        fmt::format("{}: {:g} is not a relative residual between 0 and 1 (for example 1e-10)", name, tolerance));
+}
 
 enum class CgStatus { Converged, MaxIterations, Breakdown, Deadline, Stopped };
 
