@@ -208,7 +208,8 @@ def interpolate(V, F, vertices, values, *, kind=None, method="componentwise", g1
 
 def _correction_options(*, radius, rings, method, g1, g2, laplacian, stiffness, dynamic, steps, mass, elasticity,
                         viscosity, brushes, allow_intersections, max_substeps, image, space, image_weight, image_sigma,
-                        search_radius, cube, passes, solver, units, boundary, caps, face_labels, points, handle_radius):
+                        search_radius, cube, passes, solver, tolerance, units, boundary, caps, face_labels, points,
+                        handle_radius):
     """The options of ``correct`` and ``CorrectionSession.apply`` as the extension takes them (by name only)."""
     return dict(units=units, radius=radius, rings=rings, method=method, boundary=boundary, g1=g1, g2=g2,
                 points=points, handle_radius=handle_radius,
@@ -216,7 +217,7 @@ def _correction_options(*, radius, rings, method, g1, g2, laplacian, stiffness, 
                 stiffness=stiffness, dynamic=dynamic, steps=steps, mass=mass, elasticity=elasticity, viscosity=viscosity,
                 brushes=brushes, allow_intersections=allow_intersections, max_substeps=max_substeps, image=image, space=space,
                 image_weight=image_weight, image_sigma=image_sigma, search_radius=search_radius, cube=cube,
-                passes=passes, solver=solver, caps=caps, face_labels=face_labels)
+                passes=passes, solver=solver, tolerance=tolerance, caps=caps, face_labels=face_labels)
 
 
 _CORRECT_DOC = """
@@ -267,7 +268,8 @@ _CORRECT_DOC = """
     or more without angles under 20 degrees, the multigrid, kept where it converges;
     else "direct"), "direct", "global" (multigrid-CG, for very large regions) or
     "iterative" (Jacobi-CG); the last two for the static fem correction without image,
-    with boundary="clamp" and vertex handles of size 0.
+    with boundary="clamp" and vertex handles of size 0. tolerance: CG's relative
+    residual for solver="iterative" (between 0 and 1; default 1e-10).
     The result's ``solver`` says which one ran.
 
     Returns a :class:`CorrectionResult`: V, displacement, region and the report fields
@@ -278,15 +280,15 @@ _CORRECT_DOC = """
 def correct(V, F, vertices=None, moves=None, *, points=None, handle_radius=-1.0, radius=0.0, rings=0, method="fem", g1=0.0, g2=1.0, laplacian="auto",
             stiffness=None, dynamic=False, steps=50, mass=0.1, elasticity=0.9, viscosity=0.6, brushes=None,
             allow_intersections=False, max_substeps=8, image=None, space="lps", image_weight=30.0, image_sigma=1.0,
-            search_radius=3.0, cube=0, passes=4, solver="auto", units="mm", boundary="smooth", caps="labels",
-            face_labels=None):
+            search_radius=3.0, cube=0, passes=4, solver="auto", tolerance=1e-10, units="mm", boundary="smooth",
+            caps="labels", face_labels=None):
     return _meshpde._correct(V, F, vertices, moves, _correction_options(
         radius=radius, rings=rings, method=method, g1=g1, g2=g2, laplacian=laplacian, stiffness=stiffness,
         dynamic=dynamic, steps=steps, mass=mass, elasticity=elasticity, viscosity=viscosity, brushes=brushes,
         allow_intersections=allow_intersections, max_substeps=max_substeps, image=image, space=space,
         image_weight=image_weight, image_sigma=image_sigma, search_radius=search_radius, cube=cube, passes=passes,
-        solver=solver, units=units, boundary=boundary, caps=caps, face_labels=face_labels, points=points,
-        handle_radius=handle_radius))
+        solver=solver, tolerance=tolerance, units=units, boundary=boundary, caps=caps, face_labels=face_labels,
+        points=points, handle_radius=handle_radius))
 
 
 correct.__doc__ = "Vessel-wall correction (Schoenmaker's thesis), as ``meshpde correct``; the input is not modified.\n" + _CORRECT_DOC
@@ -301,15 +303,15 @@ class CorrectionSession(_meshpde._CorrectionSession):
     def apply(self, vertices=None, moves=None, *, points=None, handle_radius=-1.0, radius=0.0, rings=0, method="fem", g1=0.0, g2=1.0, laplacian="auto",
               stiffness=None, dynamic=False, steps=50, mass=0.1, elasticity=0.9, viscosity=0.6, brushes=None,
               allow_intersections=False, max_substeps=8, image=None, space="lps", image_weight=30.0,
-              image_sigma=1.0, search_radius=3.0, cube=0, passes=4, solver="auto", units="mm", boundary="smooth",
-              caps="labels", face_labels=None):
+              image_sigma=1.0, search_radius=3.0, cube=0, passes=4, solver="auto", tolerance=1e-10, units="mm",
+              boundary="smooth", caps="labels", face_labels=None):
         return self._apply(vertices, moves, _correction_options(
             radius=radius, rings=rings, method=method, g1=g1, g2=g2, laplacian=laplacian, stiffness=stiffness,
             dynamic=dynamic, steps=steps, mass=mass, elasticity=elasticity, viscosity=viscosity, brushes=brushes,
             allow_intersections=allow_intersections, max_substeps=max_substeps, image=image, space=space,
             image_weight=image_weight, image_sigma=image_sigma, search_radius=search_radius, cube=cube,
-            passes=passes, solver=solver, units=units, boundary=boundary, caps=caps, face_labels=face_labels,
-            points=points, handle_radius=handle_radius))
+            passes=passes, solver=solver, tolerance=tolerance, units=units, boundary=boundary, caps=caps,
+            face_labels=face_labels, points=points, handle_radius=handle_radius))
 
     apply.__doc__ = "Applies a correction to the current positions; clears the redo history.\n" + _CORRECT_DOC
 

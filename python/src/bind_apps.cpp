@@ -278,6 +278,8 @@ CorrectionOptions correction_options(const Mesh& mesh, const py::handle& vertice
     c.solver = v.cast<std::string>();
     p.solver = solver_arg(c.solver);
   }
+  num("tolerance", p.cg.tolerance);
+  check_tolerance(p.cg.tolerance);
   if (const py::object image = get("image"); !image.is_none()) {
     double sigma = kEdgeSigmaMm;
     num("image_sigma", sigma);
@@ -595,6 +597,7 @@ the whole operator's. Answers equal interpolate(..., solver="direct") to roundin
     o["cube"] = d.image.cube_size;
     o["passes"] = d.image.passes;
     o["solver"] = to_string(d.solver);
+    o["tolerance"] = d.cg.tolerance;
     o["space"] = std::string(d.image.space == Space::LPS ? "lps" : "ras");
     return o;
   });

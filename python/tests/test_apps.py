@@ -84,7 +84,12 @@ def test_iterative_solves_stop_at_the_tolerance_asked(sphere):
     fixed = np.flatnonzero(V[:, 2] < 0)
     f = meshpde.fair(V, F, fixed, solver="iterative", tolerance=1e-4)
     assert 0 < f.worst_residual <= 1e-4 and f.cg_iterations > 0
+    # correct's iterative solve (the clamp, a vertex handle) likewise
+    c = meshpde.correct(V, F, [0], [(0, 0, 0.1)], radius=0.6, boundary="clamp", solver="iterative", tolerance=1e-5)
+    assert 0 < c.relative_residual <= 1e-5
     for bad in (0.0, -1e-8, 1.0, float("nan")):
+        with pytest.raises(meshpde.InputError, match="tolerance"):
+            meshpde.correct(V, F, [0], [(0, 0, 0.1)], radius=0.6, boundary="clamp", solver="iterative", tolerance=bad)
         with pytest.raises(meshpde.InputError, match="tolerance"):
             meshpde.interpolate(V, F, [0, 40], [1.5, -1.0], solver="iterative", tolerance=bad)
         with pytest.raises(meshpde.InputError, match="tolerance"):

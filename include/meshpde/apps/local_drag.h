@@ -84,14 +84,14 @@ DragResult drag_vertex(const Mesh& mesh, const FemOperators& ops, const DragPara
 ///     (with new margins).
 /// The region is held at zero displacement outside (two frozen rings make the join C1
 /// for g2 > 0), as drag_vertex() does, and by default ended inside by the smooth
-/// boundary's foundation (DragSessionParams::boundary). The region is ordered by nested dissection
-/// from its positions (solvers/ordering.h) and assembled once in that order. Without
-/// margins (from 1,000 vertices, with CHOLMOD) the two halves of the top level are
-/// factored at the same time (SplitCholesky, split_factor()); with margins the factor
-/// is CHOLMOD's supernodal one in exactly the given order (LeadingBlockCholesky;
-/// Eigen's simplicial one without CHOLMOD). Solves take all handles' columns in one
-/// sweep, with iterative refinement to a relative residual of 1e-12 or a
-/// backward-stable answer (solvers/refinement.h).
+/// boundary's foundation (DragSessionParams::boundary). The region is ordered by
+/// nested dissection from its positions (solvers/ordering.h) and assembled once in
+/// that order. Without margins (from 1,000 vertices, with CHOLMOD) the two halves of
+/// the top level are factored at the same time (SplitCholesky, split_factor()); with
+/// margins the factor is CHOLMOD's supernodal one in exactly the given order
+/// (LeadingBlockCholesky; Eigen's simplicial one without CHOLMOD). Solves take all
+/// handles' columns in one sweep, with iterative refinement to a relative residual of
+/// 1e-12 or a backward-stable answer (solvers/refinement.h).
 struct DragSessionParams {
   /// Region: the surface within this distance of the handles (mesh units; Smooth) or of
   /// the first handle (Clamp); 0: use rings. Default 0.
