@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <unordered_map>
 
 #include "meshpde/apps/interpolation.h"
 #include "meshpde/core/errors.h"
@@ -113,19 +114,28 @@ RegionRim EditorSession::region_rim(const SurfacePoint& point, double radius) co
   // given the reach (its triangle's crossing then sits a little too far out).
   const double reach = radius + 3 * mean_edge_;
   const Mesh& m = mesh();
-  Eigen::VectorXd d = Eigen::VectorXd::Constant(m.num_vertices(), reach);
+  // The distances and triangles kept for the vertices reached only, so that a hover
+  // costs what the region costs, not arrays the size of the mesh.
+  const std::vector<std::pair<int, double>> reached =
+      geodesic_distances_from(m, GeodesicSources{.points = {point}}, reach);
+  std::unordered_map<int, double> d;
+  d.reserve(reached.size());
   std::vector<int> faces;
-  std::vector<char> seen(static_cast<std::size_t>(m.num_faces()), 0);
   const VertexFaces& around = m.vertex_faces();
-  for (const auto& [v, dist] : geodesic_distances_from(m, GeodesicSources{.points = {point}}, reach)) {
-    d[v] = dist;
+  for (const auto& [v, dist] : reached) {
+    d.emplace(v, dist);
     out.region_vertices += dist < radius;
     for (int k = around.offsets[static_cast<std::size_t>(v)]; k < around.offsets[static_cast<std::size_t>(v) + 1]; ++k)
-      if (const int f = around.faces[static_cast<std::size_t>(k)]; !seen[static_cast<std::size_t>(f)]++)
-        faces.push_back(f);
+      faces.push_back(around.faces[static_cast<std::size_t>(k)]);
   }
-  out.rim = level_set_segments(m, d, radius, faces);
-  if (out.handle_radius > 0) out.handle = level_set_segments(m, d, out.handle_radius, faces);
+  std::sort(faces.begin(), faces.end());
+  faces.erase(std::unique(faces.begin(), faces.end()), faces.end());
+  const auto distance = [&](int v) {
+    const auto it = d.find(v);
+    return it == d.end() ? reach : it->second;
+  };
+  out.rim = level_set_segments(m, distance, radius, faces);
+  if (out.handle_radius > 0) out.handle = level_set_segments(m, distance, out.handle_radius, faces);
   return out;
 }
 

@@ -44,6 +44,28 @@ TEST(LevelSet, ALinearFieldsLevelSetIsItsLineExactly) {
   ASSERT_EQ(some.size(), 2u);  // triangle 0 (a corner of the square) is not crossed
   EXPECT_EQ(some[0].face, s[3].face);
   EXPECT_EQ(some[1].face, s[0].face);
+  // The field read by vertex (what the editor's rim does with a region's distances):
+  // the same segments, and a corner read only where a listed triangle needs it.
+  std::vector<int> crossed;
+  for (const LevelSetSegment& seg : s) crossed.push_back(seg.face);
+  std::vector<char> read(static_cast<std::size_t>(m.num_vertices()), 0);
+  const std::vector<LevelSetSegment> by_vertex = level_set_segments(
+      m,
+      [&](int v) {
+        read[static_cast<std::size_t>(v)] = 1;
+        return u[v];
+      },
+      0.5, crossed);
+  ASSERT_EQ(by_vertex.size(), s.size());
+  for (std::size_t k = 0; k < s.size(); ++k) {
+    EXPECT_EQ(by_vertex[k].face, s[k].face);
+    EXPECT_EQ(by_vertex[k].a, s[k].a);
+    EXPECT_EQ(by_vertex[k].b, s[k].b);
+  }
+  std::vector<char> corner(static_cast<std::size_t>(m.num_vertices()), 0);
+  for (const int f : crossed)
+    for (int k = 0; k < 3; ++k) corner[static_cast<std::size_t>(m.triangles()(f, k))] = 1;
+  EXPECT_EQ(read, corner);
 }
 
 TEST(LevelSet, SkipsUnmeasuredCornersAndRefusesBadInput) {

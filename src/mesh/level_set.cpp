@@ -8,18 +8,16 @@
 
 namespace meshpde {
 
-std::vector<LevelSetSegment> level_set_segments(const Mesh& mesh, const Eigen::VectorXd& values, double level,
+std::vector<LevelSetSegment> level_set_segments(const Mesh& mesh, const std::function<double(int)>& value, double level,
                                                 std::span<const int> faces) {
   const Positions& V = mesh.positions();
   const Triangles& F = mesh.triangles();
-  if (values.size() != V.rows())
-    throw InputError(fmt::format("level set: {} values for {} vertices", values.size(), V.rows()));
   if (!std::isfinite(level)) throw InputError("level set: the level is not finite");
   std::vector<LevelSetSegment> out;
   const auto one = [&](int f) {
     if (f < 0 || f >= F.rows()) throw InputError(fmt::format("level set: triangle {} is out of range", f));
     const int c[3] = {F(f, 0), F(f, 1), F(f, 2)};
-    const double u[3] = {values[c[0]], values[c[1]], values[c[2]]};
+    const double u[3] = {value(c[0]), value(c[1]), value(c[2])};
     if (!std::isfinite(u[0]) || !std::isfinite(u[1]) || !std::isfinite(u[2])) return;
     Eigen::Vector3d ends[2];
     int n = 0;
@@ -38,6 +36,14 @@ std::vector<LevelSetSegment> level_set_segments(const Mesh& mesh, const Eigen::V
   else
     for (const int f : faces) one(f);
   return out;
+}
+
+std::vector<LevelSetSegment> level_set_segments(const Mesh& mesh, const Eigen::VectorXd& values, double level,
+                                                std::span<const int> faces) {
+  if (values.size() != mesh.positions().rows())
+    throw InputError(fmt::format("level set: {} values for {} vertices", values.size(), mesh.positions().rows()));
+  return level_set_segments(
+      mesh, [&](int v) { return values[v]; }, level, faces);
 }
 
 }  // namespace meshpde

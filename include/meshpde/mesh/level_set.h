@@ -11,6 +11,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <functional>
 #include <span>
 #include <vector>
 
@@ -31,5 +32,12 @@ struct LevelSetSegment {
 ///        index is out of range.
 std::vector<LevelSetSegment> level_set_segments(const Mesh& mesh, const Eigen::VectorXd& values, double level,
                                                 std::span<const int> faces = {});
+
+/// The same for a field known near the curve only: `value(v)` for each corner of
+/// `faces` (a region's surface distances kept by vertex, say), so that a small curve on
+/// a large mesh costs what its triangles cost, not an array of #V values.
+/// \throw InputError when the level is not finite or a face index is out of range.
+std::vector<LevelSetSegment> level_set_segments(const Mesh& mesh, const std::function<double(int)>& value, double level,
+                                                std::span<const int> faces);
 
 }  // namespace meshpde
