@@ -324,7 +324,8 @@ add_handle, grow and shrink reuse the factor where they can. The region: the
 vertices within `radius` of the handles on the surface (geodesic_distance), or
 `rings` rings of neighbours of the first; held at zero outside. boundary="smooth"
 (the default for a radius) ends it as correct() does, displacement and slope zero at
-the radius, so a drag equals correct(..., handle_radius=0) with the same vertices;
+the radius, so a drag equals correct(..., handle_radius=0, laplacian="cotan") with
+the same vertices;
 "clamp" holds the field at zero just outside (the rule before; margins, grow and
 shrink need it).)doc")
       .def(py::init([](const ArrayLike& V, const ArrayLike& F, const ArrayLike& handles, double radius, int rings,
