@@ -257,6 +257,14 @@ TEST(DragSession, BadRequestsAreRefused) {
   EXPECT_THROW(DragSession(mesh, ops, {0, 0}, DragSessionParams{.rings = 3}), InputError);
   EXPECT_THROW(DragSession(mesh, ops, {mesh.num_vertices()}, DragSessionParams{.rings = 3}), InputError);
   EXPECT_THROW(DragSession(mesh, ops, {0}, DragSessionParams{}), InputError);
+  EXPECT_NE(test::error_of([&] {
+              DragSession(mesh, ops, {0}, DragSessionParams{.radius = std::nan("")});
+            }).find("not a number"),
+            std::string::npos);
+  EXPECT_NE(test::error_of([&] {
+              drag_vertex(mesh, ops, DragParams{.vertex = 0, .displacement = {0, 0, 1}, .radius = std::nan("")});
+            }).find("not a number"),
+            std::string::npos);
   DragSession s(mesh, ops, {0}, DragSessionParams{.rings = 3});
   int outside = 0;
   for (int v = 0; v < mesh.num_vertices(); ++v)

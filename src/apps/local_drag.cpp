@@ -22,6 +22,7 @@ DragResult drag_vertex(const Mesh& mesh, const FemOperators& ops, const DragPara
     throw InputError(
         fmt::format("handle vertex {} does not exist (the mesh has {} vertices)", p.vertex, mesh.num_vertices()));
   if (!p.displacement.allFinite()) throw InputError("displacement is not finite");
+  if (std::isnan(p.radius)) throw InputError("the region's radius is not a number");
   if (p.radius <= 0 && p.rings <= 0) throw InputError("give a region of influence: a radius > 0 or rings > 0");
   if (ops.mass[p.vertex] <= 0) throw InputError(fmt::format("handle vertex {} has no incident area", p.vertex));
   DragResult r;
@@ -148,6 +149,7 @@ DragSession::Region DragSession::region_of(const Mesh& mesh, const FemOperators&
     if (h < 0 || h >= mesh.num_vertices())
       throw InputError(
           fmt::format("handle vertex {} does not exist (the mesh has {} vertices)", h, mesh.num_vertices()));
+  if (std::isnan(p.radius)) throw InputError("the region's radius is not a number");
   if (p.radius <= 0 && p.rings <= 0) throw InputError("give a region of influence: a radius > 0 or rings > 0");
   if (p.boundary == RegionBoundary::Fade)
     throw InputError("a drag session's region ends by the smooth boundary or the clamp, not the fade");
