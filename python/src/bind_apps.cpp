@@ -199,7 +199,6 @@ CorrectionOptions correction_options(const Mesh& mesh, const py::handle& vertice
         fmt::format("moves: {} moves for {} vertices and {} points: give one move per handle "
                     "(the vertices' first, then the points')",
                     seq.size(), handles.size(), points.size()));
-  const std::vector<SurfacePoint> at = closest_surface_points(mesh, points);
   for (std::size_t k = 0; k < seq.size(); ++k) {
     const py::handle mv = seq[k];
     const bool is_point = k >= handles.size();

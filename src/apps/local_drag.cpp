@@ -165,10 +165,10 @@ DragSession::Region DragSession::region_of(const Mesh& mesh, const FemOperators&
   // The correction's smooth rule: the surface within the radius of every handle, each
   // free vertex tied by the foundation of its distance from the nearest.
   r.smooth = true;
+  const SmoothFoundation kappa(p.radius, p.g1, p.g2);
   for (const auto& [v, s] : geodesic_distances_from(mesh, GeodesicSources{.vertices = handles}, p.radius)) {
     r.vertices.push_back(v);
-    if (const double k = smooth_foundation(s, p.radius, p.g1, p.g2) * ops.mass[v]; k > 0)
-      r.foundation.emplace_back(v, k);
+    if (const double k = kappa(s) * ops.mass[v]; k > 0) r.foundation.emplace_back(v, k);
   }
   return r;
 }

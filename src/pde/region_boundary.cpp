@@ -28,15 +28,17 @@ const char* to_string(RegionBoundary boundary) {
   return "smooth";
 }
 
-double smooth_foundation(double distance, double radius, double g1, double g2) {
-  const double R = radius;
-  const double kappa0 = kSmoothStrength * (g2 / (R * R * R * R) + g1 / (R * R));
+SmoothFoundation::SmoothFoundation(double radius, double g1, double g2)
+    : radius_(radius), kappa0_(kSmoothStrength * (g2 / (radius * radius * radius * radius) + g1 / (radius * radius))) {
   // The largest entry is kappa0 x^2 / (1 - x)^4 at kSmoothMaxX, about 1e7 kappa0.
-  if (!(R > 0) || !std::isfinite(kappa0 * 1e8))
-    throw InputError(fmt::format("a region radius of {:g} is too small for the smooth boundary", R));
-  const double x = std::clamp((distance / R - kSmoothStart) / (1 - kSmoothStart), 0.0, kSmoothMaxX);
+  if (!(radius > 0) || !std::isfinite(kappa0_ * 1e8))
+    throw InputError(fmt::format("a region radius of {:g} is too small for the smooth boundary", radius));
+}
+
+double SmoothFoundation::operator()(double distance) const {
+  const double x = std::clamp((distance / radius_ - kSmoothStart) / (1 - kSmoothStart), 0.0, kSmoothMaxX);
   const double y = (1 - x) * (1 - x);
-  return kappa0 * x * x / (y * y);
+  return kappa0_ * x * x / (y * y);
 }
 
 }  // namespace meshpde

@@ -42,10 +42,17 @@ inline constexpr double kSmoothStrength = 1e3, kSmoothMaxX = 0.98;
 RegionBoundary parse_region_boundary(const std::string& text);
 const char* to_string(RegionBoundary boundary);
 
-/// kappa(s) of Smooth's foundation (above), per unit of lumped mass: the diagonal entry
-/// a free vertex at surface distance `distance` from the handles gets is kappa times its
-/// mass M_i. g1 and g2 are the system's membrane and plate weights.
-/// \throw InputError for a radius so small that the foundation's scale is not finite.
-double smooth_foundation(double distance, double radius, double g1, double g2);
+/// kappa(s) of Smooth's foundation (above) for a region of radius R and the system's
+/// membrane and plate weights g1, g2, per unit of lumped mass: the diagonal entry a free
+/// vertex at surface distance s from the handles gets is kappa(s) times its mass M_i.
+class SmoothFoundation {
+ public:
+  /// \throw InputError for a radius so small that the foundation's scale is not finite.
+  SmoothFoundation(double radius, double g1, double g2);
+  double operator()(double distance) const;
+
+ private:
+  double radius_, kappa0_;
+};
 
 }  // namespace meshpde

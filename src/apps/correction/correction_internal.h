@@ -34,7 +34,7 @@ namespace meshpde::correction {
 // resolution to the next than the clamp does.
 inline constexpr double kFadeStart = 0.6, kFadeStrength = 1e3, kFadeReach = 2.0;
 
-// Smooth's foundation: pde/region_boundary.h's smooth_foundation.
+// Smooth's foundation: pde/region_boundary.h's SmoothFoundation.
 
 // A point handle whose size is at least this fraction of its triangle's mean edge is read
 // to second order (LoadedHandle); below it the load is about a point load, and a point

@@ -46,11 +46,11 @@ Eigen::VectorXd foundations(const Mesh& mesh, const CorrectionParams& p, const F
     }
   }
   if (smooth(p)) {
-    // Scaled as the operator is (the dynamic mode weighs it by the elasticity).
+    // Scaled as the operator is (the dynamic mode weighs it by the elasticity). Refuses
+    // a radius too small for the foundation's scale even when every region vertex is a
+    // handle's own (below), which carries none.
     const double e = p.dynamic ? p.tissue.elasticity : 1.0;
-    // Refuses a radius too small for the foundation's scale even when every region
-    // vertex is a handle's own (below), which carries none.
-    (void)smooth_foundation(0.0, p.radius, e * p.g1, e * p.g2);
+    const SmoothFoundation kappa(p.radius, e * p.g1, e * p.g2);
     // The triangles a handle point lies on carry no foundation: with a radius below
     // an edge they are the whole region, and they must move.
     std::vector<char> own(static_cast<std::size_t>(nv), 0);
@@ -59,7 +59,7 @@ Eigen::VectorXd foundations(const Mesh& mesh, const CorrectionParams& p, const F
     for (std::size_t k = 0; k < problem.region.size(); ++k) {
       const int v = problem.region[k];
       if (own[static_cast<std::size_t>(v)]) continue;
-      extra[v] += smooth_foundation(problem.distance[k], p.radius, e * p.g1, e * p.g2) * s.mo.ops.mass[v];
+      extra[v] += kappa(problem.distance[k]) * s.mo.ops.mass[v];
     }
   }
   return extra;
