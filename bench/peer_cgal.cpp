@@ -118,7 +118,8 @@ int main(int argc, char** argv) {
     fmt::print(stderr, "[peer] drag: meshpde DragSession\n");
     {
       const auto t0 = clock_type::now();
-      DragSession s(mesh, ops, {handle}, DragSessionParams{.radius = radius});
+      // A handle of size 0: the vertex held at its target, as CGAL's handle is.
+      DragSession s(mesh, ops, {handle}, DragSessionParams{.radius = radius, .handle_radius = 0});
       const double setup = seconds_since(t0);
       // An update: the region's new displacements (what CGAL's deform() computes for
       // its region of interest).

@@ -184,7 +184,7 @@ import json
 d = json.load(open('$T/drag.json'))
 steps = ['drag_setup_region_ms_10k_region', 'drag_setup_order_ms_10k_region', 'drag_setup_assembly_ms_10k_region',
          'drag_factor_ms_10k_region_split', 'drag_setup_basis_ms_10k_region']
-assert all(d[k] > 0 for k in steps + ['drag_setup_ms_10k_region', 'drag_setup_ms_10k_region_clamp', 'drag_setup_region_baseline_ms_edge_paths']), d
+assert all(d[k] > 0 for k in steps + ['drag_setup_ms_10k_region', 'drag_setup_ms_10k_region_clamp', 'drag_setup_ms_10k_region_held_handle', 'drag_setup_region_baseline_ms_edge_paths']), d
 assert 9000 < d['drag_region_vertices'] < 10500 and 9000 < d['drag_setup_region_vertices_edge_paths'] < 11000, d
 assert not any(k.startswith('global_') or k.startswith('poke_') for k in d), sorted(d)
 "

@@ -4,6 +4,7 @@
 #include <Eigen/OrderingMethods>
 #include <Eigen/SparseCholesky>
 #include <Eigen/SparseCore>
+#include <Eigen/SparseLU>
 #include <algorithm>
 #include <chrono>
 #include <limits>
@@ -28,6 +29,7 @@
 #include "meshpde/mesh/topology.h"
 #include "meshpde/operators/fem_operators.h"
 #include "meshpde/pde/global_bilaplacian.h"
+#include "meshpde/pde/handle_load.h"
 #include "meshpde/pde/pde_session.h"
 #include "meshpde/pde/steady_direct.h"
 #include "meshpde/solvers/cg.h"
@@ -279,7 +281,7 @@ TEST(DragSession, BadRequestsAreRefused) {
 // foundation built here from its documented formula and factored by Eigen, against
 // correct_vessel with the same vertex handles of size 0 (the corrections' rule), and
 // drag_vertex; nothing at R or beyond moves and little beyond 0.95 R.
-TEST(DragSession, TheSmoothBoundaryIsTheCorrectionsRuleWithVertexHandles) {
+TEST(DragSession, TheSmoothBoundaryIsTheCorrectionsRuleWithVertexHandlesOfSizeZero) {
   const GeneratedMesh g = tube(5.0, 40.0, 60, 48);  // mm, about 0.65 mm edges
   const Mesh mesh(g.V, g.F);
   const FemOperators ops = build_cotan_operators(mesh);
@@ -292,8 +294,9 @@ TEST(DragSession, TheSmoothBoundaryIsTheCorrectionsRuleWithVertexHandles) {
   const double R = 6.0;
   Eigen::MatrixXd moves(2, 3);
   moves << -0.8, 0.1, 0.2, 0.05, -0.6, 0;
-  const DragSession s(mesh, ops, {h0, h1}, DragSessionParams{.radius = R});
+  const DragSession s(mesh, ops, {h0, h1}, DragSessionParams{.radius = R, .handle_radius = 0});
   EXPECT_EQ(s.boundary(), RegionBoundary::Smooth);
+  EXPECT_EQ(s.handle_radius(), 0.0);
   const Field d = session_field(mesh, s, moves);
 
   // The reference: K D K plus kappa(s) M_i on the free rows, factored by Eigen.
@@ -370,4 +373,132 @@ TEST(DragSession, TheSmoothBoundaryIsTheCorrectionsRuleWithVertexHandles) {
                InputError);
   // A region given by rings ends by the clamp whatever the boundary asked.
   EXPECT_EQ(DragSession(mesh, ops, {h0}, DragSessionParams{.rings = 3}).boundary(), RegionBoundary::Clamp);
+}
+
+// Handles with a size and at surface points: the session equals correct_vessel with the
+// same handles and the default size (a quarter of R), each handle's point lands on its
+// displacement, forces() is the load's total (the residual of an independently assembled
+// system), and a handle added later equals an independent bordered solve.
+TEST(DragSession, SizedAndPointHandlesAreTheCorrectionsHandles) {
+  const GeneratedMesh g = tube(5.0, 40.0, 60, 48);  // mm, about 0.65 mm edges
+  const Mesh mesh(g.V, g.F);
+  const FemOperators ops = build_cotan_operators(mesh);
+  const double R = 6.0;
+  auto nearest = [&](const Eigen::RowVector3d& x) {
+    int best = 0;
+    (mesh.positions().rowwise() - x).rowwise().squaredNorm().minCoeff(&best);
+    return best;
+  };
+  const int h0 = nearest(Eigen::RowVector3d(5, 0, 20));
+  // A point inside a triangle near (0, 5, 23): no vertex of the mesh.
+  const SurfacePoint p1 = closest_surface_points(mesh, std::vector<Eigen::Vector3d>{{0.3, 5.2, 23.1}})[0];
+  ASSERT_GT(p1.bary.minCoeff(), 0.05);
+  Eigen::MatrixXd moves(2, 3);
+  moves << -0.8, 0.1, 0.2, 0.05, -0.6, 0;
+  const DragSession s(mesh, ops, {h0}, {p1}, DragSessionParams{.radius = R});
+  EXPECT_DOUBLE_EQ(s.handle_radius(), kHandleRadiusFraction * R);
+  ASSERT_EQ(s.handles().size(), 2u);
+  const Field d = session_field(mesh, s, moves);
+
+  CorrectionParams cp;
+  cp.handles = {CorrectionHandle(h0, moves.row(0).transpose()), CorrectionHandle(mesh, p1, moves.row(1).transpose())};
+  cp.radius = R;
+  cp.laplacian = LaplacianKind::Cotan;
+  cp.prevent_intersections = false;
+  const CorrectionResult c = correct_vessel(mesh, cp);
+  EXPECT_DOUBLE_EQ(c.handle_radius, s.handle_radius());
+  EXPECT_LE((c.displacement - d).cwiseAbs().maxCoeff(), 1e-9 * moves.norm());
+  // A size is not a no-op: the held vertices of size 0 give another field.
+  const DragSession point_loads(mesh, ops, {h0}, {p1}, DragSessionParams{.radius = R, .handle_radius = 0});
+  EXPECT_GT((session_field(mesh, point_loads, moves) - d).cwiseAbs().maxCoeff(), 0.02 * moves.norm());
+
+  // Each handle's point lands on its displacement; the vertex handle moves by exactly its own.
+  const auto readings = s.readings();
+  for (std::size_t k = 0; k < 2; ++k) {
+    Eigen::RowVector3d at = Eigen::RowVector3d::Zero();
+    for (const auto& [v, w] : readings[k]) at += w * d.row(v);
+    EXPECT_LE((at - moves.row(static_cast<Eigen::Index>(k))).norm(), 1e-9 * moves.norm()) << k;
+  }
+  EXPECT_LE((d.row(h0) - moves.row(0)).norm(), 1e-12);  // positions() sets it: rest + move, less rest
+  const Eigen::MatrixXd rows = s.displacements(moves);
+  EXPECT_LE((rows.row(s.region_index(h0)) - moves.row(0)).norm(), 1e-9 * moves.norm());
+
+  // forces(): A d on the free rows (assembled here: K D K plus the foundation) is each
+  // handle's load times its multiplier, and the multipliers are the loads' totals.
+  const Eigen::VectorXd dist = geodesic_distance(mesh, GeodesicSources{.vertices = {h0}, .points = {p1}});
+  std::vector<int> free = s.region();
+  std::sort(free.begin(), free.end());
+  Eigen::VectorXd extra = Eigen::VectorXd::Zero(mesh.num_vertices());
+  for (const int v : free) {
+    const double x = std::clamp((dist[v] / R - 0.5) / 0.5, 0.0, 0.98);
+    extra[v] = 1e3 / std::pow(R, 4) * x * x / std::pow(1 - x, 4) * ops.mass[v];
+  }
+  const PdeCoefficients plate{.g0 = 0, .g1 = 0, .g2 = 1};
+  const Eigen::SparseMatrix<double> A = assemble_steady_matrix(mesh, ops, plate, free, extra);
+  Eigen::MatrixXd dF(static_cast<Eigen::Index>(free.size()), 3);
+  for (std::size_t i = 0; i < free.size(); ++i) dF.row(static_cast<Eigen::Index>(i)) = d.row(free[i]);
+  const Eigen::MatrixXd y = A * dF;
+  const Eigen::MatrixXd forces = s.forces(moves);
+  EXPECT_LE((y.colwise().sum() - forces.colwise().sum()).norm(), 1e-7 * forces.norm());
+  const HandleLoad l0 = handle_load(mesh, h0, std::nullopt, s.handle_radius());
+  const HandleLoad l1 = handle_load(mesh, h0, p1, s.handle_radius());
+  Eigen::MatrixXd expected = Eigen::MatrixXd::Zero(mesh.num_vertices(), 3);
+  for (const auto& [v, w] : l0.load) expected.row(v) += w * forces.row(0);
+  for (const auto& [v, w] : l1.load) expected.row(v) += w * forces.row(1);
+  for (std::size_t i = 0; i < free.size(); ++i)
+    EXPECT_LE((y.row(static_cast<Eigen::Index>(i)) - expected.row(free[i])).norm(), 1e-7 * forces.norm()) << free[i];
+  // drag_vertex's reaction is the session's force.
+  const DragResult one =
+      drag_vertex(mesh, ops, DragParams{.vertex = h0, .displacement = moves.row(0).transpose(), .radius = R});
+  const DragSession single(mesh, ops, {h0}, DragSessionParams{.radius = R});
+  EXPECT_LE((one.displacement - session_field(mesh, single, moves.topRows(1))).cwiseAbs().maxCoeff(), 1e-12);
+  EXPECT_LE((one.reaction.transpose() - single.forces(moves.topRows(1))).norm(), 1e-12 * one.reaction.norm());
+
+  // A vertex added later (held at its displacement): the bordered system
+  // [A -W; C^T 0] [d; lambda] = [0; D] solved here by a sparse LU.
+  DragSession added(mesh, ops, {h0}, {p1}, DragSessionParams{.radius = R});
+  const int h2 = nearest(Eigen::RowVector3d(3.5, 3.5, 21.5));
+  added.add_handle(h2);
+  Eigen::MatrixXd moves3(3, 3);
+  moves3 << moves, 0.2, 0.3, -0.4;
+  const Field d3 = session_field(mesh, added, moves3);
+  const auto n = static_cast<Eigen::Index>(free.size());
+  std::map<int, Eigen::Index> row;
+  for (Eigen::Index i = 0; i < n; ++i) row[free[static_cast<std::size_t>(i)]] = i;
+  std::vector<Eigen::Triplet<double>> t;
+  for (int j = 0; j < A.outerSize(); ++j)
+    for (Eigen::SparseMatrix<double>::InnerIterator it(A, j); it; ++it) t.emplace_back(it.row(), it.col(), it.value());
+  const std::vector<std::vector<std::pair<int, double>>> loads{l0.load, l1.load, {{h2, 1.0}}};
+  const auto reads = added.readings();
+  for (Eigen::Index k = 0; k < 3; ++k) {
+    for (const auto& [v, w] : loads[static_cast<std::size_t>(k)]) t.emplace_back(row.at(v), n + k, -w);
+    for (const auto& [v, w] : reads[static_cast<std::size_t>(k)]) t.emplace_back(n + k, row.at(v), w);
+  }
+  Eigen::SparseMatrix<double> K(n + 3, n + 3);
+  K.setFromTriplets(t.begin(), t.end());
+  Eigen::SparseLU<Eigen::SparseMatrix<double>> lu(K);
+  ASSERT_EQ(lu.info(), Eigen::Success);
+  Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(n + 3, 3);
+  rhs.bottomRows(3) = moves3;
+  const Eigen::MatrixXd ref = lu.solve(rhs);
+  double diff = 0;
+  for (Eigen::Index i = 0; i < n; ++i)
+    diff = std::max(diff, (d3.row(free[static_cast<std::size_t>(i)]) - ref.row(i)).cwiseAbs().maxCoeff());
+  EXPECT_LE(diff, 1e-8 * moves3.norm());
+  EXPECT_LE((added.forces(moves3) - ref.bottomRows(3)).norm(), 1e-6 * ref.bottomRows(3).norm());
+  EXPECT_EQ(added.factorizations(), 1);
+
+  // Refused: points or sizes without the smooth boundary, a size that is not a number, a bad point.
+  EXPECT_THROW(DragSession(mesh, ops, {h0}, {p1}, DragSessionParams{.radius = R, .boundary = RegionBoundary::Clamp}),
+               InputError);
+  EXPECT_THROW(DragSession(mesh, ops, {h0}, DragSessionParams{.handle_radius = 1, .rings = 3}), InputError);
+  EXPECT_THROW(DragSession(mesh, ops, {h0}, DragSessionParams{.radius = R, .handle_radius = std::nan("")}), InputError);
+  EXPECT_THROW(DragSession(mesh, ops, {}, {SurfacePoint{.face = -1}}, DragSessionParams{.radius = R}), InputError);
+  EXPECT_THROW(drag_vertex(mesh, ops,
+                           DragParams{.vertex = h0,
+                                      .displacement = {0, 0, 1},
+                                      .radius = R,
+                                      .boundary = RegionBoundary::Clamp,
+                                      .handle_radius = 1}),
+               InputError);
 }

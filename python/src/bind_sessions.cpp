@@ -316,25 +316,36 @@ propose_us, publish_us.)doc");
   const DragSessionParams g0;
   py::class_<PyDragSession>(
       m, "DragSession",
-      R"doc(DragSession(V, F, handles, radius=0, rings=0, g1=0, g2=1, boundary="smooth", margin=False, inner_margin=False)
+      R"doc(DragSession(V, F, handles=None, radius=0, rings=0, g1=0, g2=1, boundary="smooth", margin=False, inner_margin=False, points=None, handle_radius=None)
 
-Interactive drags of handle vertices over one region with one factorization:
+Interactive drags of handles over one region with one factorization:
 positions(d) for handle displacements d (k, 3) costs a product, not a solve;
-add_handle, grow and shrink reuse the factor where they can. The region: the
-vertices within `radius` of the handles on the surface (geodesic_distance), or
-`rings` rings of neighbours of the first; held at zero outside. boundary="smooth"
-(the default for a radius) ends it as correct() does, displacement and slope zero at
-the radius, so a drag equals correct(..., handle_radius=0, laplacian="cotan") with
-the same vertices;
-"clamp" holds the field at zero just outside (the rule before; margins, grow and
-shrink need it).)doc")
-      .def(py::init([](const ArrayLike& V, const ArrayLike& F, const ArrayLike& handles, double radius, int rings,
-                       double g1, double g2, const std::string& boundary, bool margin, bool inner_margin) {
+add_handle, grow and shrink reuse the factor where they can. Handles: vertices
+(`handles`) and surface points (`points`, (k, 3) positions in V's coordinates: the
+surface point nearest each), the vertices' first in d. The region: the vertices
+within `radius` of the handles on the surface (geodesic_distance), or `rings` rings
+of neighbours of the first; held at zero outside. boundary="smooth" (the default for
+a radius) ends it as correct() does, displacement and slope zero at the radius, with
+handles of `handle_radius` (default None: a quarter of the radius; 0: a vertex held,
+a point a point load), so a drag equals correct(..., laplacian="cotan") with the same
+handles and size; "clamp" holds the field at zero just outside (the rule before;
+margins, grow and shrink need it; vertex handles of size 0 only).)doc")
+      .def(py::init([](const ArrayLike& V, const ArrayLike& F, const py::object& handles, double radius, int rings,
+                       double g1, double g2, const std::string& boundary, bool margin, bool inner_margin,
+                       const py::object& points, const py::object& handle_radius) {
              auto p = std::make_unique<PyDragSession>();
              p->mesh = mesh_arg(V, F);
              p->ops = build_cotan_operators(p->mesh);
-             const std::vector<int> h = vertices_arg(handles, "handles", p->mesh.num_vertices());
+             const std::vector<int> h =
+                 handles.is_none() ? std::vector<int>() : vertices_arg(handles, "handles", p->mesh.num_vertices());
+             std::vector<SurfacePoint> at;
+             if (!points.is_none()) {
+               const std::vector<Eigen::Vector3d> xyz = points_arg(points, "points");
+               at = closest_surface_points(p->mesh, xyz);
+             }
+             if (h.empty() && at.empty()) throw InputError("give handles: vertices, points, or both");
              DragSessionParams q{.radius = radius,
+                                 .handle_radius = handle_radius.is_none() ? -1.0 : handle_radius.cast<double>(),
                                  .rings = rings,
                                  .g1 = g1,
                                  .g2 = g2,
@@ -343,13 +354,15 @@ shrink need it).)doc")
                                  .inner_margin = inner_margin};
              {
                py::gil_scoped_release release;
-               p->s = std::make_unique<DragSession>(p->mesh, p->ops, h, q);
+               p->s = std::make_unique<DragSession>(p->mesh, p->ops, h, at, q);
              }
              return p;
            }),
-           py::arg("V"), py::arg("F"), py::arg("handles"), py::arg("radius") = g0.radius, py::arg("rings") = g0.rings,
-           py::arg("g1") = g0.g1, py::arg("g2") = g0.g2, py::arg("boundary") = to_string(g0.boundary),
-           py::arg("margin") = g0.margin, py::arg("inner_margin") = g0.inner_margin)
+           py::arg("V"), py::arg("F"), py::arg("handles") = py::none(), py::arg("radius") = g0.radius,
+           py::arg("rings") = g0.rings, py::arg("g1") = g0.g1, py::arg("g2") = g0.g2,
+           py::arg("boundary") = to_string(g0.boundary), py::arg("margin") = g0.margin,
+           py::arg("inner_margin") = g0.inner_margin, py::arg("points") = py::none(),
+           py::arg("handle_radius") = py::none())
       .def(
           "displacements",
           [](const PyDragSession& p, const ArrayLike& d) {
@@ -386,7 +399,32 @@ shrink need it).)doc")
             p.s->shrink(rings);
           },
           py::arg("rings") = 1)
-      .def_property_readonly("handles", [](const PyDragSession& p) { return to_numpy(p.s->handles()); })
+      .def(
+          "forces",
+          [](const PyDragSession& p, const ArrayLike& d) {
+            return to_numpy(Eigen::MatrixXd(p.s->forces(p.handle_displacements(d))));
+          },
+          py::arg("handle_displacements"),
+          "The force on each handle that puts it on its displacement (k, 3): a sized or point handle's load's "
+          "total, a held vertex's row of the system applied to the field")
+      .def_property_readonly(
+          "handles", [](const PyDragSession& p) { return to_numpy(p.s->handles()); },
+          "The handles' vertices (a point's: its triangle's nearest corner)")
+      .def_property_readonly(
+          "readings",
+          [](const PyDragSession& p) {
+            py::list out;
+            for (const auto& reading : p.s->readings()) {
+              py::list one;
+              for (const auto& [v, w] : reading) one.append(py::make_tuple(v, w));
+              out.append(one);
+            }
+            return out;
+          },
+          "Per handle, where its displacement is read: (vertex, weight) pairs")
+      .def_property_readonly(
+          "handle_radius", [](const PyDragSession& p) { return p.s->handle_radius(); },
+          "The handles' size in use (mm; 0: a held vertex or a point load)")
       .def_property_readonly("region", [](const PyDragSession& p) { return to_numpy(p.s->region()); })
       .def_property_readonly(
           "boundary", [](const PyDragSession& p) { return std::string(to_string(p.s->boundary())); },

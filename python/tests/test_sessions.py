@@ -110,8 +110,8 @@ def test_drag_session_equals_a_direct_solve_on_its_region():
     # The smooth boundary (the default): the same region plus the documented foundation
     # 1e3 / R^4 x^2 / (1 - x)^4 M_i, x = (s / R - 0.5) / 0.5 capped to [0, 0.98], s the
     # surface distance from the handle, built here from geodesic_distance.
-    s = meshpde.DragSession(V, F, [0], radius=R)
-    assert s.boundary == "smooth"
+    s = meshpde.DragSession(V, F, [0], radius=R, handle_radius=0)
+    assert s.boundary == "smooth" and s.handle_radius == 0
     assert np.array_equal(np.sort(s.region), np.sort(region))
     dist = meshpde.geodesic_distance(V, F, [0])
     x = np.clip((dist / R - 0.5) / 0.5, 0, 0.98)
@@ -132,6 +132,35 @@ def test_drag_session_equals_a_direct_solve_on_its_region():
         meshpde.DragSession(V, F, [0], radius=R, margin=True)
     with pytest.raises(meshpde.InputError, match="smooth, clamp or fade"):
         meshpde.DragSession(V, F, [0], radius=R, boundary="soft")
+
+
+def test_drag_session_takes_sized_and_point_handles_as_correct_does():
+    V, F = meshpde.generate.icosphere(4, radius=10)
+    R = 4.0
+    # A point between vertices, near vertex 0, and vertex 0 itself.
+    far = np.argsort(np.linalg.norm(V - V[0], axis=1))[8]
+    point = 0.6 * V[0] + 0.4 * V[far]
+    moves = np.array([[0, 0, 1.0], [0.3, -0.2, 0.5]])
+    s = meshpde.DragSession(V, F, [0], radius=R, points=[point])
+    assert s.handle_radius == pytest.approx(R / 4)  # correct()'s default size
+    c = meshpde.correct(V, F, [0], ["0,0,1", "0.3,-0.2,0.5"], points=[point], radius=R, laplacian="cotan",
+                        allow_intersections=True)
+    P = s.positions(moves)
+    assert np.abs(c.V - P).max() <= 1e-9
+    # Each handle's point lands on its move (read where the session says it reads it).
+    for reading, move in zip(s.readings, moves):
+        at = sum(w * (P[v] - V[v]) for v, w in reading)
+        assert np.abs(at - move).max() <= 1e-9
+    forces = s.forces(moves)
+    assert forces.shape == (2, 3) and np.isfinite(forces).all() and np.abs(forces).max() > 0
+    assert np.abs(s.forces(2 * moves) - 2 * forces).max() <= 1e-9 * np.abs(forces).max()
+    # Only points: the handles are the points' nearest corners.
+    only = meshpde.DragSession(V, F, points=[point], radius=R)
+    assert len(only.handles) == 1
+    with pytest.raises(meshpde.InputError, match="smooth boundary"):
+        meshpde.DragSession(V, F, [0], radius=R, points=[point], boundary="clamp")
+    with pytest.raises(meshpde.InputError, match="handles"):
+        meshpde.DragSession(V, F, radius=R)
 
 
 def test_global_solver_equals_a_direct_solve():

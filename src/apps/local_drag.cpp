@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -26,6 +27,7 @@ DragResult drag_vertex(const Mesh& mesh, const FemOperators& ops, const DragPara
   if (p.radius <= 0 && p.rings <= 0) throw InputError("give a region of influence: a radius > 0 or rings > 0");
   if (ops.mass[p.vertex] <= 0) throw InputError(fmt::format("handle vertex {} has no incident area", p.vertex));
   DragResult r;
+  if (std::isnan(p.handle_radius)) throw InputError("the handle's radius is not a number");
   if (p.boundary == RegionBoundary::Smooth && p.radius > 0) {
     if (p.solver == SteadySolver::Global || p.solver == SteadySolver::Iterative)
       throw InputError(
@@ -33,17 +35,23 @@ DragResult drag_vertex(const Mesh& mesh, const FemOperators& ops, const DragPara
                       "boundary to solve with it",
                       to_string(p.solver)));
     // The smooth rule's solve is DragSession's (one factor, refined), so both agree.
-    const DragSession s(mesh, ops, {p.vertex},
-                        DragSessionParams{.radius = p.radius, .g1 = p.g1, .g2 = p.g2, .boundary = p.boundary});
-    r.region = s.region();
+    const DragSession s(
+        mesh, ops, {p.vertex},
+        DragSessionParams{
+            .radius = p.radius, .handle_radius = p.handle_radius, .g1 = p.g1, .g2 = p.g2, .boundary = p.boundary});
     const Eigen::MatrixXd x = s.displacements(p.displacement.transpose());
     r.displacement = Field::Zero(mesh.num_vertices(), 3);
-    for (std::size_t k = 0; k < r.region.size(); ++k)
-      r.displacement.row(r.region[k]) = x.row(static_cast<Eigen::Index>(k));
+    for (std::size_t k = 0; k < s.region().size(); ++k)
+      r.displacement.row(s.region()[k]) = x.row(static_cast<Eigen::Index>(k));
     r.displacement.row(p.vertex) = p.displacement.transpose();
+    r.region = s.region();
+    std::erase(r.region, p.vertex);  // a handle with a size is a row of the solve
     r.solver = SteadySolver::Direct;
     r.cg.relative_residual = s.last_relative_residual();
+    r.reaction = s.forces(p.displacement.transpose()).row(0).transpose();
   } else {
+    if (p.handle_radius > 0)
+      throw InputError("a handle with a size needs the smooth boundary and a region given by radius");
     r.region = region_around(mesh, p.vertex, RegionSpec{.radius = p.radius, .rings = p.radius > 0 ? 0 : p.rings});
     r.region.erase(std::remove(r.region.begin(), r.region.end(), p.vertex), r.region.end());
     std::vector<int> free;
@@ -56,11 +64,11 @@ DragResult drag_vertex(const Mesh& mesh, const FemOperators& ops, const DragPara
     r.displacement = std::move(s.values);
     r.solver = s.solver;
     r.cg = s.cg();
-  }
-  // Reaction at the handle: row of Kt applied to the solution (steady: no inertia).
-  for (int c = 0; c < 3; ++c) {
-    auto d = [&](int j) { return r.displacement(j, c); };
-    r.reaction[c] = p.g1 * stiffness_row(mesh, ops, p.vertex, d) + p.g2 * bilaplacian_row(mesh, ops, p.vertex, d);
+    // Reaction at the handle: row of Kt applied to the solution (steady: no inertia).
+    for (int c = 0; c < 3; ++c) {
+      auto d = [&](int j) { return r.displacement(j, c); };
+      r.reaction[c] = p.g1 * stiffness_row(mesh, ops, p.vertex, d) + p.g2 * bilaplacian_row(mesh, ops, p.vertex, d);
+    }
   }
   r.V = mesh.positions() + r.displacement;
   const double scale = p.displacement.norm();
@@ -140,21 +148,39 @@ struct DragSession::Region {
   std::vector<int> vertices;
   bool smooth = false;
   std::vector<std::pair<int, double>> foundation;  // Smooth: (vertex, kappa(s) M_i)
+  std::vector<HandleLoad> loads;                   // per handle; an empty load: a held vertex
+  std::vector<bool> at_point;                      // per handle
+  double size = 0;                                 // the handles' size
 };
 
-DragSession::Region DragSession::region_of(const Mesh& mesh, const FemOperators& ops, const std::vector<int>& handles,
-                                           const DragSessionParams& p) {
-  if (handles.empty()) throw InputError("a drag session needs at least one handle");
+DragSession::Region DragSession::region_of(const Mesh& mesh, const FemOperators& ops, std::vector<int>& handles,
+                                           const std::vector<SurfacePoint>& points, const DragSessionParams& p) {
+  if (handles.empty() && points.empty()) throw InputError("a drag session needs at least one handle");
   for (const int h : handles)
     if (h < 0 || h >= mesh.num_vertices())
       throw InputError(
           fmt::format("handle vertex {} does not exist (the mesh has {} vertices)", h, mesh.num_vertices()));
+  for (std::size_t k = 0; k < points.size(); ++k)
+    check_surface_point(mesh, points[k], fmt::format("handle point {}", k));
   if (std::isnan(p.radius)) throw InputError("the region's radius is not a number");
+  if (std::isnan(p.handle_radius)) throw InputError("the handle's radius is not a number");
   if (p.radius <= 0 && p.rings <= 0) throw InputError("give a region of influence: a radius > 0 or rings > 0");
   if (p.boundary == RegionBoundary::Fade)
     throw InputError("a drag session's region ends by the smooth boundary or the clamp, not the fade");
   Region r;
+  r.at_point.assign(handles.size(), false);
+  r.at_point.resize(handles.size() + points.size(), true);
+  // A point's vertex: its triangle's nearest corner.
+  for (const SurfacePoint& q : points) {
+    int corner = 0;
+    q.bary.maxCoeff(&corner);
+    handles.push_back(mesh.triangles()(q.face, corner));
+  }
+  r.loads.resize(handles.size());
   if (p.radius <= 0 || p.boundary == RegionBoundary::Clamp) {
+    if (!points.empty() || p.handle_radius > 0)
+      throw InputError(
+          "handles at surface points or with a size need the smooth boundary and a region given by radius");
     r.vertices = region_around(mesh, handles[0], RegionSpec{.radius = p.radius, .rings = p.radius > 0 ? 0 : p.rings});
     return r;
   }
@@ -163,23 +189,65 @@ DragSession::Region DragSession::region_of(const Mesh& mesh, const FemOperators&
         "margins grow and shrink a region by rings, and the smooth boundary's region is fixed by its radius: "
         "ask for the clamp boundary with margins");
   // The correction's smooth rule: the surface within the radius of every handle, each
-  // free vertex tied by the foundation of its distance from the nearest.
+  // free vertex tied by the foundation of its distance from the nearest; handles of a
+  // quarter of the radius by default, a point's triangle always in the region.
   r.smooth = true;
+  r.size = p.handle_radius < 0 ? kHandleRadiusFraction * p.radius : p.handle_radius;
   const SmoothFoundation kappa(p.radius, p.g1, p.g2);
-  for (const auto& [v, s] : geodesic_distances_from(mesh, GeodesicSources{.vertices = handles}, p.radius)) {
+  std::unordered_map<int, double> distance;
+  GeodesicSources sources{.vertices = std::vector<int>(handles.begin(), handles.end() - std::ssize(points)),
+                          .points = points};
+  for (const auto& [v, s] : geodesic_distances_from(mesh, sources, p.radius)) distance.emplace(v, s);
+  for (const SurfacePoint& q : points)
+    for (int k = 0; k < 3; ++k) {
+      const int v = mesh.triangles()(q.face, k);
+      distance.emplace(v, (mesh.positions().row(v).transpose() - position(mesh, q)).norm());
+    }
+  bool anchored = false;
+  for (const auto& [v, s] : distance) {
     r.vertices.push_back(v);
     if (const double k = kappa(s) * ops.mass[v]; k > 0) r.foundation.emplace_back(v, k);
+    anchored = anchored || s > kSmoothStart * p.radius;
   }
+  std::sort(r.vertices.begin(), r.vertices.end());
+  std::sort(r.foundation.begin(), r.foundation.end());
+  // A region without a foundation that covers its whole part of the surface moves with
+  // its handles as a rigid body, which no load can do (the system would be singular):
+  // its handles are then held at their vertices (a point's nearest corner), as a
+  // correction's are.
+  for (std::size_t k = 0; k < r.vertices.size() && !anchored; ++k)
+    for (const int w : mesh.neighbors(r.vertices[k]))
+      if (!distance.count(w)) anchored = true;
+  if (!anchored) {
+    r.at_point.assign(handles.size(), false);
+    return r;
+  }
+  for (std::size_t k = 0; k < handles.size(); ++k)
+    if (r.at_point[k] || r.size > 0)
+      r.loads[k] = handle_load(
+          mesh, handles[k], r.at_point[k] ? std::optional(points[k - (handles.size() - points.size())]) : std::nullopt,
+          r.size);
   return r;
 }
 
 DragSession::DragSession(const Mesh& mesh, const FemOperators& ops, std::vector<int> handles,
                          const DragSessionParams& params)
-    : DragSession(mesh, ops, handles, region_of(mesh, ops, handles, params), params) {}
+    : DragSession(mesh, ops, std::move(handles), std::vector<SurfacePoint>(), params) {}
+
+DragSession::DragSession(const Mesh& mesh, const FemOperators& ops, std::vector<int> handles,
+                         const std::vector<SurfacePoint>& points, const DragSessionParams& params)
+    : DragSession(mesh, ops, handles, region_of(mesh, ops, handles, points, params), params) {}
 
 DragSession::DragSession(const Mesh& mesh, const FemOperators& ops, std::vector<int> handles,
                          const std::vector<int>& region, const DragSessionParams& params)
-    : DragSession(mesh, ops, std::move(handles), Region{region, false, {}}, params) {}
+    : DragSession(mesh, ops, handles,
+                  Region{region,
+                         false,
+                         {},
+                         std::vector<HandleLoad>(handles.size()),
+                         std::vector<bool>(handles.size(), false),
+                         0.0},
+                  params) {}
 
 DragSession::DragSession(const Mesh& mesh, const FemOperators& ops, std::vector<int> handles, const Region& region,
                          const DragSessionParams& params)
@@ -187,22 +255,32 @@ DragSession::DragSession(const Mesh& mesh, const FemOperators& ops, std::vector<
       ops_(ops),
       params_(params),
       handles_(std::move(handles)),
+      loads_(region.loads),
+      at_point_(region.at_point),
+      handle_radius_(region.size),
       smooth_(region.smooth),
       foundation_(region.foundation) {
   const int nv = mesh.num_vertices();
   if (handles_.empty()) throw InputError("a drag session needs at least one handle");
-  for (int h : handles_) {
+  for (std::size_t k = 0; k < handles_.size(); ++k) {
+    const int h = handles_[k];
     if (h < 0 || h >= nv)
       throw InputError(fmt::format("handle vertex {} does not exist (the mesh has {} vertices)", h, nv));
     if (ops.mass[h] <= 0) throw InputError(fmt::format("handle vertex {} has no incident area", h));
-    if (std::count(handles_.begin(), handles_.end(), h) > 1)
+    if (!at_point_[k] && std::count(handles_.begin(), handles_.end() - std::ranges::count(at_point_, true), h) > 1)
       throw InputError(fmt::format("handle vertex {} is listed twice", h));
   }
-  auto handle = [&](int v) { return std::find(handles_.begin(), handles_.end(), v) != handles_.end(); };
+  // Held: the vertex handles without a load (outside the free rows, entering through
+  // their coupling); a loaded handle's vertices are free rows.
+  auto held = [&](int v) {
+    for (std::size_t k = 0; k < handles_.size(); ++k)
+      if (handles_[k] == v && loads_[k].load.empty()) return true;
+    return false;
+  };
   std::vector<int> free;
   for (int v : region.vertices) {
     if (v < 0 || v >= nv) throw InputError(fmt::format("region vertex {} does not exist (the mesh has {})", v, nv));
-    if (!handle(v) && ops.mass[v] > 0) free.push_back(v);
+    if (!held(v) && ops.mass[v] > 0) free.push_back(v);
   }
   if (free.empty()) throw InputError("the drag region has no free vertex");
   handle_in_region_.assign(handles_.size(), false);
@@ -348,58 +426,96 @@ Eigen::MatrixXd DragSession::solve(const Eigen::MatrixXd& b) {
 }
 
 void DragSession::compute_basis() {
-  // Handles outside the region couple through the right-hand side; handles inside it
-  // (added earlier) are constrained again by constrain(), which needs their Green's
-  // functions A^-1 e. All of them come from one multi-column solve (one pass over L).
-  std::vector<Eigen::Index> outside, inside;
-  for (std::size_t k = 0; k < handles_.size(); ++k)
-    (handle_in_region_[k] ? inside : outside).push_back(static_cast<Eigen::Index>(k));
-  const auto no = static_cast<Eigen::Index>(outside.size());
-  Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(factor_->active, no + static_cast<Eigen::Index>(inside.size()));
-  for (Eigen::Index k = 0; k < no; ++k) rhs.col(k) = coupling(handles_[static_cast<std::size_t>(outside[k])]);
-  for (std::size_t k = 0; k < inside.size(); ++k)
-    rhs(region_index(handles_[static_cast<std::size_t>(inside[k])]), no + static_cast<Eigen::Index>(k)) = 1;
-  const Eigen::MatrixXd x = solve(rhs);
-  basis_.setZero(factor_->active, static_cast<Eigen::Index>(handles_.size()));
-  for (Eigen::Index k = 0; k < no; ++k) basis_.col(outside[k]) = x.col(k);
-  // Handles inside the region: constrained again, one by one, as add_handle() did.
-  for (std::size_t k = 0; k < inside.size(); ++k) {
-    const auto h = static_cast<std::size_t>(inside[k]);
-    handle_in_region_[h] = false;
-    constrain(h, x.col(no + static_cast<Eigen::Index>(k)));
+  // Held handles couple through the right-hand side; constrained ones (loaded, or
+  // vertices among the free rows) through their loads. All columns come from one
+  // multi-column solve (one pass over L).
+  std::vector<std::size_t> held, loaded;
+  for (std::size_t k = 0; k < handles_.size(); ++k) (constrained(k) ? loaded : held).push_back(k);
+  const auto nh = static_cast<Eigen::Index>(held.size());
+  Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(factor_->active, nh + static_cast<Eigen::Index>(loaded.size()));
+  for (Eigen::Index j = 0; j < nh; ++j) rhs.col(j) = coupling(handles_[held[static_cast<std::size_t>(j)]]);
+  for (std::size_t j = 0; j < loaded.size(); ++j) {
+    const auto col = nh + static_cast<Eigen::Index>(j);
+    const std::size_t k = loaded[j];
+    if (loads_[k].load.empty()) {
+      rhs(region_index(handles_[k]), col) = 1;  // a point load at the vertex: holds it
+    } else {
+      for (const auto& [v, w] : loads_[k].load)
+        if (const int row = region_index(v); row >= 0) rhs(row, col) = w;
+    }
   }
+  const Eigen::MatrixXd x = solve(rhs);
+  held_columns_ = x.leftCols(nh);
+  green_ = x.rightCols(static_cast<Eigen::Index>(loaded.size()));
+  finish_basis();
 }
 
-void DragSession::constrain(std::size_t k, Eigen::VectorXd g) {
-  const int row = region_index(handles_[k]);
-  // g: on entry A^-1 e, the Green's function at the handle with only the region's
-  // outer handles held. Subtracting the current basis columns of the handles already
-  // constrained inside the region (each 1 at its own handle, 0 at the others, harmonic
-  // elsewhere) zeroes it at those handles and keeps A g = e on the remaining free rows.
-  for (std::size_t j = 0; j < handles_.size(); ++j)
-    if (handle_in_region_[j]) g -= g[region_index(handles_[j])] * basis_.col(static_cast<Eigen::Index>(j));
-  if (!(std::abs(g[row]) > 0))
-    throw SolverError(
-        fmt::format("vertex {} cannot become a handle: its Green's function vanishes there", handles_[k]));
-  const Eigen::VectorXd y = g / g[row];
-  // Every other column must now be 0 at the new handle: subtract its value there times
-  // the new column (1 there, harmonic on the remaining free rows).
-  for (Eigen::Index j = 0; j < basis_.cols(); ++j)
-    if (j != static_cast<Eigen::Index>(k)) basis_.col(j) -= basis_(row, j) * y;
-  basis_.col(static_cast<Eigen::Index>(k)) = y;
-  handle_in_region_[k] = true;
+std::vector<std::vector<std::pair<int, double>>> DragSession::readings() const {
+  std::vector<std::vector<std::pair<int, double>>> out;
+  for (std::size_t k = 0; k < handles_.size(); ++k)
+    out.push_back(loads_[k].reading.empty() ? std::vector<std::pair<int, double>>{{handles_[k], 1.0}}
+                                            : loads_[k].reading);
+  return out;
+}
+
+void DragSession::finish_basis() {
+  // d_F = H d_held + G lambda, with lambda from the constrained handles' readings:
+  // C^T d = d_c, so S lambda = d_c - T d_held with S = C^T G and T the readings of the
+  // held columns (a reading vertex that is a held handle reads that handle's value).
+  std::vector<std::size_t> held, loaded;
+  for (std::size_t k = 0; k < handles_.size(); ++k) (constrained(k) ? loaded : held).push_back(k);
+  const auto nh = static_cast<Eigen::Index>(held.size()), nc = static_cast<Eigen::Index>(loaded.size());
+  const auto all = readings();
+  Eigen::MatrixXd S = Eigen::MatrixXd::Zero(nc, nc), T = Eigen::MatrixXd::Zero(nc, nh);
+  for (Eigen::Index i = 0; i < nc; ++i)
+    for (const auto& [v, w] : all[loaded[static_cast<std::size_t>(i)]]) {
+      if (const int row = region_index(v); row >= 0) {
+        S.row(i) += w * green_.row(row);
+        T.row(i) += w * held_columns_.row(row);
+      } else {
+        for (Eigen::Index j = 0; j < nh; ++j)
+          if (handles_[held[static_cast<std::size_t>(j)]] == v) T(i, j) += w;
+      }
+    }
+  multipliers_.setZero(nc, static_cast<Eigen::Index>(handles_.size()));
+  if (nc > 0) {
+    const Eigen::FullPivLU<Eigen::MatrixXd> lu(S);
+    if (lu.rank() < nc || !(std::abs(lu.determinant()) > 0))
+      throw InputError(
+          "the handles are too close to be moved independently: give them further apart, or fewer handles");
+    const Eigen::MatrixXd st = lu.solve(T);
+    for (Eigen::Index j = 0; j < nh; ++j) multipliers_.col(static_cast<Eigen::Index>(held[j])) = -st.col(j);
+    const Eigen::MatrixXd inv = lu.inverse();
+    for (Eigen::Index i = 0; i < nc; ++i) multipliers_.col(static_cast<Eigen::Index>(loaded[i])) = inv.col(i);
+  }
+  basis_ = green_ * multipliers_;
+  for (Eigen::Index j = 0; j < nh; ++j) basis_.col(static_cast<Eigen::Index>(held[j])) += held_columns_.col(j);
 }
 
 void DragSession::add_handle(int vertex) {
   if (region_index(vertex) < 0 || std::find(handles_.begin(), handles_.end(), vertex) != handles_.end())
     throw InputError(fmt::format("vertex {} is not a free vertex of the drag region", vertex));
-  handles_.push_back(vertex);
-  handle_in_region_.push_back(false);
-  basis_.conservativeResize(Eigen::NoChange, basis_.cols() + 1);
-  basis_.col(basis_.cols() - 1).setZero();
   Eigen::MatrixXd e = Eigen::MatrixXd::Zero(factor_->active, 1);
   e(region_index(vertex), 0) = 1;
-  constrain(handles_.size() - 1, solve(e).col(0));
+  const Eigen::MatrixXd g = solve(e);
+  handles_.push_back(vertex);
+  handle_in_region_.push_back(true);
+  loads_.emplace_back();
+  at_point_.push_back(false);
+  // The constrained handles' columns stay in handle order: the new one is the last.
+  green_.conservativeResize(Eigen::NoChange, green_.cols() + 1);
+  green_.col(green_.cols() - 1) = g.col(0);
+  try {
+    finish_basis();
+  } catch (const InputError&) {
+    handles_.pop_back();
+    handle_in_region_.pop_back();
+    loads_.pop_back();
+    at_point_.pop_back();
+    green_.conservativeResize(Eigen::NoChange, green_.cols() - 1);
+    finish_basis();
+    throw InputError(fmt::format("vertex {} cannot become a handle: it cannot be moved apart from the others", vertex));
+  }
 }
 
 void DragSession::grow(int rings) {
@@ -456,9 +572,30 @@ Positions DragSession::positions(const Eigen::MatrixXd& d) const {
   Positions V = mesh_.positions();
   const auto& free = region_;
   for (std::size_t k = 0; k < free.size(); ++k) V.row(free[k]) += x.row(static_cast<Eigen::Index>(k));
+  // A vertex handle moves by exactly its displacement (a free row's value is that to rounding).
   for (std::size_t k = 0; k < handles_.size(); ++k)
-    V.row(handles_[k]) = mesh_.positions().row(handles_[k]) + d.row(static_cast<Eigen::Index>(k));
+    if (!at_point_[k]) V.row(handles_[k]) = mesh_.positions().row(handles_[k]) + d.row(static_cast<Eigen::Index>(k));
   return V;
+}
+
+Eigen::MatrixXd DragSession::forces(const Eigen::MatrixXd& d) const {
+  const Positions moved = positions(d);  // checks d's shape
+  const Eigen::MatrixXd lambda = multipliers_ * d;
+  Eigen::MatrixXd out = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(handles_.size()), 3);
+  Eigen::Index next = 0;
+  for (std::size_t k = 0; k < handles_.size(); ++k) {
+    if (constrained(k)) {
+      out.row(static_cast<Eigen::Index>(k)) = lambda.row(next++);  // the load sums to 1
+      continue;
+    }
+    // A held vertex: the row of Kt at it applied to the field (it has no foundation).
+    for (int c = 0; c < 3; ++c) {
+      auto u = [&](int j) { return moved(j, c) - mesh_.positions()(j, c); };
+      out(static_cast<Eigen::Index>(k), c) = params_.g1 * stiffness_row(mesh_, ops_, handles_[k], u) +
+                                             params_.g2 * bilaplacian_row(mesh_, ops_, handles_[k], u);
+    }
+  }
+  return out;
 }
 
 }  // namespace meshpde

@@ -77,6 +77,7 @@
 #include "meshpde/operators/fem_operators.h"
 #include "meshpde/operators/intrinsic_delaunay.h"
 #include "meshpde/operators/laplacian.h"
+#include "meshpde/pde/handle_load.h"
 #include "meshpde/pde/region_boundary.h"
 #include "meshpde/pde/steady_direct.h"
 #include "meshpde/solvers/cg.h"
@@ -100,17 +101,11 @@ const char* to_string(CorrectionMethod method);
 /// A handle: a vertex or a point of the surface, moved by a prescribed displacement.
 /// A Fem correction moves the handle's point by exactly `displacement`; with a handle
 /// radius r > 0 (CorrectionParams::handle_radius) the force that does it is spread over
-/// the surface within r of the point with the smooth profile (1 - (d / r)^2)^2, d the
-/// straight-line distance to the point, so the drag makes a smooth bump instead of a
-/// cusp. Where the point's motion is read (CorrectionResult::handle_reading): at a vertex,
-/// the vertex; at a point of size 0, the barycentric combination of its triangle's
-/// corners; at a point whose bump the mesh resolves (r at least half an edge), the
-/// quadratic fitted to the vertices around it (mesh/surface_point_reading.h), because the
-/// corners' linear interpolation reads a bump's peak low by an amount that depends on
-/// where the point falls in its triangle, and so would scale the whole field differently
-/// on every triangulation. The corners then follow to the mesh's interpolation error (1-4 %
-/// of the drag with a quarter-radius handle at 8 to 10 edges per radius, falling as the
-/// square of the edge).
+/// the surface within r of the point, so the drag makes a smooth bump instead of a cusp
+/// (the load and where the point's motion is read: pde/handle_load.h;
+/// CorrectionResult::handle_reading reports the reading). With a bump the mesh resolves,
+/// the corners follow the point to the mesh's interpolation error (1-4 % of the drag with
+/// a quarter-radius handle at 8 to 10 edges per radius, falling as the square of the edge).
 struct CorrectionHandle {
   CorrectionHandle() = default;
   CorrectionHandle(int v, const Eigen::Vector3d& d) : vertex(v), displacement(d) {}
@@ -251,9 +246,6 @@ struct CorrectionParams {
   SteadySolver solver = SteadySolver::Auto;
   CgOptions cg{.tolerance = 1e-10, .max_iterations = 50000};  ///< for SteadySolver::Iterative
 };
-
-/// The default handle size as a fraction of the region's radius.
-inline constexpr double kHandleRadiusFraction = 0.25;
 
 /// Paints `brush` into `params`' field of `property` (stiffness, or one of the tissue
 /// fields). An empty field starts as its scalar everywhere (stiffness: 1), so painting

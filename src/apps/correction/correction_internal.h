@@ -36,11 +36,6 @@ inline constexpr double kFadeStart = 0.6, kFadeStrength = 1e3, kFadeReach = 2.0;
 
 // Smooth's foundation: pde/region_boundary.h's SmoothFoundation.
 
-// A point handle whose size is at least this fraction of its triangle's mean edge is read
-// to second order (LoadedHandle); below it the load is about a point load, and a point
-// load's field has a cusp at the handle that a quadratic fit would read wrongly.
-inline constexpr double kSmoothReadingSize = 0.5;
-
 // ---- Resolving a request (params.cpp) --------------------------------------------
 
 bool fades(const CorrectionParams& p);   ///< the fem method with the fade and a radius
@@ -70,15 +65,10 @@ Eigen::VectorXd operator_weights(const CorrectionParams& p, int nv);
 
 // ---- The problem (problem.cpp) ---------------------------------------------------
 
-/// A handle that a load pulls to its displacement: the load's weight at each vertex (the
-/// force's profile, summing to 1), the handle point's weight at each vertex (where its
-/// displacement is read: 1 at a vertex; for a point, the quadratic reading of
-/// mesh/surface_point_reading.h when the handle has a size of at least half its
-/// triangle's edge, else the barycentric coordinates) and the vertices the handle lies on
-/// (its triangle's corners, or its vertex).
-struct LoadedHandle {
-  std::vector<std::pair<int, double>> load, point;
-  std::vector<int> corners;
+/// A handle that a load pulls to its displacement: its terms (pde/handle_load.h: the
+/// load's weight at each vertex, where its displacement is read, the vertices it lies
+/// on) and the displacement.
+struct LoadedHandle : HandleLoad {
   Eigen::Vector3d displacement = Eigen::Vector3d::Zero();
 };
 

@@ -75,7 +75,7 @@ HandleConstraints::HandleConstraints(const SteadyDirectSolver& solver, const std
   U_ = solver.solve(Field::Zero(nv, n), &load);
   Eigen::MatrixXd S = Eigen::MatrixXd::Zero(n, n);
   for (int k = 0; k < n; ++k)
-    for (const auto& [v, w] : handles[static_cast<std::size_t>(k)].point) S.row(k) += w * U_.row(v);
+    for (const auto& [v, w] : handles[static_cast<std::size_t>(k)].reading) S.row(k) += w * U_.row(v);
   lu_.compute(S);
   if (lu_.rank() < n || !(std::abs(lu_.determinant()) > 0))
     throw InputError("two handles are too close to be moved independently: give them further apart, or one handle");
@@ -93,7 +93,7 @@ void HandleConstraints::apply(Field& d, const std::vector<Eigen::Vector3d>& targ
   Eigen::MatrixXd rhs(n, 3);
   for (int k = 0; k < n; ++k) {
     Eigen::RowVector3d at = Eigen::RowVector3d::Zero();
-    for (const auto& [v, w] : handles_[static_cast<std::size_t>(k)].point) at += w * d.row(v);
+    for (const auto& [v, w] : handles_[static_cast<std::size_t>(k)].reading) at += w * d.row(v);
     rhs.row(k) = targets[static_cast<std::size_t>(k)].transpose() - at;
   }
   const Eigen::MatrixXd c = lu_.solve(rhs);
@@ -276,7 +276,7 @@ FemProblem localized(const RegionCopy& c, const FemProblem& problem) {
     return out;
   };
   for (const LoadedHandle& h : problem.loaded) {
-    LoadedHandle l{in_copy(h.load), in_copy(h.point), {}, h.displacement};
+    LoadedHandle l{{in_copy(h.load), in_copy(h.reading), {}}, h.displacement};
     for (const int v : h.corners) l.corners.push_back(c.local(v));
     local.loaded.push_back(std::move(l));
   }
