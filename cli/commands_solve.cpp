@@ -22,6 +22,7 @@
 #include "meshpde/io/medical_io.h"
 #endif
 #include "meshpde/core/errors.h"
+#include "meshpde/core/warnings.h"
 #include "meshpde/mesh/caps.h"
 #include "meshpde/mesh/generators.h"
 #include "meshpde/mesh/topology.h"
@@ -160,7 +161,12 @@ void run_correct(const CorrectArgs& a) {
   if (const std::string w = units_warning(mesh, p.units, a.mesh, "--units "); !w.empty())
     fmt::print(stderr, "warning: {}\n", w);
   std::vector<int> handle_vertices;
-  for (const auto& spec : a.vertices) handle_vertices.push_back(parse_vertex(mesh, spec, "--vertex"));
+  {
+    // A far @X,Y,Z is warned about by the correction itself (handle_warning, against
+    // the region's reach), not twice.
+    const WarningCollector handled;
+    for (const auto& spec : a.vertices) handle_vertices.push_back(parse_vertex(mesh, spec, "--vertex"));
+  }
   // Moves pair with the --vertex handles first, then the --point handles.
   const std::vector<std::string> vertex_moves(a.moves.begin(), a.moves.begin() + static_cast<long>(a.vertices.size())),
       point_moves(a.moves.begin() + static_cast<long>(a.vertices.size()), a.moves.end());

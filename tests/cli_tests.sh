@@ -419,6 +419,18 @@ check "heat picture" [ -s "$T/h.png" ]
 "$M" heat "$T/ico.off" --source 99999:1 2>"$T/err" >/dev/null
 check "bad source vertex exits 1" [ $? -eq 1 ]
 check "bad source named" grep -q "99999" "$T/err"
+# A vertex spelled @X,Y,Z far from the surface (the unit sphere: 3 off it) is warned
+# about, naming the spec; one on the surface is not; correct warns once (its own
+# handle_warning), not twice.
+"$M" heat "$T/ico.off" --source @0,0,4:1 --steps 2 -o "$T/hf.ply" 2>"$T/err" >/dev/null || bad "heat @far"
+check "a far @X,Y,Z is warned about" grep -q "warning: vertex '@0,0,4': the point lies 3 from its nearest vertex" "$T/err"
+"$M" heat "$T/ico.off" --source @0,0,1.01:1 --steps 2 -o "$T/hf.ply" 2>"$T/err" >/dev/null || bad "heat @near"
+check "a near @X,Y,Z is not" bash -c "! grep -q warning '$T/err'"
+"$M" fair "$T/ico.off" --fixed rings:@0,4,0:2 -o "$T/ff.ply" 2>"$T/err" >/dev/null || bad "fair rings:@far"
+check "a far @X,Y,Z in a selection is warned about" grep -q "warning: vertex '@0,4,0'" "$T/err"
+"$M" correct "$T/ico.off" --vertex @0,0,4 --move 0,0,0.1 --radius 0.5 -o "$T/cf.ply" 2>"$T/err" >/dev/null ||
+  bad "correct @far"
+check "correct warns about a far @X,Y,Z once" [ "$(grep -c "from the nearest vertex\|from its nearest vertex" "$T/err")" = 1 ]
 # --laplacian on heat, wave, fair and interpolate: auto keeps the cotangent operator on a
 # well-shaped sphere and takes the intrinsic one on the aorta's slivers, where it equals
 # asking for it; the maximum principle holds with it (an M-matrix).

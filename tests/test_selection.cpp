@@ -8,6 +8,7 @@
 
 #include "meshpde/apps/selection.h"
 #include "meshpde/core/errors.h"
+#include "meshpde/core/warnings.h"
 #include "meshpde/mesh/generators.h"
 #include "test_support.h"
 
@@ -46,4 +47,34 @@ TEST(Parsers, VertexListsTakeCommasSpacesAndComments) {
   EXPECT_NE(error_of([&] { parse_vertex_list(m, "1\n2 x\n", "s.txt"); }).find("s.txt: line 2"), std::string::npos);
   EXPECT_NE(error_of([&] { parse_vertex_list(m, "25\n", "s.txt"); }).find("does not exist"), std::string::npos);
   EXPECT_TRUE(parse_vertex_list(m, "", "s.txt").empty());
+}
+
+// A point "@X,Y,Z" far from its nearest vertex (more than kFarPointEdges of the longest
+// edge there) is warned about, naming the spec and the vertex; a point on or near the
+// surface is not. Collectors nest and take what is given while they are innermost.
+TEST(Selection, AFarPointIsWarnedAboutAndANearOneIsNot) {
+  const Mesh m = make(plane_grid(10, 10));  // the unit square, edges 0.1 (diagonals 0.14)
+  WarningCollector outer;
+  EXPECT_EQ(parse_vertex_spec(m, "@0.52,0.49,0.05"), 60);            // just off the surface
+  EXPECT_EQ(select_vertices(m, "rings:@0.5,0.5,0.3:1").size(), 7u);  // 0.3 above: about twice the longest edge
+  EXPECT_TRUE(outer.take().empty());
+  {
+    WarningCollector inner;
+    EXPECT_EQ(parse_vertex_spec(m, "@0.5,0.5,2"), 60);
+    const std::vector<std::string> got = inner.take();
+    ASSERT_EQ(got.size(), 1u);
+    EXPECT_NE(got[0].find("'@0.5,0.5,2'"), std::string::npos) << got[0];
+    EXPECT_NE(got[0].find("nearest vertex 60"), std::string::npos) << got[0];
+    EXPECT_NE(got[0].find("lies 2 "), std::string::npos) << got[0];
+  }
+  // Through selections, after the inner collector is gone: the outer takes them.
+  EXPECT_EQ(select_vertices(m, "radius:@5,5,0:0.11").size(), 3u);  // the corner (1, 1) and its two neighbours
+  EXPECT_EQ(select_vertices(m, "rings:@-3,0,0:0"), (std::vector<int>{0}));
+  const std::vector<std::string> got = outer.take();
+  ASSERT_EQ(got.size(), 2u);
+  EXPECT_NE(got[0].find("'@5,5,0'"), std::string::npos) << got[0];
+  EXPECT_NE(got[1].find("'@-3,0,0'"), std::string::npos) << got[1];
+  // Plain indices never warn.
+  EXPECT_EQ(parse_vertex_spec(m, "7"), 7);
+  EXPECT_TRUE(outer.take().empty());
 }

@@ -69,11 +69,12 @@ SteadySolver solver_arg(const std::string& name) {
 // Vertex indices, or selection specs as `meshpde fair --fixed` takes them ("boundary",
 // "rings:V:K", "radius:V:R", "halfspace:NX,NY,NZ:D", "all", ...).
 std::vector<int> selection_arg(const Mesh& mesh, const py::handle& obj, const char* name) {
-  if (py::isinstance<py::str>(obj)) return select_vertices(mesh, obj.cast<std::string>());
+  if (py::isinstance<py::str>(obj))
+    return with_warnings([&] { return select_vertices(mesh, obj.cast<std::string>()); });
   if (py::isinstance<py::list>(obj) || py::isinstance<py::tuple>(obj)) {
     const py::sequence seq = py::reinterpret_borrow<py::sequence>(obj);
     if (seq.size() > 0 && py::isinstance<py::str>(seq[0]))
-      return select_vertices(mesh, seq.cast<std::vector<std::string>>());
+      return with_warnings([&] { return select_vertices(mesh, seq.cast<std::vector<std::string>>()); });
   }
   return vertices_arg(obj, name, mesh.num_vertices());
 }
@@ -179,6 +180,7 @@ CorrectionOptions correction_options(const Mesh& mesh, const py::handle& vertice
       for (const py::handle x : vs) {
         const bool text = py::isinstance<py::str>(x);
         const std::string spec = text ? x.cast<std::string>() : std::string();
+        const WarningCollector handled;  // a far @X,Y,Z: the correction's handle_warning says it
         handles.push_back(text ? parse_vertex_spec(mesh, spec)
                                : vertex_arg(x.cast<long long>(), "vertices", mesh.num_vertices()));
         spelled_at.push_back(spec.starts_with('@') ? std::optional(parse_point_spec(spec.substr(1))) : std::nullopt);
@@ -259,7 +261,10 @@ CorrectionOptions correction_options(const Mesh& mesh, const py::handle& vertice
     for (const py::handle b : py::reinterpret_borrow<py::sequence>(v)) {
       if (!py::isinstance<py::str>(b))
         throw InputError("brushes: expected a list of '[PROPERTY:]V:RADIUS:VALUE' strings");
-      paint_tissue(mesh, p, b.cast<std::string>(), millimetres_per(p.units));
+      with_warnings([&] {
+        paint_tissue(mesh, p, b.cast<std::string>(), millimetres_per(p.units));
+        return 0;
+      });
     }
   }
   if (const py::object v = get("caps"); !v.is_none()) c.caps.rule = v.cast<std::string>();

@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "meshpde/core/errors.h"
+#include "meshpde/core/warnings.h"
 #include "meshpde/mesh/mesh.h"
 #include "meshpde/operators/fem_operators.h"
 
@@ -98,6 +99,17 @@ py::object csr_from_arrays(const py::array_t<double>& data, const py::array_t<in
 /// Ctrl-C, so that a loop in the library stops with KeyboardInterrupt. For callbacks
 /// that run while the GIL is released.
 void check_interrupt();
+
+/// Runs f (which returns a value) with the library's warnings (core/warnings.h) collected,
+/// then gives each as a Python UserWarning; the GIL must be held.
+template <class F>
+auto with_warnings(F&& f) {
+  WarningCollector collected;
+  auto result = f();
+  for (const std::string& m : collected.take())
+    if (PyErr_WarnEx(PyExc_UserWarning, m.c_str(), 1) < 0) throw py::error_already_set();
+  return result;
+}
 
 }  // namespace meshpde::python
 

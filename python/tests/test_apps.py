@@ -2,6 +2,8 @@
 input (equal to 1e-12 relative), and against the mathematics."""
 import json
 
+import warnings
+
 import numpy as np
 import pytest
 
@@ -528,6 +530,23 @@ def test_tissue_brushes_as_the_command_line_takes_them():
         meshpde.correct(V, F, [handle], [(1.0, 0.0, 0.0)], radius=10.0, brushes=["bogus:0:1:1"])
     with pytest.raises(meshpde.InputError, match="a list of"):
         meshpde.correct(V, F, [handle], [(1.0, 0.0, 0.0)], radius=10.0, brushes="0:1:1")
+    # A brush at a point far off the wall (40 mm: another frame or unit?) is warned about.
+    with pytest.warns(UserWarning, match="'@5,40,33'.*nearest vertex"):
+        meshpde.correct(V, F, [handle], [(1.0, 0.0, 0.0)], radius=10.0, brushes=["@5,40,33:3:5"])
+
+
+def test_a_far_point_in_a_selection_is_warned_about_and_a_near_one_is_not():
+    V, F = meshpde.generate.icosphere(3, radius=10)
+    with pytest.warns(UserWarning, match="vertex '@0,40,0': the point lies 30 from its nearest vertex"):
+        far = meshpde.fair(V, F, "rings:@0,40,0:2")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UserWarning)
+        near = meshpde.fair(V, F, "rings:@0,10.1,0:2")
+    assert np.array_equal(far.V, near.V)  # the same vertex either way: a warning, not a refusal
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UserWarning)  # as an error, it is raised from the call
+        with pytest.raises(UserWarning, match="nearest vertex"):
+            meshpde.fair(V, F, "rings:@0,40,0:2")
 
 
 @pytest.mark.parametrize("function", ["correct", "CorrectionSession.apply"])

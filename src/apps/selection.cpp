@@ -8,6 +8,7 @@
 #include <sstream>
 
 #include "meshpde/core/errors.h"
+#include "meshpde/core/warnings.h"
 #include "meshpde/io/text_records.h"
 
 namespace meshpde {
@@ -58,7 +59,18 @@ int parse_vertex_spec(const Mesh& mesh, const std::string& spec) {
     if (parts.size() != 3) throw InputError(fmt::format("vertex '{}': '@X,Y,Z' needs three numbers", spec));
     const Eigen::Vector3d p(parse_number(parts[0], spec), parse_number(parts[1], spec), parse_number(parts[2], spec));
     int v = 0;
-    (mesh.positions().rowwise() - p.transpose()).rowwise().squaredNorm().minCoeff(&v);
+    const double distance =
+        std::sqrt((mesh.positions().rowwise() - p.transpose()).rowwise().squaredNorm().minCoeff(&v));
+    // A point on the surface lies within an edge of its nearest vertex; one much farther
+    // off was probably typed in another frame (LPS against RAS) or unit.
+    double longest = 0;
+    for (const int w : mesh.neighbors(v))
+      longest = std::max(longest, (mesh.positions().row(w) - mesh.positions().row(v)).norm());
+    if (distance > kFarPointEdges * longest)
+      warn(
+          fmt::format("vertex '{}': the point lies {:.3g} from its nearest vertex {} (more than {} times the longest "
+                      "edge there, {:.3g}, in the mesh's units): is it in the mesh's frame and unit?",
+                      spec, distance, v, kFarPointEdges, longest));
     return v;
   }
   const double x = parse_number(spec, spec);

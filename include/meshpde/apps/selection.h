@@ -36,7 +36,13 @@ std::vector<int> select_vertices(const Mesh& mesh, const std::vector<std::string
 /// \throw InputError for a token that is not a vertex of the mesh.
 std::vector<int> parse_vertex_list(const Mesh& mesh, const std::string& text, const std::string& name);
 
-/// Vertex given as an index or @X,Y,Z. \throw InputError
+/// A point "@X,Y,Z" farther than this many times the longest edge at its nearest vertex
+/// from that vertex is warned about (core/warnings.h): a point on the surface lies
+/// within an edge of its nearest vertex.
+inline constexpr int kFarPointEdges = 3;
+
+/// Vertex given as an index or @X,Y,Z (the vertex nearest the point; a point far from
+/// it is warned about, see kFarPointEdges). \throw InputError
 int parse_vertex_spec(const Mesh& mesh, const std::string& spec);
 
 /// A point written "X,Y,Z" (three finite numbers). \throw InputError quoting the text.
