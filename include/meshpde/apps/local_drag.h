@@ -161,9 +161,9 @@ class DragSession {
   /// Whole-mesh positions: rest positions plus the displacements of handles and region.
   Positions positions(const Eigen::MatrixXd& handle_displacements) const;
   /// The force on each handle that puts it on its displacement (#handles x 3, rows in
-  /// the order of handles(); units of the system's right-hand side, g2 x length / length^4
-  /// x area): a constrained handle's load times its multiplier; a held vertex's row of
-  /// the system applied to the field.
+  /// the order of handles(); in the units of the system's rows, (g1 K + g2 K M^-1 K) d):
+  /// a constrained handle's multiplier (its load sums to 1); a held vertex's row of the
+  /// system applied to the field.
   Eigen::MatrixXd forces(const Eigen::MatrixXd& handle_displacements) const;
 
   /// Makes a free region vertex a handle of size 0 (appended to handles(), held at its
@@ -189,8 +189,9 @@ class DragSession {
   std::vector<std::vector<std::pair<int, double>>> readings() const;
   /// The handles' size in use (params.handle_radius resolved; 0 for a held vertex).
   double handle_radius() const { return handle_radius_; }
-  /// Free vertices of the region, handles added by add_handle() included (their rows
-  /// of the basis are 1 for themselves and 0 for every other handle).
+  /// Free vertices of the region: the vertices of handles with a size and of handles
+  /// added by add_handle() included (a vertex handle's row of the basis is 1 for itself
+  /// and 0 for every other handle).
   const std::vector<int>& region() const { return region_; }
   /// Row of vertex v in region(), or -1.
   int region_index(int v) const;
