@@ -63,6 +63,18 @@ Field session_field(const Mesh& mesh, const DragSession& s, const Eigen::MatrixX
   return s.positions(moves) - mesh.positions();
 }
 
+// The smooth boundary's foundation as pde/region_boundary.h documents it (plate only),
+// built here from the distances: kappa(s) M_i at the free vertices.
+Eigen::VectorXd documented_foundation(const FemOperators& ops, const Eigen::VectorXd& dist,
+                                      const std::vector<int>& free, double R) {
+  Eigen::VectorXd extra = Eigen::VectorXd::Zero(dist.size());
+  for (const int v : free) {
+    const double x = std::clamp((dist[v] / R - 0.5) / 0.5, 0.0, 0.98);
+    extra[v] = 1e3 / std::pow(R, 4) * x * x / std::pow(1 - x, 4) * ops.mass[v];
+  }
+  return extra;
+}
+
 }  // namespace
 
 TEST(DragSession, UpdatesAreTheDirectSolveAndLinearInTheHandle) {
@@ -307,11 +319,7 @@ TEST(DragSession, TheSmoothBoundaryIsTheCorrectionsRuleWithVertexHandlesOfSizeZe
   std::vector<int> sorted_region = s.region();
   std::sort(sorted_region.begin(), sorted_region.end());
   EXPECT_EQ(sorted_region, free);
-  Eigen::VectorXd extra = Eigen::VectorXd::Zero(mesh.num_vertices());
-  for (const int v : free) {
-    const double x = std::clamp((dist[v] / R - 0.5) / 0.5, 0.0, 0.98);
-    extra[v] = 1e3 / std::pow(R, 4) * x * x / std::pow(1 - x, 4) * ops.mass[v];
-  }
+  const Eigen::VectorXd extra = documented_foundation(ops, dist, free, R);
   const PdeCoefficients plate{.g0 = 0, .g1 = 0, .g2 = 1};
   const Eigen::SparseMatrix<double> A = assemble_steady_matrix(mesh, ops, plate, free, extra);
   Eigen::MatrixXd b = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(free.size()), 3);
@@ -428,11 +436,7 @@ TEST(DragSession, SizedAndPointHandlesAreTheCorrectionsHandles) {
   const Eigen::VectorXd dist = geodesic_distance(mesh, GeodesicSources{.vertices = {h0}, .points = {p1}});
   std::vector<int> free = s.region();
   std::sort(free.begin(), free.end());
-  Eigen::VectorXd extra = Eigen::VectorXd::Zero(mesh.num_vertices());
-  for (const int v : free) {
-    const double x = std::clamp((dist[v] / R - 0.5) / 0.5, 0.0, 0.98);
-    extra[v] = 1e3 / std::pow(R, 4) * x * x / std::pow(1 - x, 4) * ops.mass[v];
-  }
+  const Eigen::VectorXd extra = documented_foundation(ops, dist, free, R);
   const PdeCoefficients plate{.g0 = 0, .g1 = 0, .g2 = 1};
   const Eigen::SparseMatrix<double> A = assemble_steady_matrix(mesh, ops, plate, free, extra);
   Eigen::MatrixXd dF(static_cast<Eigen::Index>(free.size()), 3);
