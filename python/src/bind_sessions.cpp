@@ -341,7 +341,19 @@ margins, grow and shrink need it; vertex handles of size 0 only).)doc")
              std::vector<SurfacePoint> at;
              if (!points.is_none()) {
                const std::vector<Eigen::Vector3d> xyz = points_arg(points, "points");
-               at = closest_surface_points(p->mesh, xyz);
+               at = with_warnings([&] {
+                 std::vector<SurfacePoint> found = closest_surface_points(p->mesh, xyz);
+                 // As correct() warns about its handle points: one farther off the surface
+                 // than the region reaches was probably given in another frame or unit.
+                 for (std::size_t k = 0; k < xyz.size(); ++k)
+                   if (const double off = (position(p->mesh, found[k]) - xyz[k]).norm(); radius > 0 && off > radius)
+                     warn(
+                         fmt::format("points[{}] ({:g}, {:g}, {:g}) lies {:.3g} from the surface, farther than the "
+                                     "region's radius {:g}: its handle is the nearest surface point; is it in the "
+                                     "mesh's frame and unit?",
+                                     k, xyz[k].x(), xyz[k].y(), xyz[k].z(), off, radius));
+                 return found;
+               });
              }
              if (h.empty() && at.empty()) throw InputError("give handles: vertices, points, or both");
              DragSessionParams q{.radius = radius,

@@ -161,6 +161,9 @@ def test_drag_session_takes_sized_and_point_handles_as_correct_does():
         meshpde.DragSession(V, F, [0], radius=R, points=[point], boundary="clamp")
     with pytest.raises(meshpde.InputError, match="handles"):
         meshpde.DragSession(V, F, radius=R)
+    # A point farther off the surface than the region reaches is warned about (as correct() does).
+    with pytest.warns(UserWarning, match=r"points\[0\] .* farther than the region's radius 4"):
+        meshpde.DragSession(V, F, points=[3 * point], radius=R)
 
 
 def test_global_solver_equals_a_direct_solve():
