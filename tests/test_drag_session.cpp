@@ -366,6 +366,22 @@ TEST(DragSession, TheSmoothBoundaryIsTheCorrectionsRuleWithVertexHandlesOfSizeZe
   const DragSession single(mesh, ops, {h0}, DragSessionParams{.radius = R});
   EXPECT_LE((one.displacement - session_field(mesh, single, moves.topRows(1))).cwiseAbs().maxCoeff(), 1e-12);
   EXPECT_EQ(one.solver, SteadySolver::Direct);
+  // A held handle's force is the plate's row at it applied to the whole field (computed
+  // here on drag_vertex's whole-mesh displacement; the session reads only its region).
+  const DragResult held = drag_vertex(
+      mesh, ops, DragParams{.vertex = h0, .displacement = moves.row(0).transpose(), .radius = R, .handle_radius = 0});
+  Eigen::Vector3d row;
+  for (int axis = 0; axis < 3; ++axis)
+    row[axis] = bilaplacian_row(mesh, ops, h0, [&](int j) { return held.displacement(j, axis); });
+  EXPECT_GT(row.norm(), 0);
+  EXPECT_LE((held.reaction - row).norm(), 1e-12 * row.norm());
+  // The same for both held handles of the two-handle session, on its own field.
+  const Eigen::MatrixXd forces = s.forces(moves);
+  for (std::size_t k = 0; k < handles.size(); ++k)
+    for (int axis = 0; axis < 3; ++axis) {
+      const double expected = bilaplacian_row(mesh, ops, handles[k], [&](int j) { return d(j, axis); });
+      EXPECT_NEAR(forces(static_cast<Eigen::Index>(k), axis), expected, 1e-12 * forces.norm()) << k << " " << axis;
+    }
   EXPECT_THROW(
       drag_vertex(mesh, ops,
                   DragParams{.vertex = h0, .displacement = {0, 0, 1}, .radius = R, .solver = SteadySolver::Global}),

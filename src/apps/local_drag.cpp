@@ -579,8 +579,16 @@ Positions DragSession::positions(const Eigen::MatrixXd& d) const {
 }
 
 Eigen::MatrixXd DragSession::forces(const Eigen::MatrixXd& d) const {
-  const Positions moved = positions(d);  // checks d's shape
+  const Eigen::MatrixXd x = displacements(d);  // checks d's shape
   const Eigen::MatrixXd lambda = multipliers_ * d;
+  // The field near a held handle (its row reaches two rings): a region row, a vertex
+  // handle's own displacement, else zero.
+  auto field = [&](int j, int c) {
+    if (const int k = region_index(j); k >= 0) return x(k, c);
+    for (std::size_t h = 0; h < handles_.size(); ++h)
+      if (handles_[h] == j && !at_point_[h]) return d(static_cast<Eigen::Index>(h), c);
+    return 0.0;
+  };
   Eigen::MatrixXd out = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(handles_.size()), 3);
   Eigen::Index next = 0;
   for (std::size_t k = 0; k < handles_.size(); ++k) {
@@ -590,7 +598,7 @@ Eigen::MatrixXd DragSession::forces(const Eigen::MatrixXd& d) const {
     }
     // A held vertex: the row of Kt at it applied to the field (it has no foundation).
     for (int c = 0; c < 3; ++c) {
-      auto u = [&](int j) { return moved(j, c) - mesh_.positions()(j, c); };
+      auto u = [&](int j) { return field(j, c); };
       out(static_cast<Eigen::Index>(k), c) = params_.g1 * stiffness_row(mesh_, ops_, handles_[k], u) +
                                              params_.g2 * bilaplacian_row(mesh_, ops_, handles_[k], u);
     }
