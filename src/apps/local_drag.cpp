@@ -170,12 +170,7 @@ DragSession::Region DragSession::region_of(const Mesh& mesh, const FemOperators&
   Region r;
   r.at_point.assign(handles.size(), false);
   r.at_point.resize(handles.size() + points.size(), true);
-  // A point's vertex: its triangle's nearest corner.
-  for (const SurfacePoint& q : points) {
-    int corner = 0;
-    q.bary.maxCoeff(&corner);
-    handles.push_back(mesh.triangles()(q.face, corner));
-  }
+  for (const SurfacePoint& q : points) handles.push_back(nearest_corner(mesh, q));
   r.loads.resize(handles.size());
   if (p.radius <= 0 || p.boundary == RegionBoundary::Clamp) {
     if (!points.empty() || p.handle_radius > 0)
@@ -267,8 +262,8 @@ DragSession::DragSession(const Mesh& mesh, const FemOperators& ops, std::vector<
     if (h < 0 || h >= nv)
       throw InputError(fmt::format("handle vertex {} does not exist (the mesh has {} vertices)", h, nv));
     if (ops.mass[h] <= 0) throw InputError(fmt::format("handle vertex {} has no incident area", h));
-    if (!at_point_[k] && std::count(handles_.begin(), handles_.end() - std::ranges::count(at_point_, true), h) > 1)
-      throw InputError(fmt::format("handle vertex {} is listed twice", h));
+    for (std::size_t j = 0; j < k && !at_point_[k]; ++j)
+      if (!at_point_[j] && handles_[j] == h) throw InputError(fmt::format("handle vertex {} is listed twice", h));
   }
   // Held: the vertex handles without a load (outside the free rows, entering through
   // their coupling); a loaded handle's vertices are free rows.
@@ -429,8 +424,7 @@ void DragSession::compute_basis() {
   // Held handles couple through the right-hand side; constrained ones (loaded, or
   // vertices among the free rows) through their loads. All columns come from one
   // multi-column solve (one pass over L).
-  std::vector<std::size_t> held, loaded;
-  for (std::size_t k = 0; k < handles_.size(); ++k) (constrained(k) ? loaded : held).push_back(k);
+  const auto [held, loaded] = held_and_constrained();
   const auto nh = static_cast<Eigen::Index>(held.size());
   Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(factor_->active, nh + static_cast<Eigen::Index>(loaded.size()));
   for (Eigen::Index j = 0; j < nh; ++j) rhs.col(j) = coupling(handles_[held[static_cast<std::size_t>(j)]]);
@@ -450,6 +444,12 @@ void DragSession::compute_basis() {
   finish_basis();
 }
 
+std::pair<std::vector<std::size_t>, std::vector<std::size_t>> DragSession::held_and_constrained() const {
+  std::pair<std::vector<std::size_t>, std::vector<std::size_t>> out;
+  for (std::size_t k = 0; k < handles_.size(); ++k) (constrained(k) ? out.second : out.first).push_back(k);
+  return out;
+}
+
 std::vector<std::vector<std::pair<int, double>>> DragSession::readings() const {
   std::vector<std::vector<std::pair<int, double>>> out;
   for (std::size_t k = 0; k < handles_.size(); ++k)
@@ -462,8 +462,7 @@ void DragSession::finish_basis() {
   // d_F = H d_held + G lambda, with lambda from the constrained handles' readings:
   // C^T d = d_c, so S lambda = d_c - T d_held with S = C^T G and T the readings of the
   // held columns (a reading vertex that is a held handle reads that handle's value).
-  std::vector<std::size_t> held, loaded;
-  for (std::size_t k = 0; k < handles_.size(); ++k) (constrained(k) ? loaded : held).push_back(k);
+  const auto [held, loaded] = held_and_constrained();
   const auto nh = static_cast<Eigen::Index>(held.size()), nc = static_cast<Eigen::Index>(loaded.size());
   const auto all = readings();
   Eigen::MatrixXd S = Eigen::MatrixXd::Zero(nc, nc), T = Eigen::MatrixXd::Zero(nc, nh);

@@ -72,6 +72,12 @@ Eigen::Vector3d position(const Mesh& mesh, const SurfacePoint& point) {
   return x;
 }
 
+int nearest_corner(const Mesh& mesh, const SurfacePoint& point) {
+  int k = 0;
+  point.bary.maxCoeff(&k);
+  return mesh.triangles()(point.face, k);
+}
+
 std::vector<SurfacePoint> closest_surface_points(const Mesh& mesh, std::span<const Eigen::Vector3d> points) {
   if (points.empty()) return {};  // no tree to build (a command with vertex handles only)
   if (mesh.num_faces() == 0) throw InputError("the mesh has no triangles to place a surface point on");

@@ -219,6 +219,9 @@ class DragSession {
   void finish_basis();
   // Whether handle k is a constraint on the free rows (loaded, or a vertex among them).
   bool constrained(std::size_t k) const { return !loads_[k].load.empty() || handle_in_region_[k]; }
+  // The handles' indices split: held (coupled through the right-hand side), then
+  // constrained (the columns of green_, in this order).
+  std::pair<std::vector<std::size_t>, std::vector<std::size_t>> held_and_constrained() const;
   // Vertices of `set` next to a vertex outside it that is neither a handle nor without area.
   std::vector<int> outer_ring(const std::vector<int>& set) const;
   // Up to `rings` rings of neighbours around `from`, leaving out `from` itself, handles

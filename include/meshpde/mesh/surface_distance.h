@@ -34,6 +34,10 @@ void check_surface_point(const Mesh& mesh, const SurfacePoint& point, const std:
 /// The point's position: the barycentric combination of its triangle's corners.
 Eigen::Vector3d position(const Mesh& mesh, const SurfacePoint& point);
 
+/// The corner of the point's triangle with the largest weight (the vertex a handle at
+/// the point falls back to where a vertex is needed).
+int nearest_corner(const Mesh& mesh, const SurfacePoint& point);
+
 /// Barycentric coordinates (weights of a, b, c) of the point of the closed triangle
 /// (a, b, c) nearest to p.
 Eigen::Vector3d closest_point_on_triangle(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b,

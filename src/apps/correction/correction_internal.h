@@ -53,8 +53,6 @@ void validate(const Mesh& mesh, const CorrectionParams& p);
 /// The request as the solves read it: an elasticity field's largest value in the
 /// scalar's place, and each point handle's vertex set to its nearest corner.
 CorrectionParams normalized(const CorrectionParams& p, const Mesh& mesh);
-/// The corner of a surface point's triangle with the largest weight.
-int nearest_corner(const Mesh& mesh, const SurfacePoint& p);
 
 // ---- Tissue (tissue.cpp) ---------------------------------------------------------
 

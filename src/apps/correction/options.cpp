@@ -76,7 +76,7 @@ CorrectionHandle::CorrectionHandle(const Mesh& mesh, const SurfacePoint& p, cons
     : displacement(d), point(p) {
   // The triangle here (vertex needs it); the coordinates with the correction (validate).
   check_surface_point(mesh, SurfacePoint{p.face}, "handle point");
-  vertex = correction::nearest_corner(mesh, p);
+  vertex = nearest_corner(mesh, p);
 }
 
 std::vector<CorrectionHandle> parse_handles(const Mesh& mesh, const std::vector<int>& vertices,
@@ -122,13 +122,3 @@ std::vector<CorrectionHandle> parse_point_handles(const Mesh& mesh, const std::v
 }
 
 }  // namespace meshpde
-
-namespace meshpde::correction {
-
-int nearest_corner(const Mesh& mesh, const SurfacePoint& p) {
-  int k = 0;
-  p.bary.maxCoeff(&k);
-  return mesh.triangles()(p.face, k);
-}
-
-}  // namespace meshpde::correction
